@@ -1,0 +1,66 @@
+"""Motion data (Lee et al. §3): skeletons, clips, ASF/AMC and BVH, kinematics, contacts.
+
+Quaternions are ``(w, x, y, z)``; Y is up; lengths are metres. See ``_quat`` for the
+glossary and ``_types`` for the joint conventions.
+"""
+
+from ._asf import AsfSkeleton, read_amc, read_asf
+from ._bvh import UNITS, read_bvh, write_bvh
+from ._contacts import FEET, Contacts, contact_events, detect_contacts, foot_points
+from ._errors import MotionFormatError
+from ._fk import Pose, forward_kinematics, rest_positions
+from ._library import (
+    Clip,
+    Library,
+    default_cache_dir,
+    default_library_path,
+    load_library,
+    read_labels,
+)
+from ._names import ROLE_ALIASES, find_role, mirror_map, role_point
+from ._ops import cut, mirror, resample, resample_positions
+from ._quat import euler_to_q, q_to_euler, q_to_R, qconj, qlog, qmul, qnormalize, qrot, slerp
+from ._types import Motion, Skeleton
+
+__all__ = [
+    "FEET",
+    "ROLE_ALIASES",
+    "UNITS",
+    "AsfSkeleton",
+    "Clip",
+    "Contacts",
+    "Library",
+    "Motion",
+    "MotionFormatError",
+    "Pose",
+    "Skeleton",
+    "contact_events",
+    "cut",
+    "default_cache_dir",
+    "default_library_path",
+    "detect_contacts",
+    "euler_to_q",
+    "find_role",
+    "foot_points",
+    "forward_kinematics",
+    "load_library",
+    "mirror",
+    "mirror_map",
+    "q_to_R",
+    "q_to_euler",
+    "qconj",
+    "qlog",
+    "qmul",
+    "qnormalize",
+    "qrot",
+    "read_amc",
+    "read_asf",
+    "read_bvh",
+    "read_labels",
+    "resample",
+    "resample_positions",
+    "rest_positions",
+    "role_point",
+    "slerp",
+    "write_bvh",
+]

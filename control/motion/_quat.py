@@ -1,0 +1,168 @@
+"""Rotation kernels on unit quaternions, vectorised over any leading shape.
+
+Glossary (used throughout ``control``):
+
+- ``f`` frame, ``j`` joint, ``e`` end site.
+- ``q`` a unit quaternion stored as ``(w, x, y, z)``, scalar first, in the last axis
+  of an array of shape ``(..., 4)``. ``q`` and ``-q`` are the same rotation.
+- ``R`` a 3x3 rotation matrix acting on column vectors: ``v' = R @ v``.
+- Products compose like matrices: ``qmul(a, b)`` is the rotation ``R_a @ R_b`` (``b``
+  is applied first).
+- Angles are radians unless a name says ``deg``.
+
+Euler-angle conversions go through :class:`scipy.spatial.transform.Rotation`, whose
+sequence strings say the convention: upper-case ``"ZXY"`` is intrinsic
+(``R = R_z @ R_x @ R_y``, the BVH convention), lower-case ``"xyz"`` is extrinsic
+(``R = R_z @ R_y @ R_x``, the Acclaim ASF/AMC convention).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+FloatArray = NDArray[np.float64]
+
+__all__ = [
+    "euler_to_q",
+    "q_to_R",
+    "q_to_euler",
+    "qconj",
+    "qlog",
+    "qmul",
+    "qnormalize",
+    "qrot",
+    "slerp",
+]
+
+
+def qmul(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Hamilton product ``a * b`` of quaternions ``(..., 4)`` (broadcasting)."""
+    aw, ax, ay, az = np.moveaxis(np.asarray(a, dtype=np.float64), -1, 0)
+    bw, bx, by, bz = np.moveaxis(np.asarray(b, dtype=np.float64), -1, 0)
+    return np.stack(
+        (
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ),
+        axis=-1,
+    )
+
+
+def qconj(q: FloatArray) -> FloatArray:
+    """Conjugate (the inverse of a unit quaternion), ``(..., 4) -> (..., 4)``."""
+    out = np.array(q, dtype=np.float64, copy=True)
+    out[..., 1:] *= -1.0
+    return out
+
+
+def qnormalize(q: FloatArray) -> FloatArray:
+    """Scale ``(..., 4)`` quaternions to unit length."""
+    q = np.asarray(q, dtype=np.float64)
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def qrot(q: FloatArray, v: FloatArray) -> FloatArray:
+    """Rotate vectors ``v (..., 3)`` by unit quaternions ``q (..., 4)`` (broadcasting)."""
+    q = np.asarray(q, dtype=np.float64)
+    v = np.asarray(v, dtype=np.float64)
+    w = q[..., :1]
+    u = q[..., 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def q_to_R(q: FloatArray) -> FloatArray:
+    """Rotation matrices ``(..., 3, 3)`` of unit quaternions ``(..., 4)``."""
+    w, x, y, z = np.moveaxis(np.asarray(q, dtype=np.float64), -1, 0)
+    return np.stack(
+        (
+            np.stack((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)), -1),
+            np.stack((2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)), -1),
+            np.stack((2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)), -1),
+        ),
+        axis=-2,
+    )
+
+
+def qlog(q: FloatArray) -> FloatArray:
+    """Rotation vectors ``(..., 3)`` (axis times angle, angle in ``[0, pi]``) of ``(..., 4)``.
+
+    Sign-invariant: ``qlog(q) == qlog(-q)``.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    q = np.where(q[..., :1] < 0.0, -q, q)
+    v = q[..., 1:]
+    s = np.linalg.norm(v, axis=-1)
+    angle = 2.0 * np.arctan2(s, q[..., 0])
+    scale = np.where(s > 1e-12, angle / np.maximum(s, 1e-300), 2.0)
+    return v * scale[..., None]
+
+
+def slerp(a: FloatArray, b: FloatArray, t: FloatArray) -> FloatArray:
+    """Spherical linear interpolation along the shorter arc.
+
+    Parameters
+    ----------
+    a, b : (..., 4) unit quaternions
+    t : (...) or scalar in [0, 1]; ``t == 0`` gives ``a``, ``t == 1`` gives ``b`` (up to sign).
+
+    Returns
+    -------
+    (..., 4) unit quaternions.
+    """
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64)[..., None]
+    dot = np.sum(a * b, axis=-1, keepdims=True)
+    b = np.where(dot < 0.0, -b, b)
+    dot = np.clip(np.abs(dot), 0.0, 1.0)
+    theta = np.arccos(dot)
+    sin_theta = np.sin(theta)
+    near = sin_theta < 1e-9
+    safe = np.where(near, 1.0, sin_theta)
+    wa = np.where(near, 1.0 - t, np.sin((1.0 - t) * theta) / safe)
+    wb = np.where(near, t, np.sin(t * theta) / safe)
+    return qnormalize(wa * a + wb * b)
+
+
+def _xyzw_to_wxyz(q: FloatArray) -> FloatArray:
+    return np.concatenate((q[..., 3:], q[..., :3]), axis=-1)
+
+
+def _wxyz_to_xyzw(q: FloatArray) -> FloatArray:
+    return np.concatenate((q[..., 1:], q[..., :1]), axis=-1)
+
+
+def euler_to_q(angles: FloatArray, seq: str) -> FloatArray:
+    """Quaternions ``(..., 4)`` of Euler angles ``(..., len(seq))`` in radians.
+
+    ``seq`` follows scipy: upper case intrinsic, lower case extrinsic, 1 to 3 axes.
+    """
+    angles = np.asarray(angles, dtype=np.float64)
+    lead = angles.shape[:-1]
+    flat = angles.reshape(-1, len(seq))
+    q = Rotation.from_euler(seq, flat).as_quat()
+    q = _xyzw_to_wxyz(np.asarray(q).reshape(-1, 4))
+    return q.reshape(*lead, 4)
+
+
+def q_to_euler(q: FloatArray, seq: str) -> FloatArray:
+    """Euler angles ``(..., 3)`` in radians of unit quaternions ``(..., 4)``.
+
+    ``seq`` is a 3-axis scipy sequence (upper case intrinsic). Near gimbal lock scipy
+    picks one of the equivalent solutions; the rotation is always reproduced.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    lead = q.shape[:-1]
+    flat = _wxyz_to_xyzw(q.reshape(-1, 4))
+    with warnings.catch_warnings():
+        # Gimbal lock is expected for some frames; the rotation is still exact.
+        warnings.simplefilter("ignore", UserWarning)
+        e = Rotation.from_quat(flat).as_euler(seq)
+    return np.asarray(e).reshape(*lead, 3)

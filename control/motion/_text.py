@@ -1,0 +1,84 @@
+"""Shared text helpers for the motion readers: decoding, number parsing, atomic writes."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import IO
+
+import numpy as np
+
+from ._errors import MotionFormatError
+from ._quat import FloatArray
+
+__all__ = ["atomic_write", "decode", "parse_floats", "parse_floats_fast", "read_bytes"]
+
+
+def read_bytes(path: str | Path) -> bytes:
+    """The whole file; a missing or unreadable file is a ``MotionFormatError``."""
+    try:
+        data = Path(path).read_bytes()
+    except OSError as exc:
+        raise MotionFormatError(path, f"cannot read: {exc.strerror or exc}") from None
+    if not data.strip():
+        raise MotionFormatError(path, "the file is empty")
+    return data
+
+
+def decode(path: str | Path, data: bytes) -> str:
+    """UTF-8 text of ``data``; invalid bytes are an error naming line and byte."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        bad = data[exc.start : exc.start + 1].hex()
+        raise MotionFormatError(path, f"not UTF-8 text (byte 0x{bad})", line) from None
+
+
+def parse_floats(path: str | Path, tokens: list[str], line: int, what: str) -> list[float]:
+    """Parse ``tokens`` as finite floats, or raise naming ``what`` and the line."""
+    out = []
+    for tok in tokens:
+        try:
+            value = float(tok)
+        except ValueError:
+            raise MotionFormatError(path, f"{what}: {tok!r} is not a number", line) from None
+        if value != value or value in (float("inf"), float("-inf")):
+            raise MotionFormatError(path, f"{what}: {tok!r} is not a finite number", line)
+        out.append(value)
+    return out
+
+
+def parse_floats_fast(text: str) -> FloatArray | None:
+    """All whitespace-separated numbers of ``text`` as one array, or ``None`` when any
+    token is not a number (the caller then falls back to a line-by-line parse that can
+    say where)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecationWarning)
+        try:
+            values = np.fromstring(text, sep=" ")
+        except (DeprecationWarning, ValueError):
+            return None
+    return values
+
+
+@contextmanager
+def atomic_write(path: str | Path, mode: str = "w") -> Iterator[IO]:  # type: ignore[type-arg]
+    """Open a temporary file beside ``path``; on success it replaces ``path`` in one step,
+    on failure it is removed and ``path`` is untouched."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, mode, **({} if "b" in mode else {"newline": "\n"})) as fh:
+            yield fh
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

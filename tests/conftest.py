@@ -1,0 +1,47 @@
+"""Shared fixtures: the real CMU library beside the checkout, a seeded rng, a private cache."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _mocap_root() -> Path:
+    env = os.environ.get("MIMIC_MOCAP")
+    return Path(env) if env else REPO.parent / "shared" / "mocap"
+
+
+MOCAP = _mocap_root()
+SUBJECTS = MOCAP / "cmu" / "subjects"
+BVH_DIR = MOCAP / "cmu-bvh"
+
+
+@pytest.fixture(scope="session")
+def mocap() -> Path:
+    if not (MOCAP / "cmu" / "subjects").is_dir():
+        pytest.fail(f"the CMU motion data is missing at {MOCAP}; tests read it from ../shared/mocap")
+    return MOCAP
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(20021122)
+
+
+@pytest.fixture(autouse=True)
+def _private_cache(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Tests never read or write the user's cache.
+    monkeypatch.setenv("MIMIC_CACHE", str(tmp_path_factory.mktemp("cache")))
+
+
+def amc_path(clip: str) -> Path:
+    return SUBJECTS / clip[:2] / f"{clip}.amc"
+
+
+def asf_path(clip: str) -> Path:
+    return SUBJECTS / clip[:2] / f"{clip[:2]}.asf"
