@@ -25,7 +25,7 @@ import numpy as np
 
 from ._errors import MotionFormatError
 from ._quat import FloatArray, euler_to_q, qconj, qmul
-from ._text import decode, parse_floats, parse_floats_fast, read_bytes
+from ._text import decode, is_int, parse_floats, parse_floats_fast, read_bytes
 from ._types import Motion, Skeleton
 
 __all__ = ["AsfSkeleton", "read_amc", "read_asf"]
@@ -388,7 +388,7 @@ def _amc_fast(body: str, asf: AsfSkeleton, moving: list[int]) -> FloatArray | No
         return None
     flat = parse_floats_fast("".join(parts[0::2]))
     width = 1 + sum(widths)
-    if flat is None or flat.size != n_frames * width or not np.all(np.isfinite(flat)):
+    if flat is None or flat.size != n_frames * width:
         return None
     table = flat.reshape(n_frames, width)
     numbers = table[:, 0]
@@ -432,7 +432,7 @@ def _amc_slow(
         if not line or line.startswith("#"):
             continue
         tokens = line.split()
-        if len(tokens) == 1 and tokens[0].lstrip("+-").isdigit():
+        if len(tokens) == 1 and is_int(tokens[0]):
             number = int(tokens[0])
             if frame_no is not None:
                 close_frame(n)

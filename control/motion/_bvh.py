@@ -15,7 +15,7 @@ import numpy as np
 from ._errors import MotionFormatError
 from ._fk import rest_positions
 from ._quat import FloatArray, euler_to_q, q_to_euler
-from ._text import atomic_write, decode, parse_floats, parse_floats_fast, read_bytes
+from ._text import atomic_write, decode, is_int, parse_floats, parse_floats_fast, read_bytes
 from ._types import Motion, Skeleton
 
 __all__ = ["UNITS", "read_bvh", "write_bvh"]
@@ -113,7 +113,7 @@ def _parse_hierarchy(path: str | Path, tk: _Tokens) -> tuple[Skeleton, list[int]
             offsets.append(tk.floats(3, f"OFFSET of {name!r}"))
             tk.expect("CHANNELS")
             count_tok, cn = tk.next("channel count")
-            if not count_tok.isdigit() or int(count_tok) > 6:
+            if not is_int(count_tok) or not 0 <= int(count_tok) <= 6:
                 raise MotionFormatError(path, f"bad channel count {count_tok!r}", cn)
             chans = []
             for _ in range(int(count_tok)):
@@ -197,7 +197,7 @@ def read_bvh(path: str | Path, units: str | float = "auto", name: str | None = N
             path, f"'Frames: {n_frames}' but {len(data_lines)} lines of frame data follow", k + 1
         )
     values = parse_floats_fast("\n".join(data_lines))
-    if values is None or values.size != n_frames * n_chan or not np.all(np.isfinite(values)):
+    if values is None or values.size != n_frames * n_chan:
         values = _frames_slow(path, data_lines, k + 1, n_chan)
     values = values.reshape(n_frames, n_chan)
     if n_frames == 0:
@@ -222,12 +222,12 @@ def _motion_header(path: str | Path, lines: list[str], k: int) -> tuple[int, flo
         return rest.strip(), k
 
     frames_txt, n1 = field("Frames")
-    if not frames_txt.isdigit():
+    if not is_int(frames_txt) or int(frames_txt) < 0:
         raise MotionFormatError(path, f"frame count {frames_txt!r} is not a whole number", n1)
     time_txt, n2 = field("Frame Time")
     (frame_time,) = parse_floats(path, [time_txt] if time_txt else ["?"], n2, "Frame Time")
-    if frame_time <= 0:
-        raise MotionFormatError(path, "Frame Time must be positive", n2)
+    if not 1e-5 <= frame_time <= 1e3:
+        raise MotionFormatError(path, f"Frame Time {frame_time} is not a plausible frame period", n2)
     return int(frames_txt), frame_time, k
 
 

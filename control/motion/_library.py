@@ -22,6 +22,7 @@ import json
 import logging
 import os
 import re
+import zipfile
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -286,12 +287,13 @@ def _save(path: Path, m: Motion) -> None:
 
 def _load(path: Path) -> Motion | None:
     try:
-        with np.load(path, allow_pickle=False) as z:
+        # Opened here so that a corrupt file is closed too (np.load leaks it).
+        with path.open("rb") as fh, np.load(fh, allow_pickle=False) as z:
             meta = json.loads(str(z["meta"]))
             sk = Skeleton(tuple(meta["names"]), z["parents"], z["offsets"],
                           tuple(tuple(c) for c in meta["channels"]), z["end_parents"], z["end_offsets"])
             return Motion(sk, z["root_pos"], z["quats"], meta["fps"], meta["name"], meta["source"])
-    except (OSError, ValueError, KeyError, TypeError) as exc:
+    except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
         log.warning("ignoring unreadable cache entry %s: %s", path, exc)
         return None
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import tempfile
 import warnings
 from collections.abc import Iterator
@@ -15,7 +16,25 @@ import numpy as np
 from ._errors import MotionFormatError
 from ._quat import FloatArray
 
-__all__ = ["atomic_write", "decode", "parse_floats", "parse_floats_fast", "read_bytes"]
+__all__ = [
+    "MAX_ABS",
+    "atomic_write",
+    "decode",
+    "is_int",
+    "parse_floats",
+    "parse_floats_fast",
+    "read_bytes",
+]
+
+#: Larger magnitudes are not plausible lengths or angles; rejecting them keeps later
+#: arithmetic finite.
+MAX_ABS = 1e9
+_INT = re.compile(r"[+-]?[0-9]+")
+
+
+def is_int(token: str) -> bool:
+    """True for an ASCII whole number such as ``12`` or ``-3``."""
+    return _INT.fullmatch(token) is not None
 
 
 def read_bytes(path: str | Path) -> bytes:
@@ -49,20 +68,24 @@ def parse_floats(path: str | Path, tokens: list[str], line: int, what: str) -> l
             raise MotionFormatError(path, f"{what}: {tok!r} is not a number", line) from None
         if value != value or value in (float("inf"), float("-inf")):
             raise MotionFormatError(path, f"{what}: {tok!r} is not a finite number", line)
+        if abs(value) > MAX_ABS:
+            raise MotionFormatError(path, f"{what}: {tok!r} is out of range", line)
         out.append(value)
     return out
 
 
 def parse_floats_fast(text: str) -> FloatArray | None:
     """All whitespace-separated numbers of ``text`` as one array, or ``None`` when any
-    token is not a number (the caller then falls back to a line-by-line parse that can
-    say where)."""
+    token is not a number or not finite and at most ``MAX_ABS`` in magnitude (the caller
+    then falls back to a line-by-line parse that can say where)."""
     with warnings.catch_warnings():
         warnings.simplefilter("error", DeprecationWarning)
         try:
             values = np.fromstring(text, sep=" ")
         except (DeprecationWarning, ValueError):
             return None
+    if values.size and not np.max(np.abs(values)) <= MAX_ABS:
+        return None
     return values
 
 

@@ -1,0 +1,157 @@
+"""The library loader: discovery, metadata, labels, the cache; and `mimic library info`."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from control.motion import MotionFormatError, load_library, read_labels
+from control.motion import _library
+from tests.conftest import BVH_DIR, SUBJECTS
+from vision.cli import main
+
+
+@pytest.fixture
+def small_lib(tmp_path: Path, mocap: Path) -> Path:
+    """A private copy of a few small clips in both formats, with labels and a README."""
+    root = tmp_path / "lib"
+    (root / "asf").mkdir(parents=True)
+    for name in ("02.asf", "02_03.amc", "02_04.amc"):
+        shutil.copy(SUBJECTS / "02" / name, root / "asf" / name)
+    (root / "bvh").mkdir()
+    for name in ("02_03.bvh", "09_01.bvh"):
+        shutil.copy(BVH_DIR / name, root / "bvh" / name)
+    (root / "labels").mkdir()
+    (root / "labels" / "02_03.csv").write_text(
+        "first_frame,last_frame,action\n1,96,Jog\n97,180,Stop\n"  # runs past 173: clamped
+    )
+    (root / "README.md").write_text(
+        "| clip | frames | description |\n|---|---|---|\n| 02_03..02_04 | 1, 2 | jog or jump |\n"
+        "| 09_01 (BVH only) | | run |\n"
+    )
+    return root
+
+
+def test_loads_both_formats_prefers_amc(small_lib: Path, tmp_path: Path) -> None:
+    lib = load_library(small_lib, fps=15, cache_dir=tmp_path / "c", workers=1)
+    assert [c.name for c in lib.clips] == ["02_03", "02_04", "09_01"]
+    assert lib.clip("02_03").path.endswith(".amc")
+    assert lib.clip("09_01").motion.skeleton.n_joints == 43
+    assert lib.clip("02_04").description == "jog or jump"
+    assert lib.clip("09_01").description == "run"
+    assert all(c.motion.fps == 15 for c in lib.clips)
+    jog = lib.clip("02_03")
+    assert jog.label_names == ("Jog", "Stop")
+    # Source frame 95 (0-based) is the last Jog frame; frame 96 the first Stop frame.
+    k = int(np.searchsorted(jog.source_frames, 96))
+    assert jog.label_at(k - 1) == "Jog" and jog.label_at(k) == "Stop"
+    assert jog.label_at(jog.motion.n_frames - 1) == "Stop"
+    bvh = load_library(small_lib, fps=None, prefer="bvh", cache_dir=tmp_path / "c", workers=1)
+    assert bvh.clip("02_03").path.endswith(".bvh")
+    assert bvh.clip("02_03").motion.n_frames == 174
+
+
+def test_mirror_adds_copies(small_lib: Path, tmp_path: Path) -> None:
+    lib = load_library(small_lib, mirror=True, cache_dir=tmp_path / "c", workers=1)
+    names = [c.name for c in lib.clips]
+    assert names == ["02_03", "02_03_mirror", "02_04", "02_04_mirror", "09_01", "09_01_mirror"]
+    assert lib.clip("02_03_mirror").mirrored
+    assert lib.clip("02_03_mirror").label_names == ("Jog", "Stop")
+
+
+def test_cache_hit_skips_parsing_and_a_changed_file_is_reparsed(
+    small_lib: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    cache = tmp_path / "c"
+    first = load_library(small_lib, cache_dir=cache, workers=1)
+    assert len(list(cache.glob("*.npz"))) == 3
+
+    def no_parse(*args: object) -> None:
+        raise AssertionError("parsed although cached")
+
+    monkeypatch.setattr(_library, "_parse", no_parse)
+    warm = load_library(small_lib, cache_dir=cache, workers=1)
+    for a, b in zip(first.clips, warm.clips, strict=True):
+        np.testing.assert_array_equal(a.motion.quats, b.motion.quats)
+        assert a.motion.skeleton.same_as(b.motion.skeleton, atol=0)
+    monkeypatch.undo()
+    # Edit one value of one file: its entry is stale, the file is parsed again.
+    amc = small_lib / "asf" / "02_04.amc"
+    amc.write_bytes(amc.read_bytes().replace(b"\r\n1\r\nroot ", b"\r\n1\r\nroot 1", 1))
+    parsed: list[str] = []
+    real = _library._parse
+    monkeypatch.setattr(_library, "_parse", lambda src, u: parsed.append(src.name) or real(src, u))
+    changed = load_library(small_lib, cache_dir=cache, workers=1)
+    assert parsed == ["02_04"]
+    assert not np.allclose(changed.clip("02_04").motion.root_pos[0], first.clip("02_04").motion.root_pos[0])
+
+
+def test_corrupt_cache_entry_is_reparsed(
+    small_lib: Path, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    cache = tmp_path / "c"
+    load_library(small_lib, cache_dir=cache, workers=1)
+    for p in cache.glob("*.npz"):
+        p.write_bytes(p.read_bytes()[:100])
+    lib = load_library(small_lib, cache_dir=cache, workers=1)
+    assert len(lib.clips) == 3
+    assert caplog.text.count("ignoring unreadable cache entry") == 3
+    # ... and rewritten whole.
+    caplog.clear()
+    assert len(load_library(small_lib, cache_dir=cache, workers=1).clips) == 3
+    assert "ignoring" not in caplog.text
+
+
+def test_parallel_cold_load_matches_serial(small_lib: Path, tmp_path: Path) -> None:
+    a = load_library(small_lib, use_cache=False, workers=1)
+    b = load_library(small_lib, use_cache=False, workers=2)
+    for x, y in zip(a.clips, b.clips, strict=True):
+        np.testing.assert_array_equal(x.motion.quats, y.motion.quats)
+
+
+def test_bad_library_inputs(tmp_path: Path, small_lib: Path) -> None:
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(MotionFormatError, match="no .amc or .bvh clips"):
+        load_library(tmp_path / "empty")
+    (small_lib / "asf" / "02.asf").unlink()
+    with pytest.raises(MotionFormatError, match="no ASF skeleton"):
+        load_library(small_lib, use_cache=False)
+
+
+def test_label_file_errors(tmp_path: Path) -> None:
+    p = tmp_path / "l.csv"
+    for text, line, words in (
+        ("first,last,action\n", 1, "header"),
+        ("first_frame,last_frame,action\n1,x,Jog\n", 2, "whole numbers"),
+        ("first_frame,last_frame,action\n5,2,Jog\n", 2, "bad frame range"),
+        ("first_frame,last_frame,action\n1,10,Jog\n5,12,Squat\n", 3, "overlaps"),
+        ("first_frame,last_frame,action\n500,510,Jog\n", 2, "starts at frame 500"),
+    ):
+        p.write_text(text)
+        with pytest.raises(MotionFormatError, match=words) as info:
+            read_labels(p, 100)
+        assert info.value.line == line
+
+
+def test_real_labels_clamp_the_last_block(mocap: Path) -> None:
+    labels, names = read_labels(mocap / "cmu" / "labels" / "13_29.csv", 4592)
+    assert names[0] == "JumpJack" and "Squat" in names
+    assert labels[0] == 0 and labels[-1] == names.index("Squat")
+    assert np.all(labels >= 0)
+
+
+def test_cli_library_info(small_lib: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["library", "info", str(small_lib), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["clips"] == 3 and out["fps"] == 15
+    assert out["frames"] == sum(c["frames"] for c in out["per_clip"])
+    assert 0 < out["contact_fraction"]["left"] < 1
+    assert main(["library", "info", str(small_lib)]) == 0
+    text = capsys.readouterr().out
+    assert "02_03" in text and "3 clips" in text
+    assert main(["library", "info", str(small_lib / "nowhere")]) == 2
+    assert "is not a directory" in capsys.readouterr().err
