@@ -13,7 +13,7 @@ from .motion import Library, load_library
 __all__ = ["add_library_commands", "library_summary"]
 
 
-def add_library_commands(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def add_library_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     lib = sub.add_parser("library", help="inspect a motion library")
     lib_sub = lib.add_subparsers(dest="library_command", required=True)
     info = lib_sub.add_parser(
@@ -21,12 +21,20 @@ def add_library_commands(sub: argparse._SubParsersAction) -> None:  # type: igno
         help="clips, frames, duration, rate, joints and contact statistics",
         description="Load a motion library (ASF/AMC and/or BVH) and summarise it.",
     )
-    info.add_argument("dir", nargs="?", default=None,
-                      help="library folder (default: $MIMIC_MOCAP or ../shared/mocap)")
+    info.add_argument(
+        "dir",
+        nargs="?",
+        default=None,
+        help="library folder (default: $MIMIC_MOCAP or ../shared/mocap)",
+    )
     info.add_argument("--fps", type=float, default=15.0, help="resample to this rate (default 15)")
     info.add_argument("--mirror", action="store_true", help="add mirrored copies of every clip")
-    info.add_argument("--prefer", choices=("amc", "bvh"), default="amc",
-                      help="format to use for takes present in both (default amc)")
+    info.add_argument(
+        "--prefer",
+        choices=("amc", "bvh"),
+        default="amc",
+        help="format to use for takes present in both (default amc)",
+    )
     info.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
     info.add_argument("--json", action="store_true", help="print the summary as JSON")
     info.set_defaults(func=_info)
@@ -39,19 +47,21 @@ def library_summary(library: Library) -> dict[str, Any]:
         st = c.contacts.states
         events = c.contacts.events()
         minutes = max(c.motion.n_frames / c.motion.fps / 60.0, 1e-9)
-        clips.append({
-            "clip": c.name,
-            "frames": c.motion.n_frames,
-            "seconds": round(c.motion.n_frames / c.motion.fps, 2),
-            "fps": c.motion.fps,
-            "joints": c.motion.skeleton.n_joints,
-            "contact_left": round(float(st[:, 0].mean()), 3),
-            "contact_right": round(float(st[:, 1].mean()), 3),
-            "airborne": round(float((~st.any(axis=1)).mean()), 3),
-            "contact_changes_per_min": round(len(events) / minutes, 1),
-            "labels": list(c.label_names),
-            "description": c.description,
-        })
+        clips.append(
+            {
+                "clip": c.name,
+                "frames": c.motion.n_frames,
+                "seconds": round(c.motion.n_frames / c.motion.fps, 2),
+                "fps": c.motion.fps,
+                "joints": c.motion.skeleton.n_joints,
+                "contact_left": round(float(st[:, 0].mean()), 3),
+                "contact_right": round(float(st[:, 1].mean()), 3),
+                "airborne": round(float((~st.any(axis=1)).mean()), 3),
+                "contact_changes_per_min": round(len(events) / minutes, 1),
+                "labels": list(c.label_names),
+                "description": c.description,
+            }
+        )
     all_states = np.concatenate([c.contacts.states for c in library.clips])
     return {
         "root": library.root,
@@ -72,18 +82,23 @@ def library_summary(library: Library) -> dict[str, Any]:
 
 
 def _info(args: argparse.Namespace) -> int:
-    library = load_library(args.dir, fps=args.fps, mirror=args.mirror, prefer=args.prefer,
-                           use_cache=not args.no_cache)
+    library = load_library(
+        args.dir, fps=args.fps, mirror=args.mirror, prefer=args.prefer, use_cache=not args.no_cache
+    )
     summary = library_summary(library)
     if args.json:
         print(json.dumps(summary, indent=2))
         return 0
-    print(f"{'clip':<14}{'frames':>7}{'sec':>8}{'fps':>6}{'joints':>7}"
-          f"{'L cont':>7}{'R cont':>7}{'air':>6}{'chg/min':>8}  description")
+    print(
+        f"{'clip':<14}{'frames':>7}{'sec':>8}{'fps':>6}{'joints':>7}"
+        f"{'L cont':>7}{'R cont':>7}{'air':>6}{'chg/min':>8}  description"
+    )
     for row in summary["per_clip"]:
-        print(f"{row['clip']:<14}{row['frames']:>7}{row['seconds']:>8.1f}{row['fps']:>6g}"
-              f"{row['joints']:>7}{row['contact_left']:>7.2f}{row['contact_right']:>7.2f}"
-              f"{row['airborne']:>6.2f}{row['contact_changes_per_min']:>8.1f}  {row['description']}")
+        print(
+            f"{row['clip']:<14}{row['frames']:>7}{row['seconds']:>8.1f}{row['fps']:>6g}"
+            f"{row['joints']:>7}{row['contact_left']:>7.2f}{row['contact_right']:>7.2f}"
+            f"{row['airborne']:>6.2f}{row['contact_changes_per_min']:>8.1f}  {row['description']}"
+        )
     cf = summary["contact_fraction"]
     print(
         f"\nlibrary {summary['root']}: {summary['clips']} clips, {summary['frames']} frames, "

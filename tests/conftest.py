@@ -24,7 +24,9 @@ BVH_DIR = MOCAP / "cmu-bvh"
 @pytest.fixture(scope="session")
 def mocap() -> Path:
     if not (MOCAP / "cmu" / "subjects").is_dir():
-        pytest.fail(f"the CMU motion data is missing at {MOCAP}; tests read it from ../shared/mocap")
+        pytest.fail(
+            f"the CMU motion data is missing at {MOCAP}; tests read it from ../shared/mocap"
+        )
     return MOCAP
 
 
@@ -34,7 +36,9 @@ def rng() -> np.random.Generator:
 
 
 @pytest.fixture(autouse=True)
-def _private_cache(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> None:
+def _private_cache(
+    tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch
+) -> None:
     # Tests never read or write the user's cache.
     monkeypatch.setenv("MIMIC_CACHE", str(tmp_path_factory.mktemp("cache")))
 

@@ -76,7 +76,9 @@ class _Bone:
     dofs: tuple[str, ...] = ()
 
 
-def _axis_q(path: str | Path, angles: FloatArray, order: str, degrees: bool, line: int) -> FloatArray:
+def _axis_q(
+    path: str | Path, angles: FloatArray, order: str, degrees: bool, line: int
+) -> FloatArray:
     if sorted(order.upper()) != ["X", "Y", "Z"]:
         raise MotionFormatError(path, f"axis order {order!r} is not a permutation of XYZ", line)
     rad = np.deg2rad(angles) if degrees else angles
@@ -276,9 +278,9 @@ def _assemble(
     order: list[str] = []
     stack = ["root"]
     while stack:
-        bone = stack.pop()
-        order.append(bone)
-        stack.extend(reversed(children.get(bone, [])))
+        top = stack.pop()
+        order.append(top)
+        stack.extend(reversed(children.get(top, [])))
     unreached = [b for b in bones if b not in order]
     if unreached:
         raise MotionFormatError(path, f"bones not connected to the root: {', '.join(unreached)}")
@@ -424,7 +426,9 @@ def _amc_slow(
         missing = [b for b in expected if b not in seen]
         if missing:
             raise MotionFormatError(
-                path, f"frame {frame_no} (line {frame_line}) lacks bone(s) {', '.join(missing)}", at_line
+                path,
+                f"frame {frame_no} (line {frame_line}) lacks bone(s) {', '.join(missing)}",
+                at_line,
             )
 
     for n, raw in enumerate(body.splitlines(), start=header_lines + 1):

@@ -24,9 +24,7 @@ __all__ = ["UNITS", "read_bvh", "write_bvh"]
 UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "in": 0.0254, "ft": 0.3048}
 _TYPICAL_HEIGHT = 1.7  # metres, for ``units="auto"``
 _CHANNELS = {
-    f"{axis}{kind}".lower(): f"{axis}{kind}"
-    for axis in "XYZ"
-    for kind in ("position", "rotation")
+    f"{axis}{kind}".lower(): f"{axis}{kind}" for axis in "XYZ" for kind in ("position", "rotation")
 }
 
 
@@ -151,7 +149,9 @@ def _parse_hierarchy(path: str | Path, tk: _Tokens) -> tuple[Skeleton, list[int]
         else:
             raise MotionFormatError(path, f"unexpected {tok!r} in the hierarchy", n)
     if tk.k != len(tk.items):
-        raise MotionFormatError(path, f"unexpected {tk.items[tk.k][0]!r} after the root", tk.items[tk.k][1])
+        raise MotionFormatError(
+            path, f"unexpected {tk.items[tk.k][0]!r} after the root", tk.items[tk.k][1]
+        )
     # The writer and readers guarantee DFS order, which is parents-first.
     skeleton = Skeleton(
         names=tuple(names),
@@ -217,7 +217,9 @@ def _motion_header(path: str | Path, lines: list[str], k: int) -> tuple[int, flo
         line = lines[k]
         head, sep, rest = line.partition(":")
         if not sep or " ".join(head.split()).lower() != label.lower():
-            raise MotionFormatError(path, f"expected '{label}: ...', got {line.strip()[:40]!r}", k + 1)
+            raise MotionFormatError(
+                path, f"expected '{label}: ...', got {line.strip()[:40]!r}", k + 1
+            )
         k += 1
         return rest.strip(), k
 
@@ -227,7 +229,9 @@ def _motion_header(path: str | Path, lines: list[str], k: int) -> tuple[int, flo
     time_txt, n2 = field("Frame Time")
     (frame_time,) = parse_floats(path, [time_txt] if time_txt else ["?"], n2, "Frame Time")
     if not 1e-5 <= frame_time <= 1e3:
-        raise MotionFormatError(path, f"Frame Time {frame_time} is not a plausible frame period", n2)
+        raise MotionFormatError(
+            path, f"Frame Time {frame_time} is not a plausible frame period", n2
+        )
     return int(frames_txt), frame_time, k
 
 

@@ -139,7 +139,7 @@ def detect_contacts(
         rest = _rest_height(pts, slow, percentile, floor, cell)
         rests.append(float(np.median(rest)))
         states |= slow & (pts[..., 1] - rest < height_tolerance)
-    min_frames = int(round(min_duration * motion.fps)) + 1
+    min_frames = round(min_duration * motion.fps) + 1
     return Contacts(_clean(states, min_frames), rests[0], rests[1])
 
 

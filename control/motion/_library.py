@@ -203,7 +203,11 @@ def _descriptions(root: Path, names: set[str]) -> dict[str, str]:
         text = readme.read_text(encoding="utf-8", errors="replace")
         header: list[str] | None = None
         for line in text.splitlines():
-            cells = [c.strip() for c in line.strip().strip("|").split("|")] if line.lstrip().startswith("|") else None
+            cells = (
+                [c.strip() for c in line.strip().strip("|").split("|")]
+                if line.lstrip().startswith("|")
+                else None
+            )
             if cells is None:
                 header = None
                 continue
@@ -243,14 +247,18 @@ def read_labels(path: Path, n_frames: int) -> tuple[NDArray[np.int64], tuple[str
         try:
             first, last = int(row[0]), int(row[1])
         except ValueError:
-            raise MotionFormatError(path, f"frame numbers must be whole numbers: {row[:2]}", n) from None
+            raise MotionFormatError(
+                path, f"frame numbers must be whole numbers: {row[:2]}", n
+            ) from None
         action = row[2].strip()
         if not action:
             raise MotionFormatError(path, "empty action name", n)
         if first < 1 or last < first:
             raise MotionFormatError(path, f"bad frame range {first}..{last}", n)
         if first > n_frames:
-            raise MotionFormatError(path, f"range starts at frame {first}, the clip has {n_frames}", n)
+            raise MotionFormatError(
+                path, f"range starts at frame {first}, the clip has {n_frames}", n
+            )
         if action not in names:
             names.append(action)
         k = names.index(action)
@@ -277,12 +285,26 @@ def _cache_key(src: _Source, data: bytes, bvh_units: str | float) -> str:
 
 def _save(path: Path, m: Motion) -> None:
     sk = m.skeleton
-    meta = json.dumps({"names": sk.names, "channels": sk.channels, "fps": m.fps, "name": m.name,
-                       "source": m.source})
+    meta = json.dumps(
+        {
+            "names": sk.names,
+            "channels": sk.channels,
+            "fps": m.fps,
+            "name": m.name,
+            "source": m.source,
+        }
+    )
     with atomic_write(path, "wb") as fh:
-        np.savez(fh, meta=np.array(meta), parents=sk.parents, offsets=sk.offsets,
-                 end_parents=sk.end_parents, end_offsets=sk.end_offsets,
-                 root_pos=m.root_pos, quats=m.quats)
+        np.savez(
+            fh,
+            meta=np.array(meta),
+            parents=sk.parents,
+            offsets=sk.offsets,
+            end_parents=sk.end_parents,
+            end_offsets=sk.end_offsets,
+            root_pos=m.root_pos,
+            quats=m.quats,
+        )
 
 
 def _load(path: Path) -> Motion | None:
@@ -290,8 +312,14 @@ def _load(path: Path) -> Motion | None:
         # Opened here so that a corrupt file is closed too (np.load leaks it).
         with path.open("rb") as fh, np.load(fh, allow_pickle=False) as z:
             meta = json.loads(str(z["meta"]))
-            sk = Skeleton(tuple(meta["names"]), z["parents"], z["offsets"],
-                          tuple(tuple(c) for c in meta["channels"]), z["end_parents"], z["end_offsets"])
+            sk = Skeleton(
+                tuple(meta["names"]),
+                z["parents"],
+                z["offsets"],
+                tuple(tuple(c) for c in meta["channels"]),
+                z["end_parents"],
+                z["end_offsets"],
+            )
             return Motion(sk, z["root_pos"], z["quats"], meta["fps"], meta["name"], meta["source"])
     except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
         log.warning("ignoring unreadable cache entry %s: %s", path, exc)
@@ -396,8 +424,16 @@ def load_library(
             variants.append((mirror_motion(raw), True))
         for motion, mirrored in variants:
             clips.append(
-                _make_clip(motion, fps, descriptions.get(src.name, ""), labels, label_names,
-                           str(src.path), mirrored, contact_options or {})
+                _make_clip(
+                    motion,
+                    fps,
+                    descriptions.get(src.name, ""),
+                    labels,
+                    label_names,
+                    str(src.path),
+                    mirrored,
+                    contact_options or {},
+                )
             )
     return Library(str(root), float(fps) if fps else float("nan"), tuple(clips))
 
@@ -419,4 +455,6 @@ def _make_clip(
         motion = resample(motion, fps)
     contacts = detect_contacts(motion, forward_kinematics(motion), **contact_options)  # type: ignore[arg-type]
     frame_labels = labels[np.rint(source_frames).astype(np.int64)]
-    return Clip(motion, contacts, description, frame_labels, label_names, source_frames, path, mirrored)
+    return Clip(
+        motion, contacts, description, frame_labels, label_names, source_frames, path, mirrored
+    )

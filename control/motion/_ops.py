@@ -42,7 +42,11 @@ def resample(motion: Motion, fps: float = 15.0) -> Motion:
     i1 = np.minimum(i0 + 1, motion.n_frames - 1)
     w = pos - i0
     root = motion.root_pos[i0] * (1 - w)[:, None] + motion.root_pos[i1] * w[:, None]
-    quats = slerp(motion.quats[i0], motion.quats[i1], np.broadcast_to(w[:, None], i0.shape + (motion.skeleton.n_joints,)))
+    quats = slerp(
+        motion.quats[i0],
+        motion.quats[i1],
+        np.broadcast_to(w[:, None], (*i0.shape, motion.skeleton.n_joints)),
+    )
     return replace(motion, root_pos=root, quats=quats, fps=float(fps))
 
 
@@ -74,7 +78,9 @@ def mirror(motion: Motion, axis: int = 0) -> Motion:
         mine = np.flatnonzero(sk.end_parents == p)
         theirs = np.flatnonzero(sk.end_parents == partner[p])
         if mine.size != theirs.size:
-            raise ValueError(f"joints {sk.names[p]!r} and {sk.names[partner[p]]!r} have different end sites")
+            raise ValueError(
+                f"joints {sk.names[p]!r} and {sk.names[partner[p]]!r} have different end sites"
+            )
         end_offsets[e] = sk.end_offsets[theirs[np.searchsorted(mine, e)]] * flip
     skeleton = Skeleton(
         names=sk.names,

@@ -14,6 +14,7 @@ Conventions (see ``_quat`` for the quaternion glossary):
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,8 +25,8 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 
-def _frozen(a: NDArray[np.generic], dtype: type) -> NDArray[np.generic]:
-    out = np.array(a, dtype=dtype, copy=True)
+def _frozen(a: NDArray[Any], dtype: type) -> NDArray[Any]:
+    out: NDArray[Any] = np.array(a, dtype=dtype, copy=True)
     out.setflags(write=False)
     return out
 

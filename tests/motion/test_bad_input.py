@@ -67,7 +67,9 @@ def test_amc_wrong_dof_count(tmp_path: Path, asf02) -> None:  # type: ignore[no-
     assert lines[4].startswith(b"root ")
     lines[5] = b"lowerback 1.0 2.0"  # three dofs: rx ry rz
     p = _save(tmp_path, "dof.amc", lines)
-    _expect(lambda q: read_amc(q, asf02), p, 6, "bone 'lowerback' expects 3 values (rx ry rz), got 2")
+    _expect(
+        lambda q: read_amc(q, asf02), p, 6, "bone 'lowerback' expects 3 values (rx ry rz), got 2"
+    )
 
 
 def test_amc_nan(tmp_path: Path, asf02) -> None:  # type: ignore[no-untyped-def]
@@ -85,7 +87,11 @@ def test_amc_not_utf8(tmp_path: Path, asf02) -> None:  # type: ignore[no-untyped
 
 
 def test_empty_files(tmp_path: Path, asf02) -> None:  # type: ignore[no-untyped-def]
-    for name, fn in (("e.amc", lambda q: read_amc(q, asf02)), ("e.asf", read_asf), ("e.bvh", read_bvh)):
+    for name, fn in (
+        ("e.amc", lambda q: read_amc(q, asf02)),
+        ("e.asf", read_asf),
+        ("e.bvh", read_bvh),
+    ):
         p = tmp_path / name
         p.write_bytes(b"  \r\n")
         _expect(fn, p, None, "empty")
@@ -108,7 +114,10 @@ def test_asf_problems(tmp_path: Path) -> None:
     cases = [
         (TINY_ASF.replace("    dof rz\n", "    dof rq\n"), "bone dof 'rq'"),
         (TINY_ASF.replace("    a b\n", "    a c\n"), "unknown bone 'c'"),
-        (TINY_ASF.replace("length 10\n     axis 0 0 90", "length ten\n     axis 0 0 90"), "not a number"),
+        (
+            TINY_ASF.replace("length 10\n     axis 0 0 90", "length ten\n     axis 0 0 90"),
+            "not a number",
+        ),
         (TINY_ASF.replace("axis 0 0 90 XYZ", "axis 0 0 90 XXZ"), "not a permutation"),
         (TINY_ASF.split(":hierarchy")[0], "no :hierarchy section"),
     ]
@@ -126,13 +135,34 @@ def test_bvh_problems(tmp_path: Path) -> None:
     motion_at = lines.index("MOTION")
     cases = [
         ("\n".join(lines[:-3]), motion_at + 4, "'Frames: 174' but 171 lines"),
-        (good.replace("CHANNELS 3 Zrotation Xrotation Yrotation", "CHANNELS 3 Zrotation Xrotation Wrotation", 1),
-         9, "unknown channel 'Wrotation'"),
+        (
+            good.replace(
+                "CHANNELS 3 Zrotation Xrotation Yrotation",
+                "CHANNELS 3 Zrotation Xrotation Wrotation",
+                1,
+            ),
+            9,
+            "unknown channel 'Wrotation'",
+        ),
         (good.replace("{", "", 2), 4, "expected '{', got 'OFFSET'"),
-        ("\n".join([*lines[: motion_at + 3], lines[motion_at + 3] + " 1.0", *lines[motion_at + 4 :]]),
-         motion_at + 4, "frame 0 has"),
-        ("\n".join([*lines[: motion_at + 5], "NaN " + lines[motion_at + 5].split(" ", 1)[1], *lines[motion_at + 6 :]]),
-         motion_at + 6, "not a finite number"),
+        (
+            "\n".join(
+                [*lines[: motion_at + 3], lines[motion_at + 3] + " 1.0", *lines[motion_at + 4 :]]
+            ),
+            motion_at + 4,
+            "frame 0 has",
+        ),
+        (
+            "\n".join(
+                [
+                    *lines[: motion_at + 5],
+                    "NaN " + lines[motion_at + 5].split(" ", 1)[1],
+                    *lines[motion_at + 6 :],
+                ]
+            ),
+            motion_at + 6,
+            "not a finite number",
+        ),
         (good.replace("Frame Time:", "Frame Tme:"), motion_at + 3, "expected 'Frame Time"),
     ]
     for k, (text, line, words) in enumerate(cases):
@@ -143,8 +173,28 @@ def test_bvh_problems(tmp_path: Path) -> None:
 
 # --- fuzz ----------------------------------------------------------------------------------
 
-_TOKENS = [b"nan", b"inf", b"-1e999", b"1e300", b"", b"x", b"{", b"}", b"JOINT", b"End", b"-",
-           b"1.2.3", b"\xff", b"\x00", b"9999999999", b"\xc2\xb2", b":", b"#", b"root", b"begin"]
+_TOKENS = [
+    b"nan",
+    b"inf",
+    b"-1e999",
+    b"1e300",
+    b"",
+    b"x",
+    b"{",
+    b"}",
+    b"JOINT",
+    b"End",
+    b"-",
+    b"1.2.3",
+    b"\xff",
+    b"\x00",
+    b"9999999999",
+    b"\xc2\xb2",
+    b":",
+    b"#",
+    b"root",
+    b"begin",
+]
 
 
 def _mutate(data: bytes, rng: np.random.Generator) -> bytes:
@@ -174,7 +224,9 @@ def _mutate(data: bytes, rng: np.random.Generator) -> bytes:
     return b"\n".join(lines)
 
 
-def test_fuzz_real_files_raise_only_motion_format_error(tmp_path: Path, rng: np.random.Generator) -> None:
+def test_fuzz_real_files_raise_only_motion_format_error(
+    tmp_path: Path, rng: np.random.Generator
+) -> None:
     asf_bytes = asf_path("02_03").read_bytes()
     amc_bytes = _real("02_03")
     bvh_bytes = (BVH_DIR / "02_03.bvh").read_bytes()

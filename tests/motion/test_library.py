@@ -9,8 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from control.motion import MotionFormatError, load_library, read_labels
-from control.motion import _library
+from control.motion import MotionFormatError, _library, load_library, read_labels
 from tests.conftest import BVH_DIR, SUBJECTS
 from vision.cli import main
 
@@ -87,7 +86,9 @@ def test_cache_hit_skips_parsing_and_a_changed_file_is_reparsed(
     monkeypatch.setattr(_library, "_parse", lambda src, u: parsed.append(src.name) or real(src, u))
     changed = load_library(small_lib, cache_dir=cache, workers=1)
     assert parsed == ["02_04"]
-    assert not np.allclose(changed.clip("02_04").motion.root_pos[0], first.clip("02_04").motion.root_pos[0])
+    assert not np.allclose(
+        changed.clip("02_04").motion.root_pos[0], first.clip("02_04").motion.root_pos[0]
+    )
 
 
 def test_corrupt_cache_entry_is_reparsed(
@@ -115,7 +116,7 @@ def test_parallel_cold_load_matches_serial(small_lib: Path, tmp_path: Path) -> N
 
 def test_bad_library_inputs(tmp_path: Path, small_lib: Path) -> None:
     (tmp_path / "empty").mkdir()
-    with pytest.raises(MotionFormatError, match="no .amc or .bvh clips"):
+    with pytest.raises(MotionFormatError, match=r"no \.amc or \.bvh clips"):
         load_library(tmp_path / "empty")
     (small_lib / "asf" / "02.asf").unlink()
     with pytest.raises(MotionFormatError, match="no ASF skeleton"):

@@ -15,9 +15,9 @@ from control.motion import (
     forward_kinematics,
     mirror,
     mirror_map,
+    qconj,
     qlog,
     qmul,
-    qconj,
     read_amc,
     read_asf,
     read_bvh,
@@ -92,9 +92,7 @@ def test_cut(walk: Motion) -> None:
 
 def test_contact_events_by_hand() -> None:
     states = np.array([[1, 0], [1, 0], [0, 1], [0, 1], [1, 1]], dtype=bool)
-    np.testing.assert_array_equal(
-        contact_events(states), [[2, 0, -1], [2, 1, 1], [4, 0, 1]]
-    )
+    np.testing.assert_array_equal(contact_events(states), [[2, 0, -1], [2, 1, 1], [4, 0, 1]])
 
 
 @pytest.mark.parametrize("clip", ["02_01", "02_02", "03_03"])
@@ -128,8 +126,9 @@ def _stride_period(m: Motion) -> float:
 
 
 def test_standing_still_is_in_contact(walk: Motion) -> None:
-    still = Motion(walk.skeleton, np.repeat(walk.root_pos[:1], 60, 0),
-                   np.repeat(walk.quats[:1], 60, 0), 120.0)
+    still = Motion(
+        walk.skeleton, np.repeat(walk.root_pos[:1], 60, 0), np.repeat(walk.quats[:1], 60, 0), 120.0
+    )
     assert detect_contacts(still).states.all()
 
 

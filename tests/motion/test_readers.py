@@ -100,8 +100,17 @@ def test_every_bvh_loads(mocap: Path) -> None:
             assert m.n_frames == amc_frames + 1
 
 
-ROLES = ["left_hip", "right_hip", "left_knee", "right_knee", "left_ankle", "right_ankle",
-         "left_wrist", "right_wrist", "head"]
+ROLES = [
+    "left_hip",
+    "right_hip",
+    "left_knee",
+    "right_knee",
+    "left_ankle",
+    "right_ankle",
+    "left_wrist",
+    "right_wrist",
+    "head",
+]
 
 
 def _joint_tracks(m) -> np.ndarray:  # type: ignore[no-untyped-def]
@@ -129,7 +138,9 @@ def test_asf_amc_and_bvh_agree_on_the_same_takes(mocap: Path) -> None:
     report = []
     for c in TAKES:
         rms, scale, angle = _similarity_residual(tracks_amc[c], tracks_bvh[c])
-        report.append(f"{c}: residual {rms * 100:.1f} cm, scale {scale:.3f}, rotation {angle:.1f} deg")
+        report.append(
+            f"{c}: residual {rms * 100:.1f} cm, scale {scale:.3f}, rotation {angle:.1f} deg"
+        )
         # Same world frame (conventions agree) and the same person's size up to ~7%.
         assert angle < 3.0 and 0.95 < scale < 1.08, report[-1]
         assert rms < 0.09, report[-1]
@@ -173,8 +184,14 @@ def test_written_bvh_passes_the_independent_reader(tmp_path: Path, mocap: Path) 
     for motion, name in ((m, "a.bvh"), (mirror(m), "b.bvh")):
         write_bvh(motion, tmp_path / name)
         res = subprocess.run(
-            [sys.executable, str(REPO.parent / "shared" / "tools" / "check_bvh.py"), str(tmp_path / name)],
-            capture_output=True, text=True, check=False,
+            [
+                sys.executable,
+                str(REPO.parent / "shared" / "tools" / "check_bvh.py"),
+                str(tmp_path / name),
+            ],
+            capture_output=True,
+            text=True,
+            check=False,
         )
         assert res.returncode == 0, res.stderr
         assert f"frames={motion.n_frames} fps=30.0 joints=31" in res.stdout
