@@ -102,7 +102,7 @@ def _info(args: argparse.Namespace) -> int:
     cf = summary["contact_fraction"]
     print(
         f"\nlibrary {summary['root']}: {summary['clips']} clips, {summary['frames']} frames, "
-        f"{summary['seconds']:.1f} s at {summary['fps']:g} frames/s, skeletons with "
+        f"{summary['seconds']:.1f} s at {summary['fps'] or 'native'} frames/s, skeletons with "
         f"{', '.join(map(str, summary['skeletons']))} joints; feet in contact: left "
         f"{cf['left']:.0%}, right {cf['right']:.0%}, both {cf['both']:.0%}, neither "
         f"{cf['none']:.0%}; {summary['contact_changes']} contact changes"

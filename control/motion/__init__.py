@@ -4,7 +4,8 @@ Quaternions are ``(w, x, y, z)``; Y is up; lengths are metres. See ``_quat`` for
 glossary and ``_types`` for the joint conventions.
 """
 
-from ._asf import AsfSkeleton, read_amc, read_asf
+from ._amc import read_amc
+from ._asf import AsfSkeleton, read_asf
 from ._bvh import UNITS, read_bvh, write_bvh
 from ._contacts import FEET, Contacts, contact_events, detect_contacts, foot_points
 from ._errors import MotionFormatError

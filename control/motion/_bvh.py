@@ -189,7 +189,7 @@ def read_bvh(path: str | Path, units: str | float = "auto", name: str | None = N
     k = tk.end_line  # index of the line after MOTION
     n_frames, frame_time, k = _motion_header(path, lines, k)
     n_chan = sum(counts)
-    data_lines = [ln for ln in lines[k:]]
+    data_lines = lines[k:]
     while data_lines and not data_lines[-1].strip():
         data_lines.pop()
     if len(data_lines) != n_frames:
@@ -205,6 +205,15 @@ def read_bvh(path: str | Path, units: str | float = "auto", name: str | None = N
     if scale is None:
         scale = _auto_scale(skeleton)
     return _to_motion(path, skeleton, values, frame_time, scale, name or Path(path).stem)
+
+
+def _fps(frame_time: float) -> float:
+    """Frames per second; snapped to a whole rate that the printed period rounds from
+    (``Frame Time: 0.00833333`` is 120 frames/s)."""
+    whole = round(1.0 / frame_time)
+    if whole > 0 and abs(1.0 / whole - frame_time) <= 1e-5 * frame_time:
+        return float(whole)
+    return 1.0 / frame_time
 
 
 def _motion_header(path: str | Path, lines: list[str], k: int) -> tuple[int, float, int]:
@@ -278,7 +287,7 @@ def _to_motion(
         end_offsets=sk.end_offsets * scale,
     )
     quats /= np.linalg.norm(quats, axis=-1, keepdims=True)
-    return Motion(skeleton, root_pos * scale, quats, 1.0 / frame_time, name=name, source=str(path))
+    return Motion(skeleton, root_pos * scale, quats, _fps(frame_time), name=name, source=str(path))
 
 
 def _fmt(values: FloatArray) -> str:

@@ -31,7 +31,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ._asf import read_amc, read_asf
+from ._amc import read_amc
+from ._asf import read_asf
 from ._bvh import read_bvh
 from ._contacts import Contacts, detect_contacts
 from ._errors import MotionFormatError
@@ -95,10 +96,10 @@ class Clip:
 
 @dataclass(frozen=True, eq=False)
 class Library:
-    """The clips of a library, all at ``fps`` frames/s."""
+    """The clips of a library, all at ``fps`` frames/s (``None``: each at its own rate)."""
 
     root: str
-    fps: float
+    fps: float | None
     clips: tuple[Clip, ...]
 
     @property
@@ -435,7 +436,7 @@ def load_library(
                     contact_options or {},
                 )
             )
-    return Library(str(root), float(fps) if fps else float("nan"), tuple(clips))
+    return Library(str(root), None if fps is None else float(fps), tuple(clips))
 
 
 def _make_clip(

@@ -1,0 +1,214 @@
+"""Acclaim AMC motion reader, for a skeleton read by ``_asf.read_asf``.
+
+A fast vectorised parse handles regular files (every frame lists the same bones in the
+same order, one value per dof); anything irregular is re-read line by line, which either
+accepts it or says exactly where it is wrong.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ._asf import ROT_DOFS, TRANS_DOFS, AsfSkeleton
+from ._errors import MotionFormatError
+from ._quat import FloatArray, euler_to_q, qconj, qmul
+from ._text import decode, is_int, parse_floats, parse_floats_fast, read_bytes
+from ._types import Motion
+
+__all__ = ["read_amc"]
+
+_NAME_RE = re.compile(r"(?m)^[ \t]*([A-Za-z_][^ \t\r\n]*)")
+
+
+def read_amc(
+    path: str | Path, asf: AsfSkeleton, fps: float = 120.0, name: str | None = None
+) -> Motion:
+    """Read an AMC motion for the skeleton ``asf``.
+
+    Parameters
+    ----------
+    path : the ``.amc`` file (any line endings).
+    asf : its skeleton.
+    fps : frame rate; AMC files do not store one (CMU captures are 120 frames/s).
+    name : the clip name; the file's stem by default.
+
+    Frames must be numbered consecutively and give every bone that has dofs, with one
+    value per dof.
+
+    Raises
+    ------
+    MotionFormatError
+        naming the file and line for anything malformed or not matching ``asf``.
+    """
+    text = decode(path, read_bytes(path))
+    header_lines, body_start = _amc_header(text)
+    body = text[body_start:]
+    moving = [j for j, d in enumerate(asf.dofs) if d]
+    values = _amc_fast(body, asf, moving)
+    if values is None:
+        values = _amc_slow(path, body, header_lines, asf, moving)
+    if values.shape[0] == 0:
+        raise MotionFormatError(path, "no frames")
+    return _to_motion(path, values, asf, moving, fps, name or Path(path).stem)
+
+
+def _amc_header(text: str) -> tuple[int, int]:
+    """Number of header lines (comments, ``:FULLY-SPECIFIED``...) and where the body starts."""
+    pos = 0
+    n = 0
+    while pos < len(text):
+        end = text.find("\n", pos)
+        end = len(text) if end < 0 else end + 1
+        s = text[pos:end].strip()
+        if s and not s.startswith(("#", ":")):
+            break
+        pos = end
+        n += 1
+    return n, pos
+
+
+def _amc_fast(body: str, asf: AsfSkeleton, moving: list[int]) -> FloatArray | None:
+    """Vectorised parse of a regular AMC body, or ``None`` if it is not regular."""
+    parts = _NAME_RE.split(body)
+    names = parts[1::2]
+    if not names or len(parts[0].split()) != 1:
+        return None
+    # The first frame's bone order; every frame must repeat it exactly.
+    try:
+        k = names.index(names[0], 1)
+    except ValueError:
+        k = len(names)
+    per_frame = names[:k]
+    n_frames, rem = divmod(len(names), k)
+    if rem or names != per_frame * n_frames:
+        return None
+    if sorted(per_frame) != sorted(asf.skeleton.names[j] for j in moving):
+        return None
+    widths = [len(asf.dofs[asf.skeleton.index(nm)]) for nm in per_frame]
+    # Each bone's line holds exactly its dofs (the frame's last line also precedes the
+    # next frame number).
+    counts = np.fromiter(map(len, map(str.split, parts[2::2])), np.int64, len(names))
+    want = np.tile(widths, n_frames)
+    want[k - 1 :: k][:-1] += 1
+    if not np.array_equal(counts, want):
+        return None
+    flat = parse_floats_fast("".join(parts[0::2]))
+    width = 1 + sum(widths)
+    if flat is None or flat.size != n_frames * width:
+        return None
+    table = flat.reshape(n_frames, width)
+    numbers = table[:, 0]
+    if not np.array_equal(numbers, numbers[0] + np.arange(n_frames)):
+        return None
+    # Reorder the columns to the skeleton's joint order.
+    starts = dict(zip(per_frame, np.cumsum([1, *widths[:-1]]).tolist(), strict=True))
+    cols: list[int] = []
+    for j in moving:
+        a = starts[asf.skeleton.names[j]]
+        cols.extend(range(a, a + len(asf.dofs[j])))
+    return np.ascontiguousarray(table[:, cols])
+
+
+def _amc_slow(
+    path: str | Path, body: str, header_lines: int, asf: AsfSkeleton, moving: list[int]
+) -> FloatArray:
+    names = asf.skeleton.names
+    expected = {names[j]: len(asf.dofs[j]) for j in moving}
+    all_bones = set(names)
+    col_start: dict[str, int] = {}
+    c = 0
+    for j in moving:
+        col_start[names[j]] = c
+        c += len(asf.dofs[j])
+    width = c
+    frames: list[list[float]] = []
+    seen: set[str] = set()
+    frame_no: int | None = None
+    frame_line = 0
+
+    def close_frame(at_line: int) -> None:
+        missing = [b for b in expected if b not in seen]
+        if missing:
+            raise MotionFormatError(
+                path,
+                f"frame {frame_no} (line {frame_line}) lacks bone(s) {', '.join(missing)}",
+                at_line,
+            )
+
+    for n, raw in enumerate(body.splitlines(), start=header_lines + 1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        tokens = line.split()
+        if len(tokens) == 1 and is_int(tokens[0]):
+            number = int(tokens[0])
+            if frame_no is not None:
+                close_frame(n)
+                if number != frame_no + 1:
+                    raise MotionFormatError(
+                        path, f"frame number {number} does not follow frame {frame_no}", n
+                    )
+            frame_no = number
+            frame_line = n
+            frames.append([0.0] * width)
+            seen = set()
+            continue
+        if frame_no is None:
+            raise MotionFormatError(path, f"expected a frame number, got {line[:40]!r}", n)
+        bone = tokens[0]
+        if bone not in all_bones:
+            raise MotionFormatError(path, f"bone {bone!r} is not in the skeleton {asf.path}", n)
+        if bone not in expected:
+            if len(tokens) > 1:
+                raise MotionFormatError(path, f"bone {bone!r} has no dofs in {asf.path}", n)
+            continue
+        if bone in seen:
+            raise MotionFormatError(path, f"bone {bone!r} appears twice in frame {frame_no}", n)
+        want = expected[bone]
+        if len(tokens) - 1 != want:
+            dofs = " ".join(asf.dofs[asf.skeleton.index(bone)])
+            raise MotionFormatError(
+                path, f"bone {bone!r} expects {want} values ({dofs}), got {len(tokens) - 1}", n
+            )
+        vals = parse_floats(path, tokens[1:], n, f"bone {bone!r}")
+        s = col_start[bone]
+        frames[-1][s : s + want] = vals
+        seen.add(bone)
+    if frame_no is not None:
+        close_frame(header_lines + len(body.splitlines()))
+    return np.array(frames, dtype=np.float64).reshape(-1, width)
+
+
+def _to_motion(
+    path: str | Path, values: FloatArray, asf: AsfSkeleton, moving: list[int], fps: float, name: str
+) -> Motion:
+    sk = asf.skeleton
+    n_frames = values.shape[0]
+    quats = np.zeros((n_frames, sk.n_joints, 4))
+    quats[..., 0] = 1.0
+    root_pos = np.zeros((n_frames, 3))
+    col = 0
+    for j in moving:
+        dofs = asf.dofs[j]
+        block = values[:, col : col + len(dofs)]
+        col += len(dofs)
+        rot_idx = [k for k, d in enumerate(dofs) if d in ROT_DOFS]
+        for k, d in enumerate(dofs):
+            if d in TRANS_DOFS:
+                root_pos[:, TRANS_DOFS.index(d)] = block[:, k] * asf.metres_per_unit
+        if not rot_idx:
+            continue
+        angles = block[:, rot_idx]
+        if asf.degrees:
+            angles = np.deg2rad(angles)
+        seq = "".join(dofs[k][1] for k in rot_idx)  # extrinsic, applied in dof order
+        m = euler_to_q(angles, seq)
+        c = asf.axis_q[j]
+        quats[:, j] = qmul(qmul(c, m), qconj(c))
+    if not np.all(np.isfinite(root_pos)):
+        raise MotionFormatError(path, "root translation overflows")
+    norms = np.linalg.norm(quats, axis=-1, keepdims=True)
+    return Motion(sk, root_pos, quats / norms, fps, name=name, source=str(path))
