@@ -124,7 +124,8 @@ def detect_contacts(
     height_tolerance : metres above the point's resting height that still count as close.
     speed_threshold : metres/second below which a point counts as still.
     min_duration : seconds; shorter contacts and gaps are treated as noise.
-    floor : ``"global"`` (one floor) or ``"local"`` (per grid cell; uneven ground).
+    floor : ``"local"`` (default: a reference height per grid cell, so uneven ground,
+        blocks and platforms work) or ``"global"`` (one floor for the whole clip).
     cell : metres, the grid cell for ``floor="local"``.
     percentile : of a slow point's heights taken as its resting height.
     """

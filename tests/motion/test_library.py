@@ -156,3 +156,10 @@ def test_cli_library_info(small_lib: Path, capsys: pytest.CaptureFixture[str]) -
     assert "02_03" in text and "3 clips" in text
     assert main(["library", "info", str(small_lib / "nowhere")]) == 2
     assert "is not a directory" in capsys.readouterr().err
+
+
+def test_parse_error_in_a_worker_names_the_file(small_lib: Path) -> None:
+    bad = small_lib / "asf" / "02_04.amc"
+    bad.write_bytes(bad.read_bytes().replace(b"\r\nlowerback ", b"\r\nlowerback x", 1))
+    with pytest.raises(MotionFormatError, match=r"02_04\.amc:6: bone 'lowerback'"):
+        load_library(small_lib, use_cache=False, workers=2)

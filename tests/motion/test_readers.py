@@ -205,3 +205,22 @@ def test_write_is_atomic(tmp_path: Path, mocap: Path) -> None:
         write_bvh(m, out, order="XXY")
     assert out.read_text() == "previous content"
     assert [p.name for p in tmp_path.iterdir()] == ["keep.bvh"]
+
+
+def test_radians_and_other_units(tmp_path: Path) -> None:
+    deg = read_amc(
+        _write(tmp_path, "d_01.amc", TINY_AMC), read_asf(_write(tmp_path, "d.asf", TINY_ASF))
+    )
+    rad_asf = TINY_ASF.replace("angle deg", "angle rad").replace(
+        "axis 0 0 90 XYZ", "axis 0 0 1.5707963267948966 XYZ"
+    )
+    rad_amc = TINY_AMC.replace("a 90", "a 1.5707963267948966").replace(
+        "b 90", "b 1.5707963267948966"
+    )
+    rad = read_amc(
+        _write(tmp_path, "r_01.amc", rad_amc), read_asf(_write(tmp_path, "r.asf", rad_asf))
+    )
+    np.testing.assert_allclose(rad.quats, deg.quats, atol=1e-12)
+    # :units length 0.5 makes every length twice as long (1 / 0.5 inches a unit).
+    half = read_asf(_write(tmp_path, "h.asf", TINY_ASF.replace("length 1.0", "length 0.5")))
+    assert half.metres_per_unit == pytest.approx(2 * INCH)
