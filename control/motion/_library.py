@@ -274,13 +274,14 @@ def read_labels(path: Path, n_frames: int) -> tuple[NDArray[np.int64], tuple[str
 # --- cache ---------------------------------------------------------------------------------
 
 
-def _cache_key(src: _Source, data: bytes, bvh_units: str | float) -> str:
+def _cache_key(src: _Source, bvh_units: str | float, asf_digests: dict[Path, bytes]) -> str:
     h = hashlib.sha256()
     h.update(f"mimic-motion/{READER_VERSION}/{src.path.suffix.lower()}/{bvh_units}\0".encode())
-    h.update(data)
+    h.update(read_bytes(src.path))
     if src.asf is not None:
-        h.update(b"\0asf\0")
-        h.update(read_bytes(src.asf))
+        if src.asf not in asf_digests:  # one ASF serves many AMC files
+            asf_digests[src.asf] = hashlib.sha256(read_bytes(src.asf)).digest()
+        h.update(b"\0asf\0" + asf_digests[src.asf])
     return h.hexdigest()[:32]
 
 
@@ -337,7 +338,10 @@ def _parse_job(args: tuple[_Source, str | float, str | None]) -> Motion:
     src, bvh_units, cache_file = args
     motion = _parse(src, bvh_units)
     if cache_file is not None:
-        _save(Path(cache_file), motion)
+        try:
+            _save(Path(cache_file), motion)
+        except OSError as exc:  # a read-only or full cache only costs speed
+            log.warning("cannot write cache entry %s: %s", cache_file, exc)
     return motion
 
 
@@ -387,15 +391,17 @@ def load_library(
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     motions: dict[str, Motion] = {}
     todo: list[tuple[_Source, str | float, str | None]] = []
+    asf_digests: dict[Path, bytes] = {}
     for src in sources:
-        key = _cache_key(src, read_bytes(src.path), bvh_units)
-        cache_file = cache / f"{key}.npz"
-        if use_cache and cache_file.is_file():
-            hit = _load(cache_file)
-            if hit is not None:
-                motions[src.name] = hit
-                continue
-        todo.append((src, bvh_units, str(cache_file) if use_cache else None))
+        if not use_cache:
+            todo.append((src, bvh_units, None))
+            continue
+        cache_file = cache / f"{_cache_key(src, bvh_units, asf_digests)}.npz"
+        hit = _load(cache_file) if cache_file.is_file() else None
+        if hit is not None:
+            motions[src.name] = hit
+        else:
+            todo.append((src, bvh_units, str(cache_file)))
     n_workers = min(workers or min(os.cpu_count() or 1, 4), len(todo))
     if n_workers > 1:
         with ProcessPoolExecutor(n_workers) as pool:

@@ -163,3 +163,13 @@ def test_parse_error_in_a_worker_names_the_file(small_lib: Path) -> None:
     bad.write_bytes(bad.read_bytes().replace(b"\r\nlowerback ", b"\r\nlowerback x", 1))
     with pytest.raises(MotionFormatError, match=r"02_04\.amc:6: bone 'lowerback'"):
         load_library(small_lib, use_cache=False, workers=2)
+
+
+def test_unwritable_cache_only_warns(
+    small_lib: Path, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    blocker = tmp_path / "not_a_dir"
+    blocker.write_text("a file where the cache folder would be")
+    lib = load_library(small_lib, cache_dir=blocker / "c", workers=1)
+    assert len(lib.clips) == 3
+    assert "cannot write cache entry" in caplog.text
