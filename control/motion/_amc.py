@@ -138,7 +138,8 @@ def _amc_slow(
                 at_line,
             )
 
-    for n, raw in enumerate(body.splitlines(), start=header_lines + 1):
+    lines = body.splitlines()
+    for n, raw in enumerate(lines, start=header_lines + 1):
         line = raw.strip()
         if not line or line.startswith("#"):
             continue
@@ -178,7 +179,7 @@ def _amc_slow(
         frames[-1][s : s + want] = vals
         seen.add(bone)
     if frame_no is not None:
-        close_frame(header_lines + len(body.splitlines()))
+        close_frame(header_lines + len(lines))
     return np.array(frames, dtype=np.float64).reshape(-1, width)
 
 

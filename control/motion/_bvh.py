@@ -322,12 +322,14 @@ def write_bvh(
             raise ValueError(f"joint name {nm!r} cannot be written to BVH")
     rot_names = " ".join(f"{a}rotation" for a in order)
     out: list[str] = ["HIERARCHY"]
+    written: list[int] = []  # joints in file order; the channel data follows it
     ends: dict[int, list[int]] = {}
     for e, p in enumerate(sk.end_parents):
         ends.setdefault(int(p), []).append(e)
 
     def emit(j: int, depth: int) -> None:
         pad = "  " * depth
+        written.append(j)
         kind = "ROOT" if j == 0 else "JOINT"
         out.append(f"{pad}{kind} {sk.names[j]}")
         out.append(f"{pad}{{")
@@ -349,25 +351,13 @@ def write_bvh(
             out.append(f"{pad}  }}")
         out.append(f"{pad}}}")
 
-    # BVH lists joints depth-first; the channel data follows that order.
     emit(0, 0)
     out.append("MOTION")
     out.append(f"Frames: {motion.n_frames}")
     out.append(f"Frame Time: {1.0 / motion.fps:.9g}")
-    order_idx = _dfs_order(sk)
-    eul = np.rad2deg(q_to_euler(motion.quats[:, order_idx], order))
+    eul = np.rad2deg(q_to_euler(motion.quats[:, written], order))
     table = np.concatenate((motion.root_pos / scale, eul.reshape(motion.n_frames, -1)), axis=1)
     with atomic_write(path) as fh:
         fh.write("\n".join(out) + "\n")
         for row in table:
             fh.write(_fmt(row) + "\n")
-
-
-def _dfs_order(sk: Skeleton) -> list[int]:
-    order: list[int] = []
-    stack = [0]
-    while stack:
-        j = stack.pop()
-        order.append(j)
-        stack.extend(reversed(sk.children(j)))
-    return order
