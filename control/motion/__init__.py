@@ -20,7 +20,7 @@ from ._library import (
 )
 from ._names import ROLE_ALIASES, find_role, mirror_map, role_point
 from ._ops import cut, mirror, resample, resample_positions
-from ._quat import euler_to_q, q_to_euler, q_to_R, qconj, qlog, qmul, qnormalize, qrot, slerp
+from ._quat import euler_to_q, q_to_euler, q_to_R, qconj, qexp, qlog, qmul, qnormalize, qrot, slerp
 from ._types import Motion, Skeleton
 
 __all__ = [
@@ -50,6 +50,7 @@ __all__ = [
     "q_to_R",
     "q_to_euler",
     "qconj",
+    "qexp",
     "qlog",
     "qmul",
     "qnormalize",

@@ -16,6 +16,7 @@ a key hashed from the file's bytes (and its ASF's), the reader version and setti
 from __future__ import annotations
 
 import csv
+import fnmatch
 import hashlib
 import io
 import json
@@ -23,7 +24,7 @@ import logging
 import os
 import re
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -359,6 +360,7 @@ def load_library(
     workers: int | None = None,
     contact_options: dict[str, float | str] | None = None,
     progress: Callable[[str], None] | None = None,
+    clips: Sequence[str] | None = None,
 ) -> Library:
     """Load every clip under ``root`` at ``fps`` frames/s.
 
@@ -374,6 +376,7 @@ def load_library(
     workers : processes for parsing on a cold load (default: CPU count, at most 4).
     contact_options : keyword arguments for ``detect_contacts``.
     progress : called with a short message per clip parsed.
+    clips : keep only clips whose name matches one of these shell patterns (``"01_*"``).
 
     Raises
     ------
@@ -388,6 +391,11 @@ def load_library(
     sources = _discover(root, prefer)
     if not sources:
         raise MotionFormatError(root, "no .amc or .bvh clips found")
+    if clips is not None:
+        patterns = list(clips)
+        sources = [s for s in sources if any(fnmatch.fnmatchcase(s.name, p) for p in patterns)]
+        if not sources:
+            raise MotionFormatError(root, f"no clip matches {', '.join(patterns)}")
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     motions: dict[str, Motion] = {}
     todo: list[tuple[_Source, str | float, str | None]] = []
@@ -418,7 +426,7 @@ def load_library(
     names = {s.name for s in sources}
     descriptions = _descriptions(root, names)
     label_files = _label_files(root)
-    clips: list[Clip] = []
+    kept: list[Clip] = []
     for src in sources:
         raw = motions[src.name]
         labels, label_names = (
@@ -430,7 +438,7 @@ def load_library(
         if mirror:
             variants.append((mirror_motion(raw), True))
         for motion, mirrored in variants:
-            clips.append(
+            kept.append(
                 _make_clip(
                     motion,
                     fps,
@@ -442,7 +450,7 @@ def load_library(
                     contact_options or {},
                 )
             )
-    return Library(str(root), None if fps is None else float(fps), tuple(clips))
+    return Library(str(root), None if fps is None else float(fps), tuple(kept))
 
 
 def _make_clip(

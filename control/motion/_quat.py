@@ -31,6 +31,7 @@ __all__ = [
     "q_to_R",
     "q_to_euler",
     "qconj",
+    "qexp",
     "qlog",
     "qmul",
     "qnormalize",
@@ -102,6 +103,16 @@ def qlog(q: FloatArray) -> FloatArray:
     angle = 2.0 * np.arctan2(s, q[..., 0])
     scale = np.where(s > 1e-12, angle / np.maximum(s, 1e-300), 2.0)
     return v * scale[..., None]
+
+
+def qexp(v: FloatArray) -> FloatArray:
+    """Unit quaternions ``(..., 4)`` of rotation vectors ``(..., 3)``; inverse of ``qlog``."""
+    v = np.asarray(v, dtype=np.float64)
+    angle = np.linalg.norm(v, axis=-1)
+    half = 0.5 * angle
+    # sin(half) / angle, with its limit 1/2 near zero
+    scale = np.where(angle > 1e-12, np.sin(half) / np.maximum(angle, 1e-300), 0.5)
+    return np.concatenate((np.cos(half)[..., None], v * scale[..., None]), axis=-1)
 
 
 def slerp(a: FloatArray, b: FloatArray, t: FloatArray) -> FloatArray:

@@ -1,0 +1,56 @@
+"""Lower layer (Lee et al. §4.1): frame distance, transition likelihoods, pruning, SCC,
+blended transitions and the random walk."""
+
+from ._artifact import GraphFileError, cached_graph, graph_cache_dir, load_graph, save_graph
+from ._distance import close_pairs, lower_bound_features, pair_distances
+from ._features import COORDS, FrameFeatures, frame_features, q_embed, weighted_joints, yaw_of
+from ._graph import (
+    GRAPH_VERSION,
+    GraphOptions,
+    MotionGraph,
+    build_graph,
+    clips_digest,
+    select_clips,
+)
+from ._ik import leg_chain, solve_leg, two_bone_ik
+from ._prune import CONTACT_RULES, contact_groups, largest_scc, local_maxima
+from ._quality import foot_slide, jerk, joint_jumps, quality_summary
+from ._synth import Synthesis, synthesize
+from ._walk import random_walk
+
+__all__ = [
+    "CONTACT_RULES",
+    "COORDS",
+    "GRAPH_VERSION",
+    "FrameFeatures",
+    "GraphFileError",
+    "GraphOptions",
+    "MotionGraph",
+    "Synthesis",
+    "build_graph",
+    "cached_graph",
+    "clips_digest",
+    "close_pairs",
+    "contact_groups",
+    "foot_slide",
+    "frame_features",
+    "graph_cache_dir",
+    "jerk",
+    "joint_jumps",
+    "largest_scc",
+    "leg_chain",
+    "load_graph",
+    "local_maxima",
+    "lower_bound_features",
+    "pair_distances",
+    "q_embed",
+    "quality_summary",
+    "random_walk",
+    "save_graph",
+    "select_clips",
+    "solve_leg",
+    "synthesize",
+    "two_bone_ik",
+    "weighted_joints",
+    "yaw_of",
+]

@@ -1,0 +1,155 @@
+"""The graph on disk: one ``.npz`` (no pickle) with a JSON manifest, written atomically.
+
+File names are content hashes of the graph version, the clips' digest and the options,
+so a changed library or setting never reuses a stale graph.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..motion import Clip, default_cache_dir
+from ..motion._text import atomic_write
+from ._graph import (
+    GRAPH_VERSION,
+    GraphOptions,
+    MotionGraph,
+    build_graph,
+    clips_digest,
+    select_clips,
+)
+from ._graph import options_key as _key
+
+__all__ = ["GraphFileError", "cached_graph", "graph_cache_dir", "load_graph", "save_graph"]
+
+_ARRAYS = ("clip_start", "src", "dst", "dist", "align", "in_scc")
+
+
+class GraphFileError(ValueError):
+    """A graph file that cannot be used; the message names the file and the problem."""
+
+    def __init__(self, path: str | Path, problem: str) -> None:
+        self.path = str(path)
+        self.problem = problem
+        super().__init__(f"{path}: {problem}")
+
+
+def graph_cache_dir() -> Path:
+    """Beside the motion cache: ``$MIMIC_CACHE/graph`` or ``~/.cache/mimic/graph``."""
+    return default_cache_dir().parent / "graph"
+
+
+def save_graph(graph: MotionGraph, path: str | Path) -> Path:
+    """Write ``graph`` to ``path`` (``.npz``) atomically and return the path."""
+    path = Path(path)
+    manifest = {
+        "format": "mimic-graph",
+        "version": GRAPH_VERSION,
+        "options": graph.options.to_dict(),
+        "clip_names": list(graph.clip_names),
+        "fps": graph.fps,
+        "sigma": graph.sigma,
+        "library_digest": graph.library_digest,
+        "report": graph.report,
+    }
+    with atomic_write(path, "wb") as fh:
+        np.savez_compressed(
+            fh,
+            manifest=np.array(json.dumps(manifest)),
+            **{name: getattr(graph, name) for name in _ARRAYS},
+        )
+    return path
+
+
+def load_graph(path: str | Path) -> MotionGraph:
+    """Read a graph written by ``save_graph``; ``GraphFileError`` if it is not one."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no graph file {path}")
+    try:
+        with path.open("rb") as fh, np.load(fh, allow_pickle=False) as z:
+            missing = [k for k in ("manifest", *_ARRAYS) if k not in z.files]
+            if missing:
+                raise GraphFileError(path, f"not a mimic graph (missing {', '.join(missing)})")
+            manifest: dict[str, Any] = json.loads(str(z["manifest"]))
+            arrays = {k: z[k] for k in _ARRAYS}
+    except (OSError, zipfile.BadZipFile, EOFError) as exc:
+        raise GraphFileError(path, f"unreadable or truncated ({exc})") from exc
+    except (ValueError, json.JSONDecodeError) as exc:
+        if isinstance(exc, GraphFileError):
+            raise
+        raise GraphFileError(path, f"corrupt ({exc})") from exc
+    if manifest.get("format") != "mimic-graph":
+        raise GraphFileError(path, "not a mimic graph file")
+    if manifest.get("version") != GRAPH_VERSION:
+        raise GraphFileError(
+            path, f"graph version {manifest.get('version')}, this mimic reads {GRAPH_VERSION}"
+        )
+    n_e = arrays["src"].shape[0]
+    n = int(arrays["clip_start"][-1]) if arrays["clip_start"].size else -1
+    shapes_ok = (
+        arrays["dst"].shape == (n_e,)
+        and arrays["dist"].shape == (n_e,)
+        and arrays["align"].shape == (n_e, 4)
+        and arrays["in_scc"].shape == (n,)
+        and len(manifest["clip_names"]) == arrays["clip_start"].size - 1
+    )
+    if not shapes_ok:
+        raise GraphFileError(path, "arrays of inconsistent shapes")
+    if n_e and (
+        arrays["src"].min() < 0
+        or max(arrays["src"].max(), arrays["dst"].max()) >= n
+        or arrays["dst"].min() < 1
+    ):
+        raise GraphFileError(path, "transition frame out of range")
+    try:
+        options = GraphOptions(**manifest["options"])
+    except (TypeError, ValueError) as exc:
+        raise GraphFileError(path, f"bad options ({exc})") from exc
+    return MotionGraph(
+        options=options,
+        clip_names=tuple(manifest["clip_names"]),
+        clip_start=arrays["clip_start"].astype(np.int64),
+        fps=float(manifest["fps"]),
+        sigma=float(manifest["sigma"]),
+        src=arrays["src"].astype(np.int64),
+        dst=arrays["dst"].astype(np.int64),
+        dist=arrays["dist"].astype(np.float32),
+        align=arrays["align"].astype(np.float32),
+        in_scc=arrays["in_scc"].astype(bool),
+        library_digest=str(manifest["library_digest"]),
+        report=dict(manifest.get("report", {})),
+    )
+
+
+def cached_graph(
+    clips: Sequence[Clip],
+    options: GraphOptions | None = None,
+    cache_dir: str | Path | None = None,
+    rebuild: bool = False,
+) -> tuple[MotionGraph, Path, bool]:
+    """The graph of ``clips`` from the cache, built and stored when missing or stale.
+
+    Returns ``(graph, path, built)``. A cache file that cannot be read is rebuilt.
+    """
+    options = options or GraphOptions()
+    chosen, _ = select_clips(list(clips))
+    digest = clips_digest(chosen)
+    folder = Path(cache_dir) if cache_dir is not None else graph_cache_dir()
+    path = folder / f"graph-{_key(options, digest)}.npz"
+    if path.is_file() and not rebuild:
+        try:
+            graph = load_graph(path)
+            if graph.library_digest == digest:
+                return graph, path, False
+        except GraphFileError:
+            pass
+    graph = build_graph(clips, options)
+    save_graph(graph, path)
+    return graph, path, True

@@ -1,0 +1,297 @@
+"""Building the lower layer (Lee et al. §4.1): distances, eq. 1 likelihoods, Table 1 pruning.
+
+``sigma`` of eq. 1 is set from the data: the median distance between frames ``sigma_dt``
+seconds apart (1/15 s by default) in the same clip, i.e. the typical change of pose in one
+frame of the paper's 15 frames/s, times ``sigma_scale``. A transition ``i -> j`` has the
+likelihood ``exp(-D(i, j-1) / sigma)`` relative to playing on (``i -> i+1``, distance 0,
+likelihood 1); the likelihood rule drops transitions below ``threshold``, i.e. with
+``D > sigma * ln(1 / threshold)``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..motion import Clip
+from ._distance import close_pairs, lower_bound_features, pair_distances
+from ._features import COORDS, FrameFeatures, frame_features
+from ._prune import CONTACT_RULES, contact_groups, largest_scc, local_maxima
+
+__all__ = [
+    "GRAPH_VERSION",
+    "GraphOptions",
+    "MotionGraph",
+    "build_graph",
+    "clips_digest",
+    "select_clips",
+]
+
+log = logging.getLogger(__name__)
+
+#: Bump when the build's output changes for the same inputs and options.
+GRAPH_VERSION = 1
+IntArray = NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class GraphOptions:
+    """Settings of a graph build.
+
+    Attributes
+    ----------
+    coords : ``"fixed"`` (default; the playground), ``"relative"`` or ``"terrain"``.
+    contact : ``"loose"`` (default), ``"strict"`` (only at the same contact change) or
+        ``"none"``.
+    similarity : keep only local maxima; ``None`` means on unless ``contact == "strict"``
+        (the paper: not needed with the strict rule).
+    nu : weight of the velocity term of eq. 2, in s^2 (velocities are rad/s and m/s).
+    sigma_dt : seconds between the frames whose median distance sets sigma.
+    sigma_scale : multiplies that median.
+    threshold : likelihood threshold (relative to playback, in (0, 1)).
+    block : terrain block size in metres.
+    """
+
+    coords: str = "fixed"
+    contact: str = "loose"
+    similarity: bool | None = None
+    nu: float = 0.01
+    sigma_dt: float = 1.0 / 15.0
+    sigma_scale: float = 1.0
+    threshold: float = 0.1
+    block: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.coords not in COORDS:
+            raise ValueError(f"coords must be one of {', '.join(COORDS)}, not {self.coords!r}")
+        if self.contact not in CONTACT_RULES:
+            raise ValueError(f"contact must be one of {', '.join(CONTACT_RULES)}")
+        if not 0.0 < self.threshold < 1.0:
+            raise ValueError("threshold must lie in (0, 1)")
+        for name in ("nu", "sigma_dt", "sigma_scale", "block"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and (value > 0 or (name == "nu" and value == 0))):
+                raise ValueError(f"{name} must be a positive number, not {value!r}")
+
+    @property
+    def use_similarity(self) -> bool:
+        return self.contact != "strict" if self.similarity is None else self.similarity
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True, eq=False)
+class MotionGraph:
+    """The pruned lower layer: transitions between the frames of ``clip_names``.
+
+    Frames are numbered end to end over the clips (``clip_start``). Transition ``e`` goes
+    from frame ``src[e]`` to frame ``dst[e]`` (so ``dst[e] - 1`` resembles ``src[e]``), with
+    distance ``dist[e]`` and the alignment ``align[e] = (yaw, dx, dy, dz)`` that places the
+    target's motion onto the source's (identity for fixed coordinates). Only frames with
+    ``in_scc`` may be visited; every such frame has an exit inside the component.
+    Transitions are sorted by ``src``; ``indptr`` indexes them (CSR).
+    """
+
+    options: GraphOptions
+    clip_names: tuple[str, ...]
+    clip_start: IntArray
+    fps: float
+    sigma: float
+    src: IntArray
+    dst: IntArray
+    dist: NDArray[np.float32]
+    align: NDArray[np.float32]
+    in_scc: NDArray[np.bool_]
+    library_digest: str
+    report: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.clip_start[-1])
+
+    @property
+    def n_edges(self) -> int:
+        return int(self.src.size)
+
+    @property
+    def indptr(self) -> IntArray:
+        return np.searchsorted(self.src, np.arange(self.n_frames + 1)).astype(np.int64)
+
+    def locate(self, frame: int) -> tuple[str, int]:
+        """``(clip name, frame in clip)`` of a graph frame."""
+        c = int(np.searchsorted(self.clip_start, frame, side="right")) - 1
+        if not 0 <= frame < self.n_frames:
+            raise IndexError(f"frame {frame} out of range 0..{self.n_frames - 1}")
+        return self.clip_names[c], int(frame - self.clip_start[c])
+
+    def frame_of(self, clip: str, frame: int) -> int:
+        """Graph frame of ``frame`` of ``clip``."""
+        c = self.clip_names.index(clip)
+        if not 0 <= frame < self.clip_start[c + 1] - self.clip_start[c]:
+            raise IndexError(f"clip {clip} has no frame {frame}")
+        return int(self.clip_start[c] + frame)
+
+    def likelihood(self) -> NDArray[np.float64]:
+        """``exp(-dist / sigma)`` per transition (eq. 1, unnormalised; playback is 1)."""
+        return np.exp(-self.dist.astype(np.float64) / self.sigma)
+
+    def plays_on(self) -> NDArray[np.bool_]:
+        """(n,) True where ``f -> f + 1`` is allowed (same clip, both in the component)."""
+        ok = np.zeros(self.n_frames, dtype=bool)
+        ok[:-1] = self.in_scc[:-1] & self.in_scc[1:]
+        ok[self.clip_start[1:] - 1] = False
+        return ok
+
+
+def clips_digest(clips: Sequence[Clip]) -> str:
+    """SHA-256 of the clips' names, rates, motions and contacts."""
+    h = hashlib.sha256()
+    for c in clips:
+        m = c.motion
+        h.update(f"{c.name}|{m.fps}|{m.n_frames}|{','.join(m.skeleton.names)}".encode())
+        for arr in (m.root_pos, m.quats, m.skeleton.offsets, c.contacts.states):
+            h.update(np.ascontiguousarray(arr).tobytes())
+    return h.hexdigest()
+
+
+def select_clips(clips: Sequence[Clip]) -> tuple[list[Clip], list[str]]:
+    """The clips the graph can join: the largest group (by frames) sharing joint names.
+
+    Joint angles are only comparable between skeletons with the same joints; the rest
+    are returned by name so that the caller can say they were left out.
+    """
+    groups: dict[tuple[str, ...], list[Clip]] = {}
+    for c in clips:
+        groups.setdefault(c.motion.skeleton.names, []).append(c)
+    best = max(groups.values(), key=lambda g: sum(c.motion.n_frames for c in g))
+    excluded = [c.name for c in clips if c not in best]
+    return best, excluded
+
+
+def _sigma(feat: FrameFeatures, fps: float, options: GraphOptions) -> float:
+    step = max(1, round(options.sigma_dt * fps))
+    f = np.arange(feat.n - step)
+    clip = np.searchsorted(feat.clip_start, np.arange(feat.n), side="right")
+    f = f[clip[f] == clip[f + step]]
+    if f.size == 0:
+        raise ValueError("clips too short to measure sigma (need more than one frame)")
+    d, _ = pair_distances(feat, f, f + step, options.nu, options.block)
+    sigma = float(np.median(d)) * options.sigma_scale
+    if not sigma > 0:
+        raise ValueError("all frames identical: cannot set sigma")
+    return sigma
+
+
+def build_graph(
+    clips: Sequence[Clip],
+    options: GraphOptions | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> MotionGraph:
+    """Build the pruned motion graph of ``clips`` (one frame rate).
+
+    The report (``graph.report``) has the Table 1 counts: ``frames``, ``possible``
+    (frames squared), then transitions left after ``contact``, ``likelihood``,
+    ``similarity`` (``None`` when the rule is off) and ``scc``, with timings.
+    """
+    options = options or GraphOptions()
+    t0 = time.perf_counter()
+    chosen, excluded = select_clips(list(clips))
+    rates = {c.motion.fps for c in chosen}
+    if len(rates) != 1:
+        raise ValueError(f"clips must share one frame rate, got {sorted(rates)}")
+    fps = rates.pop()
+    if excluded:
+        log.warning("left out %d clips with other joints: %s", len(excluded), ", ".join(excluded))
+    feat = frame_features(chosen, options.coords)
+    n = feat.n
+    sigma = _sigma(feat, fps, options)
+    dmax = sigma * math.log(1.0 / options.threshold)
+    t_feat = time.perf_counter()
+
+    groups = contact_groups(feat.states, feat.clip_start, options.contact)
+    n_contact = 0
+    for rows, cols in groups:
+        n_contact += rows.size * cols.size - np.intersect1d(rows, cols, assume_unique=True).size
+    x, norms = lower_bound_features(feat, options.nu)
+    cand_a, cand_b = [], []
+    for rows, cols in groups:
+        a, b = close_pairs(feat, rows, cols, dmax, options.nu, x, norms)
+        cand_a.append(a)
+        cand_b.append(b)
+    a = np.concatenate(cand_a) if cand_a else np.zeros(0, dtype=np.int64)
+    b = np.concatenate(cand_b) if cand_b else np.zeros(0, dtype=np.int64)
+    n_candidates = a.size
+    t_search = time.perf_counter()
+    d, align = pair_distances(feat, a, b, options.nu, options.block)
+    keep = d <= dmax
+    a, b, d, align = a[keep], b[keep], d[keep], align[keep]
+    n_likely = a.size
+    if progress:
+        progress(f"{n_likely} transitions under the likelihood threshold")
+    n_similar: int | None = None
+    if options.use_similarity:
+        keep = local_maxima(a, b, d, feat.clip_start)
+        a, b, d, align = a[keep], b[keep], d[keep], align[keep]
+        n_similar = int(a.size)
+    t_prune = time.perf_counter()
+    in_scc, n_comp = largest_scc(n, a, b + 1, feat.clip_start)
+    keep = in_scc[a] & in_scc[b + 1]
+    a, b, d, align = a[keep], b[keep], d[keep], align[keep]
+    order = np.lexsort((b, a))
+    t_end = time.perf_counter()
+    report: dict[str, Any] = {
+        "clips": len(chosen),
+        "excluded_clips": excluded,
+        "fps": fps,
+        "frames": n,
+        "possible": n * n,
+        "contact": int(n_contact),
+        "candidates": int(n_candidates),
+        "likelihood": int(n_likely),
+        "similarity": n_similar,
+        "scc": int(a.size),
+        "scc_frames": int(in_scc.sum()),
+        "components": n_comp,
+        "sigma": sigma,
+        "max_distance": dmax,
+        "seconds": {
+            "features": round(t_feat - t0, 3),
+            "search": round(t_search - t_feat, 3),
+            "exact_and_prune": round(t_prune - t_search, 3),
+            "scc": round(t_end - t_prune, 3),
+            "total": round(t_end - t0, 3),
+        },
+    }
+    return MotionGraph(
+        options=options,
+        clip_names=tuple(c.name for c in chosen),
+        clip_start=feat.clip_start,
+        fps=float(fps),
+        sigma=sigma,
+        src=a[order],
+        dst=(b + 1)[order],
+        dist=d[order].astype(np.float32),
+        align=align[order].astype(np.float32),
+        in_scc=in_scc,
+        library_digest=clips_digest(chosen),
+        report=report,
+    )
+
+
+def options_key(options: GraphOptions, digest: str) -> str:
+    """Content hash naming a graph artifact: the version, the clips' digest, the options."""
+    text = json.dumps(
+        {"version": GRAPH_VERSION, "library": digest, "options": options.to_dict()},
+        sort_keys=True,
+    )
+    return hashlib.sha256(text.encode()).hexdigest()[:24]

@@ -1,0 +1,110 @@
+"""Analytic two-bone leg IK, vectorised over frames.
+
+Glossary as in ``control.motion._quat``. The hip joint rotates the thigh about the hip,
+the knee joint rotates the shin about the knee; the ankle keeps its world orientation so
+that a planted foot does not tilt.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..motion import Skeleton, find_role, qconj, qmul, qrot
+from ..motion._quat import FloatArray
+
+__all__ = ["leg_chain", "solve_leg", "two_bone_ik"]
+
+
+def _unit(v: FloatArray) -> FloatArray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
+
+
+def _axis_angle_q(axis: FloatArray, angle: FloatArray) -> FloatArray:
+    half = 0.5 * angle
+    return np.concatenate((np.cos(half)[..., None], axis * np.sin(half)[..., None]), axis=-1)
+
+
+def _arc_q(v1: FloatArray, v2: FloatArray) -> FloatArray:
+    """Shortest rotation taking the direction of ``v1`` to that of ``v2``."""
+    a, b = _unit(v1), _unit(v2)
+    w = 1.0 + np.sum(a * b, axis=-1, keepdims=True)
+    q = np.concatenate((w, np.cross(a, b)), axis=-1)
+    return q / np.maximum(np.linalg.norm(q, axis=-1, keepdims=True), 1e-12)
+
+
+def two_bone_ik(
+    hip: FloatArray, knee: FloatArray, ankle: FloatArray, target: FloatArray, forward: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """World rotations that bring the ankle onto ``target``.
+
+    Parameters
+    ----------
+    hip, knee, ankle, target : (F, 3) world positions.
+    forward : (F, 3) the way the knee bends towards, used when the leg is straight
+        (e.g. the foot's direction).
+
+    Returns
+    -------
+    d_knee : (F, 4) rotation about the knee, applied to the shin first.
+    d_hip : (F, 4) rotation about the hip, applied to the whole leg after.
+    Targets out of reach are approached as closely as the bone lengths allow.
+    """
+    u = hip - knee
+    w = ankle - knee
+    l1 = np.linalg.norm(u, axis=-1)
+    l2 = np.linalg.norm(w, axis=-1)
+    reach = np.linalg.norm(target - hip, axis=-1)
+    d = np.clip(reach, np.abs(l1 - l2) + 1e-6, (l1 + l2) * (1.0 - 1e-6))
+    cur = np.arccos(np.clip(np.sum(u * w, axis=-1) / np.maximum(l1 * l2, 1e-12), -1.0, 1.0))
+    new = np.arccos(np.clip((l1**2 + l2**2 - d**2) / np.maximum(2.0 * l1 * l2, 1e-12), -1.0, 1.0))
+    n = np.cross(u, w)
+    # near straight the current bend plane is noise: bend towards ``forward`` instead
+    straight = np.linalg.norm(n, axis=-1) < 0.05 * l1 * l2
+    n = np.where(straight[:, None], np.cross(forward, u), n)
+    d_knee = _axis_angle_q(_unit(n), new - cur)
+    ankle2 = knee + qrot(d_knee, w)
+    d_hip = _arc_q(ankle2 - hip, target - hip)
+    return d_knee, d_hip
+
+
+def leg_chain(skeleton: Skeleton, side: str) -> tuple[int, int, int]:
+    """``(hip, knee, ankle)`` joint indices of ``side`` (``"left"``/``"right"``), checked to
+    be a parent-child chain."""
+    idx = []
+    for part in ("hip", "knee", "ankle"):
+        j = find_role(skeleton, f"{side}_{part}")
+        if j is None:
+            raise KeyError(f"skeleton has no {side} {part}")
+        idx.append(j)
+    hip, knee, ankle = idx
+    if skeleton.parents[knee] != hip or skeleton.parents[ankle] != knee:
+        raise ValueError(f"{side} hip, knee and ankle are not a parent-child chain")
+    return hip, knee, ankle
+
+
+def solve_leg(
+    skeleton: Skeleton,
+    positions: FloatArray,
+    orientations: FloatArray,
+    chain: tuple[int, int, int],
+    target: FloatArray,
+    forward: FloatArray,
+) -> FloatArray:
+    """New local rotations ``(F, 3, 4)`` of ``chain`` so the ankle reaches ``target``.
+
+    ``positions`` / ``orientations`` are the frames' FK (``(F, J, 3)``, ``(F, J, 4)``).
+    The ankle keeps its world orientation.
+    """
+    hip, knee, ankle = chain
+    d_knee, d_hip = two_bone_ik(
+        positions[:, hip], positions[:, knee], positions[:, ankle], target, forward
+    )
+    parent = skeleton.parents[hip]
+    q_parent = orientations[:, parent]
+    hip_w = qmul(d_hip, orientations[:, hip])
+    knee_w = qmul(d_hip, qmul(d_knee, orientations[:, knee]))
+    out = np.empty((target.shape[0], 3, 4))
+    out[:, 0] = qmul(qconj(q_parent), hip_w)
+    out[:, 1] = qmul(qconj(hip_w), knee_w)
+    out[:, 2] = qmul(qconj(knee_w), orientations[:, ankle])
+    return out

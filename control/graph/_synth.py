@@ -1,0 +1,282 @@
+"""Motion from a path through the graph: alignment, blended transitions and planted feet.
+
+Lee et al. §4.1.1. After a transition ``i -> j`` the frames from ``j`` on are displaced so
+that pose and velocity at the virtual frame ``j - 1`` equal what was shown at ``i`` (and
+``i - 1``); the displacement (per joint a rotation vector, for the root also a
+translation) decays to zero over ``b`` frames along a cubic Hermite curve. It is measured
+against the frames actually shown, so a transition inside a blend starts from the
+blended motion: that is the overlap buffer.
+
+Feet: a foot in contact is kept where it touched down (or where it was at the jump) and
+then follows only the source clip's own foot motion; when it lifts, the correction fades
+over the swing. This covers the four cases of the paper: a contact that runs into a blend
+keeps the trajectory before the transition (case 1), one that starts inside a blend is
+fixed where it lands (cases 2 and 3: the start side), and one that spans the whole blend
+(case 4) stays planted and the leg absorbs the difference; when the leg cannot reach, the
+foot slips and ``Synthesis.unreachable`` counts those frames.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..motion import (
+    Clip,
+    Motion,
+    Skeleton,
+    forward_kinematics,
+    qconj,
+    qexp,
+    qlog,
+    qmul,
+    role_point,
+)
+from ..motion._quat import FloatArray
+from ._features import rotate_y, yaw_q
+from ._graph import MotionGraph
+from ._ik import leg_chain, solve_leg
+
+__all__ = ["Synthesis", "synthesize"]
+
+IntArray = NDArray[np.int64]
+
+
+@dataclass(frozen=True, eq=False)
+class Synthesis:
+    """A synthesized motion and where each frame came from.
+
+    Attributes
+    ----------
+    motion : the output, on the skeleton of the graph's first clip.
+    frames : (T,) graph frame shown at each output frame.
+    jumps : (M,) output frames where a transition lands.
+    edges : (M,) the transitions taken.
+    states : (T, 2) foot contacts (from the source frames).
+    blended : (T,) bool, frames changed by a blend.
+    unreachable : frames where a planted foot was out of the leg's reach.
+    """
+
+    motion: Motion
+    frames: IntArray
+    jumps: IntArray
+    edges: IntArray
+    states: NDArray[np.bool_]
+    blended: NDArray[np.bool_]
+    unreachable: int
+
+
+class _Frames:
+    """The graph's clips end to end: root positions, local rotations, contacts."""
+
+    def __init__(self, graph: MotionGraph, clips: Sequence[Clip]) -> None:
+        by_name = {c.name: c for c in clips}
+        missing = [n for n in graph.clip_names if n not in by_name]
+        if missing:
+            raise KeyError(f"the graph needs clips the library lacks: {', '.join(missing)}")
+        chosen = [by_name[n] for n in graph.clip_names]
+        sizes = np.array([c.motion.n_frames for c in chosen])
+        if not np.array_equal(np.concatenate(([0], np.cumsum(sizes))), graph.clip_start):
+            raise ValueError("the library's clips do not match the graph (frame counts differ)")
+        self.skeleton = chosen[0].motion.skeleton
+        self.root = np.concatenate([c.motion.root_pos for c in chosen])
+        self.quats = np.concatenate([c.motion.quats for c in chosen])
+        self.states = np.concatenate([c.contacts.states for c in chosen])
+
+
+def _compose(
+    yaw: float, trans: FloatArray, a_yaw: float, a_trans: FloatArray
+) -> tuple[float, FloatArray]:
+    """``T o A`` for rigid maps ``p -> R_y(yaw) p + trans``."""
+    return yaw + a_yaw, rotate_y(a_trans, yaw) + trans
+
+
+def _hermite(e0: FloatArray, v0: FloatArray, k: FloatArray, b: int) -> FloatArray:
+    """Displacement at frames ``k = 1..`` after the jump: value ``e0`` and slope ``v0``
+    (per frame) at ``k = 0``, zero value and slope at ``k = b``."""
+    u = np.clip(k / b, 0.0, 1.0)
+    h = 2.0 * u**3 - 3.0 * u**2 + 1.0
+    g = k * (1.0 - u) ** 2
+    shape = (-1,) + (1,) * e0.ndim
+    return e0 * h.reshape(shape) + v0 * g.reshape(shape)
+
+
+def synthesize(
+    graph: MotionGraph,
+    clips: Sequence[Clip],
+    frames: IntArray,
+    jumps: IntArray,
+    edges: IntArray,
+    blend: float = 1.0,
+    ik: bool = True,
+    fade: float = 0.25,
+    max_offset: float = 0.1,
+) -> Synthesis:
+    """Turn a path through the graph into motion.
+
+    Parameters
+    ----------
+    graph, clips : the graph and the library clips it was built from.
+    frames : (T,) graph frames; consecutive entries play on or follow a transition.
+    jumps : (M,) increasing output frames ``t`` where ``frames[t]`` follows transition
+        ``edges[m]`` from ``frames[t - 1]``.
+    blend : the blend interval b in seconds (Lee et al.: 1-2 s).
+    ik : keep planted feet in place with leg IK.
+    fade : seconds over which a foot's correction fades after it lifts.
+    max_offset : metres; a planted foot held further than this from where the blended
+        motion puts it slides along instead (the paper's "allow the foot to slip").
+    """
+    data = _Frames(graph, clips)
+    frames = np.asarray(frames, dtype=np.int64)
+    jumps = np.asarray(jumps, dtype=np.int64)
+    edges = np.asarray(edges, dtype=np.int64)
+    n_out = frames.size
+    b = max(1, round(blend * graph.fps))
+
+    # segment transforms
+    n_seg = jumps.size + 1
+    seg_yaw = np.zeros(n_seg)
+    seg_trans = np.zeros((n_seg, 3))
+    for m, e in enumerate(edges):
+        a = graph.align[e].astype(np.float64)
+        seg_yaw[m + 1], seg_trans[m + 1] = _compose(seg_yaw[m], seg_trans[m], a[0], a[1:])
+    seg = np.searchsorted(jumps, np.arange(n_out), side="right")
+
+    def aligned(g: IntArray, s: IntArray) -> tuple[FloatArray, FloatArray]:
+        p = rotate_y(data.root[g], seg_yaw[s]) + seg_trans[s]
+        q = data.quats[g].copy()
+        q[:, 0] = qmul(yaw_q(seg_yaw[s]), q[:, 0])
+        return p, q
+
+    src_p, src_q = aligned(frames, seg)
+    out_p, out_q = src_p.copy(), src_q.copy()
+    blended = np.zeros(n_out, dtype=bool)
+    # virtual predecessors (frames j-1, j-2 of each new segment, in its alignment)
+    j = frames[jumps]
+    starts = graph.clip_start[np.searchsorted(graph.clip_start, j, side="right") - 1]
+    pre1 = j - 1
+    pre2 = np.where(j - 2 >= starts, j - 2, j - 1)
+    v1_p, v1_q = aligned(pre1, np.arange(1, n_seg))
+    v2_p, v2_q = aligned(pre2, np.arange(1, n_seg))
+    for m, t in enumerate(jumps):
+        if t < 1:
+            continue
+        end = min(t + b, jumps[m + 1] if m + 1 < jumps.size else n_out)
+        o2 = t - 2 if t >= 2 else t - 1
+        e0 = qlog(qmul(out_q[t - 1], qconj(v1_q[m])))
+        ep = qlog(qmul(out_q[o2], qconj(v2_q[m])))
+        p0 = out_p[t - 1] - v1_p[m]
+        pp = out_p[o2] - v2_p[m]
+        k = np.arange(1, end - t + 1, dtype=np.float64)
+        out_q[t:end] = qmul(qexp(_hermite(e0, e0 - ep, k, b)), src_q[t:end])
+        out_p[t:end] = src_p[t:end] + _hermite(p0, p0 - pp, k, b)
+        blended[t:end] = True
+
+    states = data.states[frames]
+    unreachable = 0
+    if ik and jumps.size:
+        out_q, unreachable = _plant_feet(
+            data.skeleton,
+            graph.fps,
+            out_p,
+            out_q,
+            src_p,
+            src_q,
+            jumps,
+            (v1_p, v1_q),
+            states,
+            round(fade * graph.fps),
+            max_offset,
+        )
+    motion = Motion(data.skeleton, out_p, out_q, graph.fps, name="walk", source="graph")
+    return Synthesis(motion, frames, jumps, edges, states, blended, unreachable)
+
+
+def _foot_targets(
+    out_pts: FloatArray,
+    src_pts: FloatArray,
+    pred_pts: FloatArray,
+    contact: NDArray[np.bool_],
+    fade: int,
+    max_offset: float,
+) -> FloatArray:
+    """Where each frame's ankle should be ((T, 3)): planted during contact, fading after.
+
+    The correction is at most ``max_offset`` metres: beyond that the foot slides along
+    with the body rather than stretch or fold the leg.
+    """
+    n = out_pts.shape[0]
+    target = out_pts.copy()
+    inc = src_pts - pred_pts
+    inc[0] = 0.0
+    csum = np.cumsum(inc, axis=0)
+    c = contact.astype(np.int8)
+    edges = np.diff(np.concatenate(([0], c, [0])))
+    starts = np.flatnonzero(edges == 1)
+    ends = np.flatnonzero(edges == -1)  # exclusive
+    for s, e in zip(starts, ends, strict=True):
+        r = out_pts[s] + csum[s:e] - csum[s] - out_pts[s:e]
+        size = np.linalg.norm(r, axis=1, keepdims=True)
+        r *= np.minimum(1.0, max_offset / np.maximum(size, 1e-12))
+        target[s:e] = out_pts[s:e] + r
+        residual = target[e - 1] - out_pts[e - 1]
+        nxt = starts[starts > s]
+        stop = min(e + fade, n, int(nxt[0]) if nxt.size else n)
+        if stop > e:
+            x = (np.arange(e, stop) - e + 1) / (fade + 1)
+            w = 1.0 - (3.0 * x**2 - 2.0 * x**3)
+            target[e:stop] = out_pts[e:stop] + residual * w[:, None]
+    return target
+
+
+def _plant_feet(
+    skeleton: Skeleton,
+    fps: float,
+    out_p: FloatArray,
+    out_q: FloatArray,
+    src_p: FloatArray,
+    src_q: FloatArray,
+    jumps: IntArray,
+    virtual: tuple[FloatArray, FloatArray],
+    states: NDArray[np.bool_],
+    fade: int,
+    max_offset: float,
+) -> tuple[FloatArray, int]:
+    pose = forward_kinematics(Motion(skeleton, out_p, out_q, fps))
+    src_pose = forward_kinematics(Motion(skeleton, src_p, src_q, fps))
+    v_pose = forward_kinematics(Motion(skeleton, virtual[0], virtual[1], fps))
+    out_q = out_q.copy()
+    unreachable = 0
+    for foot, side in enumerate(("left", "right")):
+        chain = leg_chain(skeleton, side)
+        ankle = chain[2]
+        src_pts = src_pose.positions[:, ankle]
+        pred = np.concatenate((src_pts[:1], src_pts[:-1]))
+        pred[jumps] = v_pose.positions[:, ankle]
+        out_pts = pose.positions[:, ankle]
+        target = _foot_targets(out_pts, src_pts, pred, states[:, foot], fade, max_offset)
+        todo = np.flatnonzero(np.linalg.norm(target - out_pts, axis=1) > 1e-5)
+        if todo.size == 0:
+            continue
+        kind, toe = role_point(skeleton, f"{side}_toe")
+        toe_pts = (pose.positions if kind == "joint" else pose.end_positions)[todo, toe]
+        forward = toe_pts - out_pts[todo]
+        forward[:, 1] = 0.0
+        new = solve_leg(
+            skeleton,
+            pose.positions[todo],
+            pose.orientations[todo],
+            chain,
+            target[todo],
+            forward,
+        )
+        out_q[todo[:, None], np.array(chain)[None, :]] = new
+        hip = pose.positions[todo, chain[0]]
+        leg = np.linalg.norm(pose.positions[todo, chain[1]] - hip, axis=1) + np.linalg.norm(
+            pose.positions[todo, ankle] - pose.positions[todo, chain[1]], axis=1
+        )
+        unreachable += int(np.sum(np.linalg.norm(target[todo] - hip, axis=1) > leg))
+    return out_q, unreachable

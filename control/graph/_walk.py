@@ -1,0 +1,67 @@
+"""The random walk (Lee et al. §4.1): the probabilistic motion the avatar falls back on."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._graph import MotionGraph
+
+__all__ = ["random_walk"]
+
+IntArray = NDArray[np.int64]
+
+
+def random_walk(
+    graph: MotionGraph, n_frames: int, seed: int = 0, start: int | None = None
+) -> tuple[IntArray, IntArray, IntArray]:
+    """A seeded walk of ``n_frames`` frames following eq. 1.
+
+    At frame ``i`` the next frame is ``i + 1`` (likelihood 1) or the target of one of
+    ``i``'s transitions (likelihood ``exp(-D / sigma)``), drawn in proportion. Only frames
+    of the largest strongly connected component are visited, so the walk never meets a
+    dead end.
+
+    Returns
+    -------
+    frames : (n_frames,) graph frames.
+    jumps : (M,) output frames where a transition lands.
+    edges : (M,) the transitions taken.
+    """
+    if n_frames < 1:
+        raise ValueError("n_frames must be at least 1")
+    rng = np.random.default_rng(seed)
+    scc = np.flatnonzero(graph.in_scc)
+    if scc.size == 0:
+        raise ValueError("the graph has no strongly connected component to walk in")
+    if start is None:
+        f = int(rng.choice(scc))
+    else:
+        if not (0 <= start < graph.n_frames and graph.in_scc[start]):
+            raise ValueError(f"start frame {start} is not in the graph's component")
+        f = int(start)
+    indptr = graph.indptr
+    like = graph.likelihood()
+    plays = graph.plays_on()
+    frames = np.empty(n_frames, dtype=np.int64)
+    jumps: list[int] = []
+    edges: list[int] = []
+    frames[0] = f
+    u = rng.random(n_frames)
+    for t in range(1, n_frames):
+        lo, hi = indptr[f], indptr[f + 1]
+        w_play = 1.0 if plays[f] else 0.0
+        total = w_play + float(like[lo:hi].sum())
+        if total <= 0.0:
+            raise RuntimeError(f"dead end at graph frame {f}: the component is broken")
+        x = u[t] * total
+        if x < w_play:
+            f += 1
+        else:
+            e = lo + int(np.searchsorted(np.cumsum(like[lo:hi]), x - w_play, side="right"))
+            e = min(e, hi - 1)
+            jumps.append(t)
+            edges.append(e)
+            f = int(graph.dst[e])
+        frames[t] = f
+    return frames, np.array(jumps, dtype=np.int64), np.array(edges, dtype=np.int64)
