@@ -4,13 +4,26 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .motion import Library, load_library
+from .graph import (
+    CONTACT_RULES,
+    COORDS,
+    GraphOptions,
+    MotionGraph,
+    cached_graph,
+    joint_jumps,
+    quality_summary,
+    random_walk,
+    save_graph,
+    synthesize,
+)
+from .motion import Library, load_library, write_bvh
 
-__all__ = ["add_library_commands", "library_summary"]
+__all__ = ["add_graph_commands", "add_library_commands", "format_report", "library_summary"]
 
 
 def add_library_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -107,4 +120,217 @@ def _info(args: argparse.Namespace) -> int:
         f"{cf['left']:.0%}, right {cf['right']:.0%}, both {cf['both']:.0%}, neither "
         f"{cf['none']:.0%}; {summary['contact_changes']} contact changes"
     )
+    return 0
+
+
+# --- mimic graph ---------------------------------------------------------------------------
+
+
+def _add_library_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "dir",
+        nargs="?",
+        default=None,
+        help="library folder (default: $MIMIC_MOCAP or ../shared/mocap)",
+    )
+    p.add_argument(
+        "--clips",
+        action="append",
+        metavar="PATTERN",
+        help="only clips whose name matches (shell pattern, repeatable): --clips '01_*'",
+    )
+    p.add_argument("--fps", type=float, default=15.0, help="library frame rate (default 15)")
+    p.add_argument("--mirror", action="store_true", help="add mirrored copies of every clip")
+
+
+def _add_graph_args(p: argparse.ArgumentParser) -> None:
+    d = GraphOptions()
+    p.add_argument(
+        "--coords", choices=COORDS, default=d.coords, help="root coordinates (default fixed)"
+    )
+    p.add_argument(
+        "--contact",
+        choices=CONTACT_RULES,
+        default=d.contact,
+        help="contact pruning rule (default loose)",
+    )
+    sim = p.add_mutually_exclusive_group()
+    sim.add_argument(
+        "--similarity",
+        dest="similarity",
+        action="store_true",
+        default=None,
+        help="keep only local maxima (default: on unless --contact strict)",
+    )
+    sim.add_argument("--no-similarity", dest="similarity", action="store_false")
+    p.add_argument(
+        "--threshold",
+        type=float,
+        default=d.threshold,
+        help=f"likelihood threshold relative to playing on (default {d.threshold})",
+    )
+    p.add_argument(
+        "--sigma-scale",
+        type=float,
+        default=d.sigma_scale,
+        help="sigma = this x the median distance between frames 1/15 s apart",
+    )
+    p.add_argument("--nu", type=float, default=d.nu, help=f"velocity weight, s^2 (default {d.nu})")
+    p.add_argument("--block", type=float, default=d.block, help="terrain block size, metres")
+    p.add_argument("--rebuild", action="store_true", help="ignore a cached graph")
+
+
+def add_graph_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    graph = sub.add_parser("graph", help="the motion graph (lower layer)")
+    gsub = graph.add_subparsers(dest="graph_command", required=True)
+    build = gsub.add_parser(
+        "build",
+        help="build (or load from the cache) the motion graph and print the Table 1 report",
+        description="Frame distances, eq. 1 likelihoods and the four pruning rules of "
+        "Lee et al. Table 1. The graph is cached by a hash of the library and the options.",
+    )
+    _add_library_args(build)
+    _add_graph_args(build)
+    build.add_argument("--out", help="also write the graph to this .npz file")
+    build.add_argument("--json", action="store_true", help="print the report as JSON")
+    build.set_defaults(func=_graph_build)
+    walk = gsub.add_parser(
+        "walk",
+        help="a random walk through the graph, written as BVH",
+        description="Probabilistic motion (eq. 1) with blended transitions and planted feet.",
+    )
+    _add_library_args(walk)
+    _add_graph_args(walk)
+    walk.add_argument("--seconds", type=float, required=True, help="length of the walk")
+    walk.add_argument("--out", required=True, help="BVH file to write")
+    walk.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    walk.add_argument("--start", help="start at CLIP:FRAME (default: a random frame)")
+    walk.add_argument("--blend", type=float, default=1.0, help="blend interval b, seconds")
+    walk.add_argument("--no-ik", action="store_true", help="do not keep planted feet in place")
+    walk.add_argument(
+        "--quality",
+        action="store_true",
+        help="also measure foot slide, joint jumps and jerk against the raw clips",
+    )
+    walk.add_argument("--json", action="store_true", help="print the summary as JSON")
+    walk.set_defaults(func=_graph_walk)
+
+
+def _options(args: argparse.Namespace) -> GraphOptions:
+    return GraphOptions(
+        coords=args.coords,
+        contact=args.contact,
+        similarity=args.similarity,
+        nu=args.nu,
+        sigma_scale=args.sigma_scale,
+        threshold=args.threshold,
+        block=args.block,
+    )
+
+
+def _graph_for(args: argparse.Namespace) -> tuple[Library, MotionGraph, Path, bool]:
+    if args.fps is None or args.fps <= 0:
+        raise ValueError("--fps must be positive")
+    options = _options(args)
+    library = load_library(args.dir, fps=args.fps, mirror=args.mirror, clips=args.clips)
+    graph, path, built = cached_graph(library.clips, options, rebuild=args.rebuild)
+    return library, graph, path, built
+
+
+def format_report(report: dict[str, Any]) -> str:
+    """The Table 1 line of a graph report, with a header."""
+    sim = "N/A" if report["similarity"] is None else f"{report['similarity']:,}"
+    head = (
+        f"{'frames':>8} {'possible':>14} {'contact':>12} {'likelihood':>11} "
+        f"{'similarity':>11} {'SCC':>8}"
+    )
+    row = (
+        f"{report['frames']:>8,} {report['possible']:>14,} {report['contact']:>12,} "
+        f"{report['likelihood']:>11,} {sim:>11} {report['scc']:>8,}"
+    )
+    return f"{head}\n{row}"
+
+
+def _graph_build(args: argparse.Namespace) -> int:
+    _, graph, path, built = _graph_for(args)
+    if args.out:
+        save_graph(graph, args.out)
+    r = graph.report
+    if args.json:
+        print(json.dumps({"graph": str(path), "built": built, **r}, indent=2))
+        return 0
+    print(format_report(r))
+    excluded = r["excluded_clips"]
+    print(
+        f"\n{r['clips']} clips at {r['fps']:g} frames/s, coords {graph.options.coords}, "
+        f"contact rule {graph.options.contact}; sigma {r['sigma']:.4f}, transitions kept at "
+        f"distance <= {r['max_distance']:.4f}; largest strongly connected component: "
+        f"{r['scc_frames']:,} of {r['frames']:,} frames ({r['components']:,} components)"
+    )
+    if excluded:
+        print(f"left out (other joints): {', '.join(excluded)}")
+    how = f"built in {r['seconds']['total']:.2f} s" if built else "loaded from the cache"
+    print(f"graph {path} ({how})")
+    return 0
+
+
+def _graph_walk(args: argparse.Namespace) -> int:
+    if not args.seconds > 0:
+        raise ValueError("--seconds must be positive")
+    library, graph, path, _ = _graph_for(args)
+    start = None
+    if args.start:
+        clip, _, frame = args.start.rpartition(":")
+        if not clip or not frame.isdigit():
+            raise ValueError(f"--start must be CLIP:FRAME, not {args.start!r}")
+        start = graph.frame_of(clip, int(frame))
+    n = max(1, round(args.seconds * graph.fps))
+    frames, jumps, edges = random_walk(graph, n, seed=args.seed, start=start)
+    syn = synthesize(
+        graph, library.clips, frames, jumps, edges, blend=args.blend, ik=not args.no_ik
+    )
+    write_bvh(syn.motion, args.out)
+    minutes = n / graph.fps / 60.0
+    summary: dict[str, Any] = {
+        "out": args.out,
+        "graph": str(path),
+        "seconds": round(n / graph.fps, 2),
+        "frames": n,
+        "transitions": int(jumps.size),
+        "transitions_per_minute": round(jumps.size / minutes, 1),
+        "clips_visited": len({graph.locate(int(f))[0] for f in frames}),
+        "unreachable_foot_frames": syn.unreachable,
+    }
+    if args.quality:
+        chosen = [library.clip(c) for c in graph.clip_names]
+        raw = quality_summary([c.motion for c in chosen], [c.contacts.states for c in chosen])
+        out = quality_summary([syn.motion], [syn.states])
+        jj = joint_jumps(syn.motion)
+        at = jj[jumps - 1] if jumps.size else np.zeros(1)
+        summary["quality"] = {
+            "raw": raw,
+            "walk": out,
+            "transition_jump_max_deg": float(at.max()),
+            "transition_jump_p99_deg": float(np.percentile(at, 99)),
+        }
+    if args.json:
+        print(json.dumps(summary, indent=2))
+        return 0
+    print(
+        f"wrote {args.out}: {summary['seconds']} s, {summary['transitions']} transitions "
+        f"({summary['transitions_per_minute']}/min) through {summary['clips_visited']} clips"
+    )
+    if args.quality:
+        q = summary["quality"]
+        print(f"{'':28}{'raw clips':>12}{'walk':>12}")
+        for key, label in (
+            ("foot_slide_mean", "foot slide, m/s (mean)"),
+            ("jump_p99_deg", "joint jump p99, deg"),
+            ("jerk_mean", "jerk, m/s^3 (mean)"),
+        ):
+            print(f"{label:<28}{q['raw'][key]:>12.3f}{q['walk'][key]:>12.3f}")
+        print(
+            f"largest joint jump at a transition: {q['transition_jump_max_deg']:.1f} deg "
+            f"(raw 99th percentile {q['raw']['jump_p99_deg']:.1f})"
+        )
     return 0

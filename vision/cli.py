@@ -7,7 +7,8 @@ import logging
 import sys
 from collections.abc import Sequence
 
-from control.cli import add_library_commands
+from control.cli import add_graph_commands, add_library_commands
+from control.graph import GraphFileError
 from control.motion import MotionFormatError
 
 __all__ = ["build_parser", "main"]
@@ -21,6 +22,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress")
     sub = parser.add_subparsers(dest="command", required=True)
     add_library_commands(sub)
+    add_graph_commands(sub)
     return parser
 
 
@@ -33,7 +35,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     try:
         return int(args.func(args))
-    except (MotionFormatError, FileNotFoundError) as exc:
+    except (MotionFormatError, GraphFileError, FileNotFoundError, KeyError, ValueError) as exc:
         print(f"mimic: error: {exc}", file=sys.stderr)
         return 2
 
