@@ -19,6 +19,7 @@ from .graph import (
     quality_summary,
     random_walk,
     save_graph,
+    sole_speed,
     synthesize,
 )
 from .motion import Library, load_library, write_bvh
@@ -304,6 +305,8 @@ def _graph_walk(args: argparse.Namespace) -> int:
     if args.quality:
         chosen = [library.clip(c) for c in graph.clip_names]
         raw = quality_summary([c.motion for c in chosen], [c.contacts.states for c in chosen])
+        per_frame = np.concatenate([sole_speed(c.motion, c.contacts.states) for c in chosen])
+        raw["foot_slide_visited"] = float(np.nanmean(per_frame[frames]))
         out = quality_summary([syn.motion], [syn.states])
         jj = joint_jumps(syn.motion)
         at = jj[jumps - 1] if jumps.size else np.zeros(1)
@@ -329,6 +332,10 @@ def _graph_walk(args: argparse.Namespace) -> int:
             ("jerk_mean", "jerk, m/s^3 (mean)"),
         ):
             print(f"{label:<28}{q['raw'][key]:>12.3f}{q['walk'][key]:>12.3f}")
+            if key == "foot_slide_mean":
+                print(
+                    f"{'  raw, frames the walk shows':<28}{q['raw']['foot_slide_visited']:>12.3f}"
+                )
         print(
             f"largest joint jump at a transition: {q['transition_jump_max_deg']:.1f} deg "
             f"(raw 99th percentile {q['raw']['jump_p99_deg']:.1f})"

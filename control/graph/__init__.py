@@ -14,7 +14,7 @@ from ._graph import (
 )
 from ._ik import leg_chain, solve_leg, two_bone_ik
 from ._prune import CONTACT_RULES, contact_groups, largest_scc, local_maxima
-from ._quality import foot_slide, jerk, joint_jumps, quality_summary
+from ._quality import foot_slide, jerk, joint_jumps, quality_summary, sole_speed
 from ._synth import Synthesis, synthesize
 from ._walk import random_walk
 
@@ -48,6 +48,7 @@ __all__ = [
     "random_walk",
     "save_graph",
     "select_clips",
+    "sole_speed",
     "solve_leg",
     "synthesize",
     "two_bone_ik",

@@ -24,6 +24,7 @@ linear (m/s) and angular (rad/s) velocity. How the root enters depends on the co
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,7 +37,9 @@ __all__ = [
     "COORDS",
     "FrameFeatures",
     "frame_features",
+    "leg_length",
     "q_embed",
+    "root_scales",
     "weighted_joints",
     "yaw_of",
     "yaw_q",
@@ -80,6 +83,29 @@ def weighted_joints(skeleton: Skeleton) -> NDArray[np.int64]:
         spine.append(top)
         top = int(skeleton.parents[top])
     return np.array(sorted(set(out) | set(spine)), dtype=np.int64)
+
+
+def leg_length(skeleton: Skeleton) -> float:
+    """Thigh plus shin length (metres), averaged over both legs."""
+    total = []
+    for side in ("left", "right"):
+        for part in ("knee", "ankle"):
+            j = find_role(skeleton, f"{side}_{part}")
+            if j is None:
+                raise KeyError(f"skeleton has no joint for role {side}_{part!r}")
+            total.append(float(np.linalg.norm(skeleton.offsets[j])))
+    return sum(total) / 2.0
+
+
+def root_scales(clips: Sequence[Clip]) -> FloatArray:
+    """(C,) factor per clip that retargets its root translation to the first clip's body.
+
+    Clips of other subjects have other leg lengths; played on one skeleton, their root
+    would travel too far or too little for the feet (they would slide). Scaling the root
+    translation by the ratio of leg lengths is the simplest retargeting that fixes this.
+    """
+    ref = leg_length(clips[0].motion.skeleton)
+    return np.array([ref / leg_length(c.motion.skeleton) for c in clips])
 
 
 def yaw_of(q: FloatArray) -> FloatArray:
@@ -179,39 +205,44 @@ def _linear_velocity(p: FloatArray, fps: float) -> FloatArray:
     return np.gradient(p, 1.0 / fps, axis=0)
 
 
-def frame_features(clips: tuple[Clip, ...] | list[Clip], coords: str = "fixed") -> FrameFeatures:
-    """Features of every frame of ``clips`` (all with the same joint names), end to end."""
+def frame_features(clips: Sequence[Clip], coords: str = "fixed") -> FrameFeatures:
+    """Features of every frame of ``clips`` (all with the same joint names), end to end.
+
+    Root translations are retargeted to the first clip's body (``root_scales``).
+    """
     if coords not in COORDS:
         raise ValueError(f"coords must be one of {', '.join(COORDS)}, not {coords!r}")
     if not clips:
         raise ValueError("no clips")
     joints = weighted_joints(clips[0].motion.skeleton)
+    scales = root_scales(clips)
     parts: dict[str, list[FloatArray]] = {k: [] for k in ("jq", "rq", "rp", "vel", "wp", "yaw")}
     states: list[NDArray[np.bool_]] = []
     starts = [0]
-    for clip in clips:
+    for clip, scale in zip(clips, scales, strict=True):
         m = clip.motion
+        root_pos = m.root_pos * scale
         jq = m.quats[:, joints]
         q0 = m.quats[:, 0]
         yaw = yaw_of(q0)
         ang = _angular_velocity(jq, m.fps, world=False).reshape(m.n_frames, -1)
-        lin = _linear_velocity(m.root_pos, m.fps)
+        lin = _linear_velocity(root_pos, m.fps)
         rang = _angular_velocity(q0, m.fps, world=True)
         if coords == "relative":
             tilt = qmul(yaw_q(-yaw), q0)
             rq = tilt
-            rp = np.zeros_like(m.root_pos)
-            rp[:, 1] = m.root_pos[:, 1]
+            rp = np.zeros_like(root_pos)
+            rp[:, 1] = root_pos[:, 1]
             lin = rotate_y(lin, -yaw)
             rang = rotate_y(rang, -yaw)
         else:
             rq = q0
-            rp = m.root_pos
+            rp = root_pos
         parts["jq"].append(jq)
         parts["rq"].append(rq)
         parts["rp"].append(rp)
         parts["vel"].append(np.concatenate((ang, lin, rang), axis=1))
-        parts["wp"].append(m.root_pos)
+        parts["wp"].append(root_pos)
         parts["yaw"].append(yaw)
         states.append(clip.contacts.states)
         starts.append(starts[-1] + m.n_frames)

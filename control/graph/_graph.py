@@ -136,9 +136,12 @@ class MotionGraph:
 
     def frame_of(self, clip: str, frame: int) -> int:
         """Graph frame of ``frame`` of ``clip``."""
+        if clip not in self.clip_names:
+            raise ValueError(f"the graph has no clip {clip!r}")
         c = self.clip_names.index(clip)
-        if not 0 <= frame < self.clip_start[c + 1] - self.clip_start[c]:
-            raise IndexError(f"clip {clip} has no frame {frame}")
+        size = int(self.clip_start[c + 1] - self.clip_start[c])
+        if not 0 <= frame < size:
+            raise ValueError(f"clip {clip} has no frame {frame} (it has {size} frames)")
         return int(self.clip_start[c] + frame)
 
     def likelihood(self) -> NDArray[np.float64]:

@@ -19,7 +19,20 @@ from ..motion import Motion, foot_points, forward_kinematics, qconj, qlog, qmul
 from ..motion._quat import FloatArray
 from ._features import weighted_joints
 
-__all__ = ["foot_slide", "jerk", "joint_jumps", "quality_summary"]
+__all__ = ["foot_slide", "jerk", "joint_jumps", "quality_summary", "sole_speed"]
+
+
+def sole_speed(motion: Motion, states: NDArray[np.bool_]) -> FloatArray:
+    """(F, 2) sole speed (m/s) per frame and foot; NaN where the foot is not in contact
+    at both that frame and the previous one (and at frame 0)."""
+    ankle, toe = foot_points(motion)
+    v_a = np.linalg.norm(np.diff(ankle[..., [0, 2]], axis=0), axis=-1)
+    v_t = np.linalg.norm(np.diff(toe[..., [0, 2]], axis=0), axis=-1)
+    speed = np.minimum(v_a, v_t) * motion.fps
+    both = states[1:] & states[:-1]
+    out = np.full(states.shape, np.nan)
+    out[1:] = np.where(both, speed, np.nan)
+    return out
 
 
 def foot_slide(motion: Motion, states: NDArray[np.bool_]) -> FloatArray:
@@ -27,12 +40,8 @@ def foot_slide(motion: Motion, states: NDArray[np.bool_]) -> FloatArray:
 
     A frame counts when the foot is in contact at it and at the previous frame.
     """
-    ankle, toe = foot_points(motion)
-    v_a = np.linalg.norm(np.diff(ankle[..., [0, 2]], axis=0), axis=-1)
-    v_t = np.linalg.norm(np.diff(toe[..., [0, 2]], axis=0), axis=-1)
-    speed = np.minimum(v_a, v_t) * motion.fps
-    both = states[1:] & states[:-1]
-    return speed[both]
+    s = sole_speed(motion, states)
+    return s[~np.isnan(s)]
 
 
 def joint_jumps(motion: Motion) -> FloatArray:

@@ -36,7 +36,7 @@ from ..motion import (
     role_point,
 )
 from ..motion._quat import FloatArray
-from ._features import rotate_y, yaw_q
+from ._features import root_scales, rotate_y, yaw_q
 from ._graph import MotionGraph
 from ._ik import leg_chain, solve_leg
 
@@ -82,7 +82,10 @@ class _Frames:
         if not np.array_equal(np.concatenate(([0], np.cumsum(sizes))), graph.clip_start):
             raise ValueError("the library's clips do not match the graph (frame counts differ)")
         self.skeleton = chosen[0].motion.skeleton
-        self.root = np.concatenate([c.motion.root_pos for c in chosen])
+        scales = root_scales(chosen)
+        self.root = np.concatenate(
+            [c.motion.root_pos * s for c, s in zip(chosen, scales, strict=True)]
+        )
         self.quats = np.concatenate([c.motion.quats for c in chosen])
         self.states = np.concatenate([c.contacts.states for c in chosen])
 
@@ -113,7 +116,7 @@ def synthesize(
     blend: float = 1.0,
     ik: bool = True,
     fade: float = 0.25,
-    max_offset: float = 0.1,
+    max_offset: float = 0.2,
 ) -> Synthesis:
     """Turn a path through the graph into motion.
 

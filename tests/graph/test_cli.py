@@ -1,0 +1,69 @@
+"""`mimic graph build` and `mimic graph walk` end to end on real clips."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from control.graph import load_graph
+from control.motion import read_bvh
+from tests.conftest import REPO
+from vision.cli import main
+
+
+def test_build_prints_table_and_writes_graph(
+    mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "g.npz"
+    args = ["graph", "build", str(mocap), "--clips", "02_0[1-4]", "--out", str(out)]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "likelihood" in text and "similarity" in text and "SCC" in text
+    assert "built in" in text
+    assert main([*args, "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["built"] is False  # the second run comes from the cache
+    assert report["frames"] == 164 and report["possible"] == 164**2
+    assert load_graph(out).n_edges == report["scc"]
+    assert main(["graph", "build", str(mocap), "--clips", "02_0[1-4]", "--contact", "strict"]) == 0
+    assert "N/A" in capsys.readouterr().out
+
+
+def test_walk_writes_a_bvh_that_other_tools_read(
+    mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "walk.bvh"
+    common = [str(mocap), "--clips", "02_*", "--clips", "03_*", "--coords", "relative"]
+    argv = ["graph", "walk", *common, "--seconds", "20", "--out", str(out), "--quality"]
+    assert main([*argv, "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["frames"] == 300 and summary["transitions"] > 0
+    assert summary["quality"]["walk"]["foot_slide_mean"] > 0
+    motion = read_bvh(out)
+    assert motion.n_frames == 300 and motion.fps == 15
+    check = subprocess.run(
+        [sys.executable, str(REPO.parent / "shared" / "tools" / "check_bvh.py"), str(out)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert check.returncode == 0, check.stdout + check.stderr
+
+
+def test_walk_bad_arguments_are_clear_errors(
+    mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    base = ["graph", "walk", str(mocap), "--clips", "02_0[1-4]", "--out", str(tmp_path / "w.bvh")]
+    assert main([*base, "--seconds", "5", "--start", "02_01"]) == 2
+    assert "CLIP:FRAME" in capsys.readouterr().err
+    assert main([*base, "--seconds", "5", "--start", "02_01:999"]) == 2
+    assert "no frame 999" in capsys.readouterr().err
+    assert main([*base, "--seconds", "0"]) == 2
+    assert "--seconds" in capsys.readouterr().err
+    assert main(["graph", "build", str(mocap), "--clips", "zz_*"]) == 2
+    assert "no clip matches zz_*" in capsys.readouterr().err
+    assert not (tmp_path / "w.bvh").exists()

@@ -1,0 +1,194 @@
+"""The frame distance against a slow reference written from the paper's formulas."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from control.graph import (
+    close_pairs,
+    frame_features,
+    lower_bound_features,
+    pair_distances,
+    q_embed,
+    weighted_joints,
+)
+from control.motion import Clip, Library, Motion, qconj, qlog, qmul
+
+NU = 0.01
+
+
+def _yaw(q: np.ndarray) -> float:
+    return float(2.0 * np.arctan2(q[2], q[0]))
+
+
+def _yq(angle: float) -> np.ndarray:
+    return np.array([np.cos(angle / 2), 0.0, np.sin(angle / 2), 0.0])
+
+
+def _Ry(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def _half_angle_sq(qa: np.ndarray, qb: np.ndarray) -> float:
+    """|log(qb^-1 qa)|^2 with |log| half the rotation angle (Lee et al. eq. 3)."""
+    return float((np.linalg.norm(qlog(qmul(qconj(qb), qa))) / 2.0) ** 2)
+
+
+def _velocities(m: Motion, f: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Central differences at frame f: joint angular velocities (body frame), root linear
+    and root angular velocity (world)."""
+    lo, hi = max(f - 1, 0), min(f + 1, m.n_frames - 1)
+    dt = (hi - lo) / m.fps
+    joints = weighted_joints(m.skeleton)
+    ang = np.array([qlog(qmul(qconj(m.quats[lo, j]), m.quats[hi, j])) / dt for j in joints])
+    lin = (m.root_pos[hi] - m.root_pos[lo]) / dt
+    rot = qlog(qmul(m.quats[hi, 0], qconj(m.quats[lo, 0]))) / dt
+    return ang, lin, rot
+
+
+def reference_distance(
+    ca: Clip, fa: int, cb: Clip, fb: int, coords: str, block: float = 0.5
+) -> float:
+    ma, mb = ca.motion, cb.motion
+    joints = weighted_joints(ma.skeleton)
+    d = sum(_half_angle_sq(ma.quats[fa, j], mb.quats[fb, j]) for j in joints)
+    ang_a, lin_a, rot_a = _velocities(ma, fa)
+    ang_b, lin_b, rot_b = _velocities(mb, fb)
+    d += NU * float(np.sum((ang_a - ang_b) ** 2))
+    qa, qb = ma.quats[fa, 0], mb.quats[fb, 0]
+    pa, pb = ma.root_pos[fa], mb.root_pos[fb]
+    if coords == "fixed":
+        root = _half_angle_sq(qa, qb) + float(np.sum((pa - pb) ** 2))
+        root += NU * float(np.sum((lin_a - lin_b) ** 2) + np.sum((rot_a - rot_b) ** 2))
+        return d + root
+    if coords == "relative":
+        turn = _yaw(qa) - _yaw(qb)
+        R = _Ry(turn)
+        root = _half_angle_sq(qa, qmul(_yq(turn), qb)) + (pa[1] - pb[1]) ** 2
+        root += NU * float(np.sum((lin_a - R @ lin_b) ** 2) + np.sum((rot_a - R @ rot_b) ** 2))
+        return d + root
+    best = np.inf
+    for r in range(4):
+        turn = r * np.pi / 2
+        R = _Ry(turn)
+        res = pa - R @ pb
+        res = res - block * np.round(res / block)
+        root = _half_angle_sq(qa, qmul(_yq(turn), qb)) + res[0] ** 2 + res[2] ** 2
+        root += NU * float(np.sum((lin_a - R @ lin_b) ** 2) + np.sum((rot_a - R @ rot_b) ** 2))
+        best = min(best, root)
+    return d + best
+
+
+def _locate(lib: Library, f: int) -> tuple[Clip, int]:
+    for c in lib.clips:
+        if f < c.motion.n_frames:
+            return c, f
+        f -= c.motion.n_frames
+    raise IndexError(f)
+
+
+@pytest.mark.parametrize("coords", ["fixed", "relative", "terrain"])
+def test_matches_slow_reference(walk_lib: Library, coords: str, rng: np.random.Generator) -> None:
+    feat = frame_features(walk_lib.clips, coords)
+    a = rng.integers(0, feat.n, 60)
+    b = rng.integers(0, feat.n, 60)
+    d, _ = pair_distances(feat, a, b, NU)
+    ref = [
+        reference_distance(*_locate(walk_lib, x), *_locate(walk_lib, y), coords)
+        for x, y in zip(a, b, strict=True)
+    ]
+    np.testing.assert_allclose(d, ref, rtol=1e-7, atol=1e-9)
+
+
+@pytest.mark.parametrize("coords", ["fixed", "relative", "terrain"])
+def test_symmetric_with_zero_diagonal(
+    walk_lib: Library, coords: str, rng: np.random.Generator
+) -> None:
+    feat = frame_features(walk_lib.clips, coords)
+    a = rng.integers(0, feat.n, 500)
+    b = rng.integers(0, feat.n, 500)
+    dab, _ = pair_distances(feat, a, b, NU)
+    dba, _ = pair_distances(feat, b, a, NU)
+    np.testing.assert_allclose(dab, dba, rtol=1e-9, atol=1e-12)
+    diag, align = pair_distances(feat, a, a, NU)
+    np.testing.assert_allclose(diag, 0.0, atol=1e-12)
+    if coords != "terrain":
+        np.testing.assert_allclose(align[:, [0, 1, 3]], 0.0, atol=1e-9)
+
+
+def _moved(clip: Clip, turn: float, shift: np.ndarray) -> Clip:
+    m = clip.motion
+    q = m.quats.copy()
+    q[:, 0] = qmul(_yq(turn), q[:, 0])
+    pos = m.root_pos @ _Ry(turn).T + shift
+    moved = Motion(m.skeleton, pos, q, m.fps, m.name + "_moved", m.source)
+    return Clip(moved, clip.contacts, "", clip.labels, (), clip.source_frames, clip.path)
+
+
+def test_relative_ignores_heading_and_floor_position(walk_lib: Library) -> None:
+    a, b = walk_lib.clips[0], walk_lib.clips[1]
+    feat = frame_features([a, b], "relative")
+    moved = frame_features([a, _moved(b, 1.234, np.array([3.0, 0.0, -7.0]))], "relative")
+    fa = np.repeat(np.arange(a.motion.n_frames), b.motion.n_frames)
+    fb = np.tile(np.arange(b.motion.n_frames), a.motion.n_frames) + a.motion.n_frames
+    d0, _ = pair_distances(feat, fa, fb, NU)
+    d1, al1 = pair_distances(moved, fa, fb, NU)
+    np.testing.assert_allclose(d0, d1, rtol=1e-9, atol=1e-10)
+    # the alignment undoes the move: aligned frame b lands on frame a horizontally
+    pb = moved.world_p[fb]
+    c, s = np.cos(al1[:, 0]), np.sin(al1[:, 0])
+    x = c * pb[:, 0] + s * pb[:, 2] + al1[:, 1]
+    z = -s * pb[:, 0] + c * pb[:, 2] + al1[:, 3]
+    np.testing.assert_allclose(x, moved.world_p[fa, 0], atol=1e-9)
+    np.testing.assert_allclose(z, moved.world_p[fa, 2], atol=1e-9)
+    fixed0 = pair_distances(frame_features([a, b], "fixed"), fa, fb, NU)[0]
+    fixed1 = pair_distances(
+        frame_features([a, _moved(b, 1.234, np.zeros(3))], "fixed"), fa, fb, NU
+    )[0]
+    assert np.mean(np.abs(fixed0 - fixed1)) > 0.1  # fixed coordinates do see the turn
+
+
+def test_terrain_allows_quarter_turns_and_whole_blocks(walk_lib: Library) -> None:
+    a, b = walk_lib.clips[0], walk_lib.clips[3]
+    fa = np.repeat(np.arange(a.motion.n_frames), 5)
+    fb = np.tile(np.arange(5), a.motion.n_frames) + a.motion.n_frames
+    d0, _ = pair_distances(frame_features([a, b], "terrain"), fa, fb, NU, block=0.5)
+    turned = _moved(b, np.pi / 2, np.array([1.0, 0.3, -1.5]))
+    d1, al = pair_distances(frame_features([a, turned], "terrain"), fa, fb, NU, block=0.5)
+    np.testing.assert_allclose(d0, d1, rtol=1e-7, atol=1e-9)
+    quarter = al[:, 0] / (np.pi / 2)
+    np.testing.assert_allclose(quarter, np.round(quarter), atol=1e-9)
+    np.testing.assert_allclose(al[:, [1, 3]] / 0.5, np.round(al[:, [1, 3]] / 0.5), atol=1e-6)
+    # a shift of a fraction of a block is not free
+    off = _moved(b, 0.0, np.array([0.25, 0.0, 0.0]))
+    d2, _ = pair_distances(frame_features([a, off], "terrain"), fa, fb, NU, block=0.5)
+    assert np.all(d2 >= d0 - 1e-9) and np.mean(d2 - d0) > 0.01
+
+
+def test_embedding_gives_squared_dot(rng: np.random.Generator) -> None:
+    q = rng.normal(size=(50, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    p = rng.normal(size=(50, 4))
+    p /= np.linalg.norm(p, axis=1, keepdims=True)
+    np.testing.assert_allclose(np.sum(q_embed(q) * q_embed(p), axis=1), np.sum(q * p, axis=1) ** 2)
+
+
+@pytest.mark.parametrize("coords", ["fixed", "relative", "terrain"])
+def test_blocked_search_finds_every_close_pair(walk_lib: Library, coords: str) -> None:
+    feat = frame_features(walk_lib.clips, coords)
+    n = feat.n
+    a = np.repeat(np.arange(n), n)
+    b = np.tile(np.arange(n), n)
+    d, _ = pair_distances(feat, a, b, NU)
+    x, norms = lower_bound_features(feat, NU)
+    lb = norms[a] + norms[b] - 2.0 * np.sum(x[a].astype(np.float64) * x[b], axis=1)
+    assert np.all(lb <= d + 1e-4)  # a lower bound (up to float32 rounding)
+    dmax = float(np.quantile(d[a != b], 0.02))
+    rows = np.arange(n)
+    ca, cb = close_pairs(feat, rows, rows, dmax, NU, max_block_elems=1000)
+    found = set(zip(ca.tolist(), cb.tolist(), strict=True))
+    truth = {(int(i), int(j)) for i, j, v in zip(a, b, d, strict=True) if v <= dmax and i != j}
+    assert truth <= found
+    assert len(found) < 0.2 * n * n  # and it actually prunes

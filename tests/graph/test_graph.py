@@ -1,0 +1,153 @@
+"""Building, storing and walking the graph on real clips."""
+
+from __future__ import annotations
+
+import math
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from control.graph import (
+    GraphFileError,
+    GraphOptions,
+    MotionGraph,
+    build_graph,
+    cached_graph,
+    contact_groups,
+    frame_features,
+    load_graph,
+    local_maxima,
+    pair_distances,
+    random_walk,
+    save_graph,
+)
+from control.motion import Library
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        GraphOptions(),
+        GraphOptions(coords="relative", contact="strict", threshold=0.02),
+        GraphOptions(coords="terrain", contact="loose", similarity=False),
+    ],
+)
+def test_build_equals_brute_force(walk_lib: Library, options: GraphOptions) -> None:
+    g = build_graph(walk_lib.clips, options)
+    feat = frame_features(walk_lib.clips, options.coords)
+    n = feat.n
+    a = np.repeat(np.arange(n), n)
+    b = np.tile(np.arange(n), n)
+    d, _ = pair_distances(feat, a, b, options.nu, options.block)
+    allowed = np.zeros((n, n), dtype=bool)
+    for rows, cols in contact_groups(feat.states, feat.clip_start, options.contact):
+        allowed[np.ix_(rows, cols)] = True
+    np.fill_diagonal(allowed, False)
+    dmax = g.sigma * math.log(1.0 / options.threshold)
+    ok = allowed.ravel() & (d <= dmax)
+    assert g.report["contact"] == int(allowed.sum())
+    assert g.report["likelihood"] == int(ok.sum())
+    ea, eb, ed = a[ok], b[ok], d[ok]
+    if options.use_similarity:
+        keep = local_maxima(ea, eb, ed, feat.clip_start)
+        ea, eb, ed = ea[keep], eb[keep], ed[keep]
+        assert g.report["similarity"] == ea.size
+    else:
+        assert g.report["similarity"] is None
+    inside = g.in_scc[ea] & g.in_scc[eb + 1]
+    got = set(zip(g.src.tolist(), (g.dst - 1).tolist(), strict=True))
+    assert got == set(zip(ea[inside].tolist(), eb[inside].tolist(), strict=True))
+
+
+def _check_component(g: MotionGraph) -> None:
+    plays = g.plays_on()
+    indptr = g.indptr
+    for f in np.flatnonzero(g.in_scc):
+        exits = g.dst[indptr[f] : indptr[f + 1]]
+        assert plays[f] or exits.size, f"frame {f} is a dead end"
+        assert g.in_scc[exits].all()
+
+
+def test_report_counts_shrink_and_component_has_no_dead_end(medium_lib: Library) -> None:
+    g = build_graph(medium_lib.clips, GraphOptions(coords="relative"))
+    r = g.report
+    assert r["frames"] == medium_lib.n_frames == g.n_frames
+    assert r["possible"] >= r["contact"] >= r["likelihood"] >= r["similarity"] >= r["scc"] > 0
+    assert 0.3 * r["frames"] < r["scc_frames"] <= r["frames"]
+    assert np.all(g.dist <= r["max_distance"] + 1e-6)
+    assert np.all(np.diff(g.src) >= 0)
+    _check_component(g)
+    # every transition lands inside a clip, after the frame it resembles
+    starts = set(g.clip_start[:-1].tolist())
+    assert not any(int(t) in starts for t in g.dst)
+
+
+def test_walk_never_leaves_the_component(medium_lib: Library) -> None:
+    g = build_graph(medium_lib.clips, GraphOptions(coords="relative"))
+    frames, jumps, edges = random_walk(g, 3000, seed=7)
+    assert g.in_scc[frames].all()
+    step = np.diff(frames)
+    played = np.ones(frames.size - 1, dtype=bool)
+    played[jumps - 1] = False
+    assert np.all(step[played] == 1)
+    assert np.array_equal(g.src[edges], frames[jumps - 1])
+    assert np.array_equal(g.dst[edges], frames[jumps])
+    assert jumps.size > 10
+    again = random_walk(g, 3000, seed=7)
+    assert np.array_equal(again[0], frames)
+    with pytest.raises(ValueError, match="not in the graph's component"):
+        random_walk(g, 10, start=int(np.flatnonzero(~g.in_scc)[0]))
+
+
+def test_artifact_round_trip_and_bad_files(walk_lib: Library, tmp_path: Path) -> None:
+    g = build_graph(walk_lib.clips, GraphOptions(coords="relative"))
+    path = save_graph(g, tmp_path / "g.npz")
+    h = load_graph(path)
+    assert h.options == g.options and h.clip_names == g.clip_names
+    assert h.library_digest == g.library_digest and h.sigma == g.sigma
+    for name in ("clip_start", "src", "dst", "dist", "align", "in_scc"):
+        assert np.array_equal(getattr(h, name), getattr(g, name))
+    data = path.read_bytes()
+    (tmp_path / "cut.npz").write_bytes(data[: len(data) // 2])
+    with pytest.raises(GraphFileError, match=r"cut\.npz: unreadable or truncated"):
+        load_graph(tmp_path / "cut.npz")
+    np.savez(tmp_path / "other.npz", x=np.zeros(3))
+    with pytest.raises(GraphFileError, match="not a mimic graph"):
+        load_graph(tmp_path / "other.npz")
+    with zipfile.ZipFile(path) as z:
+        members = {m: z.read(m) for m in z.namelist()}
+    with zipfile.ZipFile(tmp_path / "bad.npz", "w") as z:
+        for m, blob in members.items():
+            if m == "in_scc.npy":
+                np.save(tmp_path / "x.npy", np.ones(3, dtype=bool))
+                blob = (tmp_path / "x.npy").read_bytes()
+            z.writestr(m, blob)
+    with pytest.raises(GraphFileError, match="inconsistent shapes"):
+        load_graph(tmp_path / "bad.npz")
+    with pytest.raises(FileNotFoundError):
+        load_graph(tmp_path / "missing.npz")
+
+
+def test_cache_reuses_and_never_serves_a_stale_graph(medium_lib: Library, tmp_path: Path) -> None:
+    clips = medium_lib.clips
+    g1, p1, built1 = cached_graph(clips, GraphOptions(), cache_dir=tmp_path)
+    g2, p2, built2 = cached_graph(clips, GraphOptions(), cache_dir=tmp_path)
+    assert built1 and not built2 and p1 == p2 and g2.n_edges == g1.n_edges
+    _, p3, built3 = cached_graph(clips[:-1], GraphOptions(), cache_dir=tmp_path)
+    assert built3 and p3 != p1  # other clips: another graph
+    _, p4, built4 = cached_graph(clips, GraphOptions(threshold=0.2), cache_dir=tmp_path)
+    assert built4 and p4 != p1  # other options: another graph
+    p1.write_bytes(b"garbage")
+    _, p5, built5 = cached_graph(clips, GraphOptions(), cache_dir=tmp_path)
+    assert built5 and p5 == p1 and load_graph(p1).n_edges == g1.n_edges
+
+
+def test_options_are_checked() -> None:
+    with pytest.raises(ValueError, match="coords"):
+        GraphOptions(coords="polar")
+    with pytest.raises(ValueError, match="threshold"):
+        GraphOptions(threshold=1.5)
+    with pytest.raises(ValueError, match="nu"):
+        GraphOptions(nu=-1.0)

@@ -1,0 +1,167 @@
+"""Blended transitions, the overlap buffer and planted feet."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from control.graph import (
+    GraphOptions,
+    MotionGraph,
+    build_graph,
+    foot_slide,
+    leg_chain,
+    random_walk,
+    sole_speed,
+    solve_leg,
+    synthesize,
+    two_bone_ik,
+)
+from control.motion import Library, Motion, forward_kinematics, qconj, qlog, qmul
+
+
+@pytest.fixture(scope="module")
+def graph(medium_lib: Library) -> MotionGraph:
+    return build_graph(medium_lib.clips, GraphOptions(coords="relative"))
+
+
+def _step(q: np.ndarray, t: int) -> np.ndarray:
+    """Per-joint rotation vectors (radians) from frame t - 1 to t."""
+    return qlog(qmul(q[t], qconj(q[t - 1])))
+
+
+def _accel_deg(q0: np.ndarray, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
+    """Per-joint second difference (degrees) of three consecutive poses."""
+    a = qlog(qmul(q2, qconj(q1))) - qlog(qmul(q1, qconj(q0)))
+    return np.degrees(np.linalg.norm(a, axis=-1))
+
+
+def _edges_with_room(g: MotionGraph, before: int, after: int) -> np.ndarray:
+    clip_of = np.searchsorted(g.clip_start, np.arange(g.n_frames), side="right") - 1
+    ok = []
+    for e in range(g.n_edges):
+        s, d = int(g.src[e]), int(g.dst[e])
+        if s - before >= g.clip_start[clip_of[s]] and d + after < g.clip_start[clip_of[d] + 1]:
+            ok.append(e)
+    return np.array(ok)
+
+
+def _path(g: MotionGraph, edges: list[int], run: int) -> tuple[np.ndarray, np.ndarray]:
+    """Play ``run`` frames up to each edge's source, take it, and so on."""
+    frames = list(range(int(g.src[edges[0]]) - run, int(g.src[edges[0]]) + 1))
+    jumps = []
+    for k, e in enumerate(edges):
+        jumps.append(len(frames))
+        nxt = int(g.src[edges[k + 1]]) if k + 1 < len(edges) else int(g.dst[e]) + 40
+        frames += list(range(int(g.dst[e]), nxt + 1))
+    return np.array(frames), np.array(jumps)
+
+
+def test_blend_matches_pose_and_velocity_then_fades(
+    graph: MotionGraph, medium_lib: Library
+) -> None:
+    e = int(_edges_with_room(graph, 5, 40)[np.argmax(graph.dist[_edges_with_room(graph, 5, 40)])])
+    frames, jumps = _path(graph, [e], 5)
+    b = 15
+    syn = synthesize(graph, medium_lib.clips, frames, jumps, np.array([e]), blend=1.0, ik=False)
+    t = int(jumps[0])
+    src_q = np.concatenate([c.motion.quats for c in medium_lib.clips])
+    d = int(graph.dst[e])
+    out = syn.motion.quats
+    # pose and velocity carry on across the jump: the second difference there is the
+    # target's own (frames d-2, d-1, d), not the raw discontinuity
+    shown = _accel_deg(out[t - 2], out[t - 1], out[t])
+    own = _accel_deg(src_q[d - 2], src_q[d - 1], src_q[d])
+    naive = _accel_deg(out[t - 2], out[t - 1], src_q[d])
+    assert np.max(np.abs(shown[1:] - own[1:])) < 1.5
+    assert np.max(naive[1:]) > np.max(shown[1:]) + 3.0  # there was a discontinuity to hide
+    # root: position continuous (step like the source's own), and back to the source after b
+    step = np.linalg.norm(syn.motion.root_pos[t] - syn.motion.root_pos[t - 1])
+    assert step < 0.15
+    assert syn.blended[t : t + b].all() and not syn.blended[t + b :].any()
+    tail = syn.motion.quats[t + b :, 1:]
+    np.testing.assert_allclose(
+        np.abs(np.sum(tail * src_q[frames[t + b :], 1:], axis=-1)), 1.0, atol=1e-9
+    )
+
+
+def test_transition_inside_a_blend_starts_from_the_shown_motion(
+    graph: MotionGraph, medium_lib: Library
+) -> None:
+    room = _edges_with_room(graph, 5, 40)
+    first = int(room[0])
+    # a second transition three frames after the first landing, from that clip
+    later = [int(x) for x in room if graph.src[x] == graph.dst[first] + 3]
+    if not later:
+        # take any edge and enter its source three frames before it instead
+        later = [int(room[-1])]
+    frames, jumps = _path(graph, [first], 5)
+    second = later[0]
+    t2 = int(jumps[0]) + 4
+    frames = np.concatenate((frames[:t2], np.arange(graph.dst[second], graph.dst[second] + 30)))
+    jumps = np.array([jumps[0], t2])
+    syn = synthesize(
+        graph, medium_lib.clips, frames, jumps, np.array([first, second]), blend=1.0, ik=False
+    )
+    src_q = np.concatenate([c.motion.quats for c in medium_lib.clips])
+    d = int(graph.dst[second])
+    out = syn.motion.quats
+    shown = _accel_deg(out[t2 - 2], out[t2 - 1], out[t2])
+    own = _accel_deg(src_q[d - 2], src_q[d - 1], src_q[d])
+    assert np.max(np.abs(shown[1:] - own[1:])) < 2.5
+    naive = _accel_deg(out[t2 - 2], out[t2 - 1], src_q[d])
+    assert np.max(naive[1:]) > np.max(shown[1:]) + 3.0
+    assert syn.blended[t2 - 3 : t2].all()  # it did start inside the first blend
+    assert syn.blended[t2 : t2 + 15].all()
+
+
+def test_two_bone_ik_reaches_and_keeps_the_foot(
+    medium_lib: Library, rng: np.random.Generator
+) -> None:
+    m = medium_lib.clips[0].motion
+    pose = forward_kinematics(m)
+    hip, knee, ankle = leg_chain(m.skeleton, "left")
+    n = m.n_frames
+    target = pose.positions[:, ankle] + rng.normal(scale=0.04, size=(n, 3))
+    forward = np.tile([0.0, 0.0, 1.0], (n, 1))
+    new = solve_leg(
+        m.skeleton, pose.positions, pose.orientations, (hip, knee, ankle), target, forward
+    )
+    q = m.quats.copy()
+    q[:, [hip, knee, ankle]] = new
+    after = forward_kinematics(Motion(m.skeleton, m.root_pos, q, m.fps))
+    p = pose.positions
+    leg = np.linalg.norm(p[:, knee] - p[:, hip], axis=1) + np.linalg.norm(
+        p[:, ankle] - p[:, knee], axis=1
+    )
+    reach = np.linalg.norm(target - p[:, hip], axis=1) < 0.999 * leg
+    assert reach.mean() > 0.5
+    np.testing.assert_allclose(after.positions[reach, ankle], target[reach], atol=1e-6)
+    # out of reach: as close as the straight leg allows
+    gap = np.linalg.norm(after.positions[~reach, ankle] - target[~reach], axis=1)
+    assert np.all(
+        gap <= np.linalg.norm(target[~reach] - p[~reach, hip], axis=1) - 0.99 * leg[~reach]
+    )
+    np.testing.assert_allclose(
+        np.abs(np.sum(after.orientations[:, ankle] * pose.orientations[:, ankle], axis=-1)),
+        1.0,
+        atol=1e-9,
+    )
+    # a target out of reach: the leg points at it, straight
+    far = pose.positions[:, hip] + np.array([0.0, -5.0, 0.0])
+    dk, dh = two_bone_ik(
+        pose.positions[:, hip], pose.positions[:, knee], pose.positions[:, ankle], far, forward
+    )
+    assert np.all(np.isfinite(dk)) and np.all(np.isfinite(dh))
+
+
+def test_planted_feet_slide_less(graph: MotionGraph, medium_lib: Library) -> None:
+    frames, jumps, edges = random_walk(graph, 1500, seed=3)
+    with_ik = synthesize(graph, medium_lib.clips, frames, jumps, edges)
+    without = synthesize(graph, medium_lib.clips, frames, jumps, edges, ik=False)
+    slide_ik = foot_slide(with_ik.motion, with_ik.states).mean()
+    # the raw capture's own slide on the frames this walk shows
+    per_frame = np.concatenate([sole_speed(c.motion, c.contacts.states) for c in medium_lib.clips])
+    slide_raw = float(np.nanmean(per_frame[frames]))
+    assert slide_ik < 0.7 * foot_slide(without.motion, without.states).mean()
+    assert slide_ik < 1.3 * slide_raw
