@@ -12,7 +12,7 @@ from ._graph import (
     clips_digest,
     select_clips,
 )
-from ._ik import leg_chain, solve_leg, two_bone_ik
+from ._ik import knee_hinge, leg_chain, solve_leg, two_bone_ik
 from ._prune import CONTACT_RULES, contact_groups, largest_scc, local_maxima
 from ._quality import foot_slide, jerk, joint_jumps, quality_summary, sole_speed
 from ._synth import Synthesis, synthesize
@@ -37,6 +37,7 @@ __all__ = [
     "graph_cache_dir",
     "jerk",
     "joint_jumps",
+    "knee_hinge",
     "largest_scc",
     "leg_chain",
     "load_graph",

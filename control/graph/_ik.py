@@ -12,7 +12,7 @@ import numpy as np
 from ..motion import Skeleton, find_role, qconj, qmul, qrot
 from ..motion._quat import FloatArray
 
-__all__ = ["leg_chain", "solve_leg", "two_bone_ik"]
+__all__ = ["knee_hinge", "leg_chain", "solve_leg", "two_bone_ik"]
 
 
 def _unit(v: FloatArray) -> FloatArray:
@@ -33,15 +33,15 @@ def _arc_q(v1: FloatArray, v2: FloatArray) -> FloatArray:
 
 
 def two_bone_ik(
-    hip: FloatArray, knee: FloatArray, ankle: FloatArray, target: FloatArray, forward: FloatArray
+    hip: FloatArray, knee: FloatArray, ankle: FloatArray, target: FloatArray, axis: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
     """World rotations that bring the ankle onto ``target``.
 
     Parameters
     ----------
     hip, knee, ankle, target : (F, 3) world positions.
-    forward : (F, 3) the way the knee bends towards, used when the leg is straight
-        (e.g. the foot's direction).
+    axis : (F, 3) the knee's hinge axis in world space, oriented so that a positive
+        rotation about it bends the knee (see ``knee_hinge``).
 
     Returns
     -------
@@ -55,16 +55,40 @@ def two_bone_ik(
     l2 = np.linalg.norm(w, axis=-1)
     reach = np.linalg.norm(target - hip, axis=-1)
     d = np.clip(reach, np.abs(l1 - l2) + 1e-6, (l1 + l2) * (1.0 - 1e-6))
-    cur = np.arccos(np.clip(np.sum(u * w, axis=-1) / np.maximum(l1 * l2, 1e-12), -1.0, 1.0))
     new = np.arccos(np.clip((l1**2 + l2**2 - d**2) / np.maximum(2.0 * l1 * l2, 1e-12), -1.0, 1.0))
-    n = np.cross(u, w)
-    # near straight the current bend plane is noise: bend towards ``forward`` instead
-    straight = np.linalg.norm(n, axis=-1) < 0.05 * l1 * l2
-    n = np.where(straight[:, None], np.cross(forward, u), n)
-    d_knee = _axis_angle_q(_unit(n), new - cur)
+    # The bend axis: the knee's current bend plane oriented like the hinge; near straight,
+    # where that plane is noise, the hinge itself. The knee angle is measured about that
+    # oriented axis, so a slightly hyperextended knee reads as just over 180 degrees and
+    # still bends the right way.
+    hint = _unit(axis)
+    bend = np.cross(u, w)
+    straight = np.linalg.norm(bend, axis=-1) < 0.05 * l1 * l2
+    n = np.where(straight[:, None], hint, bend)
+    n = _unit(n * np.where(np.sum(n * hint, axis=-1) < 0.0, -1.0, 1.0)[:, None])
+    cur = np.mod(np.arctan2(np.sum(bend * n, axis=-1), np.sum(u * w, axis=-1)), 2.0 * np.pi)
+    d_knee = _axis_angle_q(n, new - cur)
     ankle2 = knee + qrot(d_knee, w)
     d_hip = _arc_q(ankle2 - hip, target - hip)
     return d_knee, d_hip
+
+
+def knee_hinge(
+    positions: FloatArray, orientations: FloatArray, chain: tuple[int, int, int]
+) -> FloatArray:
+    """The knee's bend axis ``(3,)`` in the thigh's own frame, from the frames where the
+    knee is clearly bent (a hinge is fixed in the thigh's frame, whatever the pose)."""
+    hip, knee, ankle = chain
+    u = positions[:, hip] - positions[:, knee]
+    w = positions[:, ankle] - positions[:, knee]
+    bend = np.cross(u, w)
+    size = np.linalg.norm(bend, axis=-1)
+    bent = size > 0.3 * np.linalg.norm(u, axis=-1) * np.linalg.norm(w, axis=-1)
+    if not bent.any():
+        bent = size > 1e-9
+    if not bent.any():
+        return np.array([1.0, 0.0, 0.0])
+    local = qrot(qconj(orientations[bent, hip]), bend[bent] / size[bent, None])
+    return _unit(np.median(local, axis=0))
 
 
 def leg_chain(skeleton: Skeleton, side: str) -> tuple[int, int, int]:
@@ -88,16 +112,18 @@ def solve_leg(
     orientations: FloatArray,
     chain: tuple[int, int, int],
     target: FloatArray,
-    forward: FloatArray,
+    hinge: FloatArray,
 ) -> FloatArray:
     """New local rotations ``(F, 3, 4)`` of ``chain`` so the ankle reaches ``target``.
 
     ``positions`` / ``orientations`` are the frames' FK (``(F, J, 3)``, ``(F, J, 4)``).
-    The ankle keeps its world orientation.
+    ``hinge`` is the knee's axis in the thigh's frame (``knee_hinge``). The ankle keeps its
+    world orientation.
     """
     hip, knee, ankle = chain
+    axis = qrot(orientations[:, hip], np.broadcast_to(hinge, (target.shape[0], 3)))
     d_knee, d_hip = two_bone_ik(
-        positions[:, hip], positions[:, knee], positions[:, ankle], target, forward
+        positions[:, hip], positions[:, knee], positions[:, ankle], target, axis
     )
     parent = skeleton.parents[hip]
     q_parent = orientations[:, parent]

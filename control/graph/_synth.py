@@ -33,12 +33,11 @@ from ..motion import (
     qexp,
     qlog,
     qmul,
-    role_point,
 )
 from ..motion._quat import FloatArray
 from ._features import root_scales, rotate_y, yaw_q
 from ._graph import MotionGraph
-from ._ik import leg_chain, solve_leg
+from ._ik import knee_hinge, leg_chain, solve_leg
 
 __all__ = ["Synthesis", "synthesize"]
 
@@ -264,17 +263,14 @@ def _plant_feet(
         todo = np.flatnonzero(np.linalg.norm(target - out_pts, axis=1) > 1e-5)
         if todo.size == 0:
             continue
-        kind, toe = role_point(skeleton, f"{side}_toe")
-        toe_pts = (pose.positions if kind == "joint" else pose.end_positions)[todo, toe]
-        forward = toe_pts - out_pts[todo]
-        forward[:, 1] = 0.0
+        hinge = knee_hinge(pose.positions, pose.orientations, chain)
         new = solve_leg(
             skeleton,
             pose.positions[todo],
             pose.orientations[todo],
             chain,
             target[todo],
-            forward,
+            hinge,
         )
         out_q[todo[:, None], np.array(chain)[None, :]] = new
         hip = pose.positions[todo, chain[0]]

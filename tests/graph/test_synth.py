@@ -10,6 +10,7 @@ from control.graph import (
     MotionGraph,
     build_graph,
     foot_slide,
+    knee_hinge,
     leg_chain,
     random_walk,
     sole_speed,
@@ -123,9 +124,9 @@ def test_two_bone_ik_reaches_and_keeps_the_foot(
     hip, knee, ankle = leg_chain(m.skeleton, "left")
     n = m.n_frames
     target = pose.positions[:, ankle] + rng.normal(scale=0.04, size=(n, 3))
-    forward = np.tile([0.0, 0.0, 1.0], (n, 1))
+    hinge = knee_hinge(pose.positions, pose.orientations, (hip, knee, ankle))
     new = solve_leg(
-        m.skeleton, pose.positions, pose.orientations, (hip, knee, ankle), target, forward
+        m.skeleton, pose.positions, pose.orientations, (hip, knee, ankle), target, hinge
     )
     q = m.quats.copy()
     q[:, [hip, knee, ankle]] = new
@@ -150,7 +151,11 @@ def test_two_bone_ik_reaches_and_keeps_the_foot(
     # a target out of reach: the leg points at it, straight
     far = pose.positions[:, hip] + np.array([0.0, -5.0, 0.0])
     dk, dh = two_bone_ik(
-        pose.positions[:, hip], pose.positions[:, knee], pose.positions[:, ankle], far, forward
+        pose.positions[:, hip],
+        pose.positions[:, knee],
+        pose.positions[:, ankle],
+        far,
+        np.tile(hinge, (n, 1)),
     )
     assert np.all(np.isfinite(dk)) and np.all(np.isfinite(dh))
 
