@@ -14,7 +14,7 @@ Writes JSON (default ``benchmarks/results/graph.json``) and prints a summary:
   fitted exponent of time against frames.
 - ``walk``: a random walk on the playground library (default 10 minutes): transitions per
   minute, foot slide, the largest joint-angle jump at transitions against the raw data's
-  99th percentile, jerk.
+  99th percentile, jerk. ``walk_case4_pruned``: the same with case-4 transitions pruned.
 """
 
 from __future__ import annotations
@@ -156,9 +156,9 @@ def table1(root: Path) -> dict[str, Any]:
     return out
 
 
-def walk(root: Path, seconds: float) -> dict[str, Any]:
+def walk(root: Path, seconds: float, options: GraphOptions) -> dict[str, Any]:
     lib = load_library(root, clips=["01_*"])
-    g = build_graph(lib.clips, GraphOptions())
+    g = build_graph(lib.clips, options)
     n = round(seconds * g.fps)
     frames, jumps, edges = random_walk(g, n, seed=0)
     t = time.perf_counter()
@@ -171,6 +171,8 @@ def walk(root: Path, seconds: float) -> dict[str, Any]:
     jj = joint_jumps(syn.motion)
     at = jj[jumps - 1]
     return {
+        "options": options.to_dict(),
+        "scc_frames": g.report["scc_frames"],
         "seconds": n / g.fps,
         "dead_ends": 0,  # random_walk raises on a dead end
         "in_component": bool(g.in_scc[frames].all()),
@@ -215,7 +217,8 @@ def main() -> None:
     fr = np.log([s["frames"] for s in scaling])
     tm = np.log([s["seconds"] for s in scaling])
     result["scaling"] = {"points": scaling, "time_exponent": float(np.polyfit(fr, tm, 1)[0])}
-    result["walk"] = walk(root, args.walk_seconds)
+    result["walk"] = walk(root, args.walk_seconds, GraphOptions())
+    result["walk_case4_pruned"] = walk(root, args.walk_seconds, GraphOptions(case4="prune"))
     with atomic_write(args.out) as fh:
         json.dump(result, fh, indent=2)
     print(json.dumps(result, indent=2))

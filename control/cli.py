@@ -178,6 +178,14 @@ def _add_graph_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--nu", type=float, default=d.nu, help=f"velocity weight, s^2 (default {d.nu})")
     p.add_argument("--block", type=float, default=d.block, help="terrain block size, metres")
+    p.add_argument(
+        "--case4",
+        choices=("slip", "prune"),
+        default=d.case4,
+        help="transitions whose blend a foot contact spans: keep and let the foot slip "
+        "(default) or prune them",
+    )
+    p.add_argument("--blend", type=float, default=d.blend, help="blend interval b, seconds")
     p.add_argument("--rebuild", action="store_true", help="ignore a cached graph")
 
 
@@ -206,7 +214,6 @@ def add_graph_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser])
     walk.add_argument("--out", required=True, help="BVH file to write")
     walk.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     walk.add_argument("--start", help="start at CLIP:FRAME (default: a random frame)")
-    walk.add_argument("--blend", type=float, default=1.0, help="blend interval b, seconds")
     walk.add_argument("--no-ik", action="store_true", help="do not keep planted feet in place")
     walk.add_argument(
         "--quality",
@@ -226,6 +233,8 @@ def _options(args: argparse.Namespace) -> GraphOptions:
         sigma_scale=args.sigma_scale,
         threshold=args.threshold,
         block=args.block,
+        case4=args.case4,
+        blend=args.blend,
     )
 
 
@@ -241,15 +250,15 @@ def _graph_for(args: argparse.Namespace) -> tuple[Library, MotionGraph, Path, bo
 def format_report(report: dict[str, Any]) -> str:
     """The Table 1 line of a graph report, with a header."""
     sim = "N/A" if report["similarity"] is None else f"{report['similarity']:,}"
-    head = (
-        f"{'frames':>8} {'possible':>14} {'contact':>12} {'likelihood':>11} "
-        f"{'similarity':>11} {'SCC':>8}"
-    )
+    head = f"{'frames':>8} {'possible':>14} {'contact':>12} {'likelihood':>11} {'similarity':>11}"
     row = (
         f"{report['frames']:>8,} {report['possible']:>14,} {report['contact']:>12,} "
-        f"{report['likelihood']:>11,} {sim:>11} {report['scc']:>8,}"
+        f"{report['likelihood']:>11,} {sim:>11}"
     )
-    return f"{head}\n{row}"
+    if report.get("case4") is not None:
+        head += f" {'case 4':>8}"
+        row += f" {report['case4']:>8,}"
+    return f"{head} {'SCC':>8}\n{row} {report['scc']:>8,}"
 
 
 def _graph_build(args: argparse.Namespace) -> int:

@@ -13,7 +13,7 @@ from ._graph import (
     select_clips,
 )
 from ._ik import knee_hinge, leg_chain, solve_leg, two_bone_ik
-from ._prune import CONTACT_RULES, contact_groups, largest_scc, local_maxima
+from ._prune import CONTACT_RULES, case4, contact_groups, largest_scc, local_maxima
 from ._quality import foot_slide, jerk, joint_jumps, quality_summary, sole_speed
 from ._synth import Synthesis, synthesize
 from ._walk import random_walk
@@ -29,6 +29,7 @@ __all__ = [
     "Synthesis",
     "build_graph",
     "cached_graph",
+    "case4",
     "clips_digest",
     "close_pairs",
     "contact_groups",

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from ..motion import Clip
 from ._distance import close_pairs, lower_bound_features, pair_distances
 from ._features import COORDS, FrameFeatures, frame_features
-from ._prune import CONTACT_RULES, contact_groups, largest_scc, local_maxima
+from ._prune import CONTACT_RULES, case4, contact_groups, largest_scc, local_maxima
 
 __all__ = [
     "GRAPH_VERSION",
@@ -59,6 +59,10 @@ class GraphOptions:
     sigma_scale : multiplies that median.
     threshold : likelihood threshold (relative to playback, in (0, 1)).
     block : terrain block size in metres.
+    case4 : ``"slip"`` (default: keep transitions whose blend a foot's contact spans; the
+        foot is held, then slides) or ``"prune"`` (drop them before the SCC step, as the
+        paper allows).
+    blend : the blend interval (seconds) that ``case4="prune"`` assumes.
     """
 
     coords: str = "fixed"
@@ -69,15 +73,19 @@ class GraphOptions:
     sigma_scale: float = 1.0
     threshold: float = 0.1
     block: float = 0.5
+    case4: str = "slip"
+    blend: float = 1.0
 
     def __post_init__(self) -> None:
+        if self.case4 not in ("slip", "prune"):
+            raise ValueError(f"case4 must be 'slip' or 'prune', not {self.case4!r}")
         if self.coords not in COORDS:
             raise ValueError(f"coords must be one of {', '.join(COORDS)}, not {self.coords!r}")
         if self.contact not in CONTACT_RULES:
             raise ValueError(f"contact must be one of {', '.join(CONTACT_RULES)}")
         if not 0.0 < self.threshold < 1.0:
             raise ValueError("threshold must lie in (0, 1)")
-        for name in ("nu", "sigma_dt", "sigma_scale", "block"):
+        for name in ("nu", "sigma_dt", "sigma_scale", "block", "blend"):
             value = getattr(self, name)
             if not (math.isfinite(value) and (value > 0 or (name == "nu" and value == 0))):
                 raise ValueError(f"{name} must be a positive number, not {value!r}")
@@ -204,7 +212,8 @@ def build_graph(
 
     The report (``graph.report``) has the Table 1 counts: ``frames``, ``possible``
     (frames squared), then transitions left after ``contact``, ``likelihood``,
-    ``similarity`` (``None`` when the rule is off) and ``scc``, with timings.
+    ``similarity`` (``None`` when the rule is off), ``case4`` (``None`` unless
+    ``options.case4 == "prune"``) and ``scc``, with timings.
     """
     options = options or GraphOptions()
     t0 = time.perf_counter()
@@ -246,6 +255,11 @@ def build_graph(
         keep = local_maxima(a, b, d, feat.clip_start)
         a, b, d, align = a[keep], b[keep], d[keep], align[keep]
         n_similar = int(a.size)
+    n_case4: int | None = None
+    if options.case4 == "prune":
+        drop = case4(feat.states, feat.clip_start, a, b + 1, max(1, round(options.blend * fps)))
+        a, b, d, align = a[~drop], b[~drop], d[~drop], align[~drop]
+        n_case4 = int(a.size)
     t_prune = time.perf_counter()
     in_scc, n_comp = largest_scc(n, a, b + 1, feat.clip_start)
     keep = in_scc[a] & in_scc[b + 1]
@@ -262,6 +276,7 @@ def build_graph(
         "candidates": int(n_candidates),
         "likelihood": int(n_likely),
         "similarity": n_similar,
+        "case4": n_case4,
         "scc": int(a.size),
         "scc_frames": int(in_scc.sum()),
         "components": n_comp,

@@ -14,6 +14,7 @@ from scipy.sparse.csgraph import connected_components
 
 __all__ = [
     "CONTACT_RULES",
+    "case4",
     "contact_groups",
     "largest_scc",
     "local_maxima",
@@ -126,3 +127,37 @@ def largest_scc(
     n_comp, labels = connected_components(graph, directed=True, connection="strong")
     sizes = np.bincount(labels, minlength=n_comp)
     return labels == int(np.argmax(sizes)), int(n_comp)
+
+
+def _run_ends(col: BoolArray, clip_start: IntArray) -> IntArray:
+    """(n,) last frame of the contact run holding each frame (runs stop at clip ends);
+    -1 where the foot is not in contact."""
+    n = col.size
+    last = np.zeros(n, dtype=bool)
+    last[clip_start[1:] - 1] = True
+    first = np.zeros(n, dtype=bool)
+    first[clip_start[:-1]] = True
+    prev = np.concatenate(([False], col[:-1]))
+    nxt = np.concatenate((col[1:], [False]))
+    starts = col & (~prev | first)
+    ends = np.flatnonzero(col & (~nxt | last))
+    run = np.cumsum(starts) - 1
+    return np.where(col, ends[np.maximum(run, 0)] if ends.size else -1, -1)
+
+
+def case4(
+    states: BoolArray, clip_start: IntArray, src: IntArray, dst: IntArray, b: int
+) -> BoolArray:
+    """Transitions in Lee et al.'s case 4: a foot's contact spans a whole blend interval.
+
+    For ``i -> j`` with blend length ``b`` frames: some foot is in contact at ``i`` and
+    stays so at least until ``i + b`` in the source clip, or is in contact at ``j`` and
+    stays so until ``j + b - 1``. Such a blend cannot keep the foot planted at both ends
+    (the paper lets it slip or drops the transition).
+    """
+    out = np.zeros(src.size, dtype=bool)
+    for foot in range(states.shape[1]):
+        col = states[:, foot]
+        end = _run_ends(col, clip_start)
+        out |= (col[src] & (end[src] >= src + b)) | (col[dst] & (end[dst] >= dst + b - 1))
+    return out

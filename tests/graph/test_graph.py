@@ -15,6 +15,7 @@ from control.graph import (
     MotionGraph,
     build_graph,
     cached_graph,
+    case4,
     contact_groups,
     frame_features,
     load_graph,
@@ -151,3 +152,13 @@ def test_options_are_checked() -> None:
         GraphOptions(threshold=1.5)
     with pytest.raises(ValueError, match="nu"):
         GraphOptions(nu=-1.0)
+
+
+def test_case4_prune_drops_them_before_the_component(medium_lib: Library) -> None:
+    g = build_graph(medium_lib.clips, GraphOptions(coords="relative", case4="prune", blend=1.0))
+    r = g.report
+    assert r["similarity"] >= r["case4"] >= r["scc"] > 0
+    states = np.concatenate([c.contacts.states for c in medium_lib.clips])
+    assert not case4(states, g.clip_start, g.src, g.dst, 15).any()
+    _check_component(g)
+    assert build_graph(medium_lib.clips, GraphOptions(coords="relative")).report["case4"] is None

@@ -2,10 +2,20 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
-from control.graph import contact_groups, largest_scc, local_maxima
+from control.graph import (
+    GraphOptions,
+    build_graph,
+    case4,
+    contact_groups,
+    largest_scc,
+    local_maxima,
+)
+from control.motion import Clip, Contacts, Library, Motion, find_role
 
 
 def _allowed(groups: list[tuple[np.ndarray, np.ndarray]]) -> set[tuple[int, int]]:
@@ -115,3 +125,58 @@ def test_scc_agrees_with_brute_force_reachability(seed: int) -> None:
     assert int(in_scc.sum()) == biggest
     f = int(np.flatnonzero(in_scc)[0])
     assert np.array_equal(in_scc, mutual[f])
+
+
+def _knee_clip(template: Clip, name: str, angles: np.ndarray) -> Clip:
+    """A clip on a real skeleton that stands still and bends only the left knee."""
+    sk = template.motion.skeleton
+    n = angles.size
+    q = np.zeros((n, sk.n_joints, 4))
+    q[..., 0] = 1.0
+    knee = find_role(sk, "left_knee")
+    q[:, knee, 0] = np.cos(angles / 2)
+    q[:, knee, 1] = np.sin(angles / 2)
+    m = Motion(sk, np.tile([0.0, 0.9, 0.0], (n, 1)), q, 15.0, name)
+    contacts = Contacts(np.ones((n, 2), dtype=bool), 0.0, 0.0)
+    return Clip(m, contacts, "", np.full(n, -1), (), np.arange(n, dtype=float), name)
+
+
+def test_likelihood_rule_by_hand(walk_lib: Library) -> None:
+    # two clips bending the knee at the same speed (0.1 rad per frame), offset by 0.05
+    # rad: the distance of two frames is the squared half difference of their angles,
+    # the velocity terms cancel, and sigma is (0.1 / 2)^2
+    alpha = [np.arange(10) * 0.1, 0.05 + np.arange(8) * 0.1]
+    clips = [_knee_clip(walk_lib.clips[0], f"k{i}", a) for i, a in enumerate(alpha)]
+    options = GraphOptions(contact="none", similarity=False, threshold=math.exp(-1.5))
+    g = build_graph(clips, options)
+    assert g.sigma == pytest.approx(0.05**2)
+    # kept: D <= 1.5 sigma, i.e. angles at most 0.122 rad apart: 0.05 and 0.1, not 0.15
+    every = np.concatenate(alpha)
+    last = {9, 17}
+    expected = {
+        (a, b)
+        for a in range(18)
+        for b in range(18)
+        if a != b and b not in last and abs(every[a] - every[b]) < 0.12
+    }
+    assert g.report["likelihood"] == len(expected)
+    assert g.report["contact"] == 18 * 16 - 16
+    kept = set(zip(g.src.tolist(), (g.dst - 1).tolist(), strict=True))
+    assert kept <= expected
+    assert np.allclose(g.likelihood(), np.exp(-g.dist / g.sigma))
+
+
+def test_case4_by_hand() -> None:
+    # one clip of 30 frames; the left foot is down for frames 0-20, the right never
+    st = np.zeros((30, 2), dtype=bool)
+    st[:21, 0] = True
+    start = np.array([0, 30])
+    src = np.array([2, 18, 25, 25, 25])
+    dst = np.array([26, 26, 3, 17, 28])
+    flags = case4(st, start, src, dst, b=5)
+    # 2: contact runs to 20 >= 2 + 5; 18: ends at 20 < 23; j = 3: runs to 20 >= 3 + 4;
+    # j = 17: 20 >= 21 fails; j = 28: no contact
+    assert flags.tolist() == [True, False, True, False, False]
+    # contact runs stop at clip ends
+    flags = case4(st, np.array([0, 5, 30]), np.array([2]), np.array([26]), b=5)
+    assert flags.tolist() == [False]
