@@ -136,6 +136,9 @@ def synthesize(
     jumps = np.asarray(jumps, dtype=np.int64)
     edges = np.asarray(edges, dtype=np.int64)
     n_out = frames.size
+    _check_path(graph, frames, jumps, edges)
+    if not blend > 0 or not fade >= 0 or not max_offset >= 0:
+        raise ValueError("blend must be positive, fade and max_offset not negative")
     b = max(1, round(blend * graph.fps))
 
     # segment transforms
@@ -195,6 +198,33 @@ def synthesize(
         )
     motion = Motion(data.skeleton, out_p, out_q, graph.fps, name="walk", source="graph")
     return Synthesis(motion, frames, jumps, edges, states, blended, unreachable)
+
+
+def _check_path(graph: MotionGraph, frames: IntArray, jumps: IntArray, edges: IntArray) -> None:
+    n = graph.n_frames
+    if frames.ndim != 1 or frames.size == 0:
+        raise ValueError("frames must be a non-empty 1-D array")
+    if frames.min() < 0 or frames.max() >= n:
+        raise ValueError(f"frames must lie in 0..{n - 1}")
+    if jumps.shape != edges.shape or jumps.ndim != 1:
+        raise ValueError("jumps and edges must be 1-D arrays of the same length")
+    if jumps.size:
+        if jumps.min() < 1 or jumps.max() >= frames.size or np.any(np.diff(jumps) <= 0):
+            raise ValueError("jumps must be increasing output frames in 1..len(frames) - 1")
+        if edges.min() < 0 or edges.max() >= graph.n_edges:
+            raise ValueError(f"edges must lie in 0..{graph.n_edges - 1}")
+        bad = (graph.src[edges] != frames[jumps - 1]) | (graph.dst[edges] != frames[jumps])
+        if bad.any():
+            t = int(jumps[np.argmax(bad)])
+            raise ValueError(f"output frame {t}: edge does not lead from frame {frames[t - 1]}")
+    played = np.ones(frames.size - 1, dtype=bool)
+    played[jumps - 1] = False
+    last = np.zeros(n, dtype=bool)
+    last[graph.clip_start[1:] - 1] = True
+    wrong = played & ((np.diff(frames) != 1) | last[frames[:-1]])
+    if wrong.any():
+        t = int(np.argmax(wrong)) + 1
+        raise ValueError(f"output frame {t}: frame {frames[t]} neither plays on nor follows a jump")
 
 
 def _foot_targets(

@@ -90,17 +90,25 @@ def test_transition_inside_a_blend_starts_from_the_shown_motion(
     graph: MotionGraph, medium_lib: Library
 ) -> None:
     room = _edges_with_room(graph, 5, 40)
-    first = int(room[0])
-    # a second transition three frames after the first landing, from that clip
-    later = [int(x) for x in room if graph.src[x] == graph.dst[first] + 3]
-    if not later:
-        # take any edge and enter its source three frames before it instead
-        later = [int(room[-1])]
-    frames, jumps = _path(graph, [first], 5)
-    second = later[0]
-    t2 = int(jumps[0]) + 4
-    frames = np.concatenate((frames[:t2], np.arange(graph.dst[second], graph.dst[second] + 30)))
-    jumps = np.array([jumps[0], t2])
+    # two transitions, the second 2-6 frames after landing from the first (inside its blend)
+    pairs = [
+        (int(e1), int(e2))
+        for e1 in room
+        for e2 in room
+        if 1 <= graph.src[e2] - graph.dst[e1] <= 5
+        and graph.locate(int(graph.src[e2]))[0] == graph.locate(int(graph.dst[e1]))[0]
+    ]
+    assert pairs, "the test graph should have transitions close enough to overlap"
+    first, second = pairs[0]
+    frames = np.concatenate(
+        (
+            np.arange(graph.src[first] - 5, graph.src[first] + 1),
+            np.arange(graph.dst[first], graph.src[second] + 1),
+            np.arange(graph.dst[second], graph.dst[second] + 30),
+        )
+    )
+    t2 = 6 + int(graph.src[second] - graph.dst[first]) + 1
+    jumps = np.array([6, t2])
     syn = synthesize(
         graph, medium_lib.clips, frames, jumps, np.array([first, second]), blend=1.0, ik=False
     )
@@ -112,7 +120,7 @@ def test_transition_inside_a_blend_starts_from_the_shown_motion(
     assert np.max(np.abs(shown[1:] - own[1:])) < 2.5
     naive = _accel_deg(out[t2 - 2], out[t2 - 1], src_q[d])
     assert np.max(naive[1:]) > np.max(shown[1:]) + 3.0
-    assert syn.blended[t2 - 3 : t2].all()  # it did start inside the first blend
+    assert syn.blended[6:t2].all()  # it did start inside the first blend
     assert syn.blended[t2 : t2 + 15].all()
 
 
@@ -170,3 +178,17 @@ def test_planted_feet_slide_less(graph: MotionGraph, medium_lib: Library) -> Non
     slide_raw = float(np.nanmean(per_frame[frames]))
     assert slide_ik < 0.7 * foot_slide(without.motion, without.states).mean()
     assert slide_ik < 1.3 * slide_raw
+
+
+def test_bad_paths_are_refused(graph: MotionGraph, medium_lib: Library) -> None:
+    frames, jumps, edges = random_walk(graph, 200, seed=1)
+    with pytest.raises(ValueError, match="neither plays on nor follows a jump"):
+        synthesize(graph, medium_lib.clips, frames[::2], np.zeros(0, int), np.zeros(0, int))
+    with pytest.raises(ValueError, match="edge does not lead"):
+        synthesize(graph, medium_lib.clips, frames, jumps, np.roll(edges, 1))
+    with pytest.raises(ValueError, match="increasing"):
+        synthesize(graph, medium_lib.clips, frames, jumps[::-1], edges[::-1])
+    with pytest.raises(ValueError, match="blend"):
+        synthesize(graph, medium_lib.clips, frames, jumps, edges, blend=0.0)
+    with pytest.raises(KeyError, match="lacks"):
+        synthesize(graph, medium_lib.clips[:3], frames, jumps, edges)
