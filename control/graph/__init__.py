@@ -3,7 +3,15 @@ blended transitions and the random walk."""
 
 from ._artifact import GraphFileError, cached_graph, graph_cache_dir, load_graph, save_graph
 from ._distance import close_pairs, lower_bound_features, pair_distances
-from ._features import COORDS, FrameFeatures, frame_features, q_embed, weighted_joints, yaw_of
+from ._features import (
+    COORDS,
+    FrameFeatures,
+    frame_features,
+    q_embed,
+    rotate_y,
+    weighted_joints,
+    yaw_of,
+)
 from ._graph import (
     GRAPH_VERSION,
     GraphOptions,
@@ -15,13 +23,14 @@ from ._graph import (
 from ._ik import knee_hinge, leg_chain, solve_leg, two_bone_ik
 from ._prune import CONTACT_RULES, case4, contact_groups, largest_scc, local_maxima
 from ._quality import foot_slide, jerk, joint_jumps, quality_summary, sole_speed
-from ._synth import Synthesis, synthesize
-from ._walk import random_walk
+from ._synth import FrameData, Synthesis, compose, synthesize
+from ._walk import random_step, random_walk
 
 __all__ = [
     "CONTACT_RULES",
     "COORDS",
     "GRAPH_VERSION",
+    "FrameData",
     "FrameFeatures",
     "GraphFileError",
     "GraphOptions",
@@ -32,6 +41,7 @@ __all__ = [
     "case4",
     "clips_digest",
     "close_pairs",
+    "compose",
     "contact_groups",
     "foot_slide",
     "frame_features",
@@ -47,7 +57,9 @@ __all__ = [
     "pair_distances",
     "q_embed",
     "quality_summary",
+    "random_step",
     "random_walk",
+    "rotate_y",
     "save_graph",
     "select_clips",
     "sole_speed",

@@ -17,6 +17,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -131,8 +132,9 @@ class MotionGraph:
     def n_edges(self) -> int:
         return int(self.src.size)
 
-    @property
+    @cached_property
     def indptr(self) -> IntArray:
+        """(n + 1,) CSR row pointers of the transitions (computed once)."""
         return np.searchsorted(self.src, np.arange(self.n_frames + 1)).astype(np.int64)
 
     def locate(self, frame: int) -> tuple[str, int]:

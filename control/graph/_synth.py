@@ -39,7 +39,7 @@ from ._features import root_scales, rotate_y, yaw_q
 from ._graph import MotionGraph
 from ._ik import knee_hinge, leg_chain, solve_leg
 
-__all__ = ["Synthesis", "synthesize"]
+__all__ = ["FrameData", "Synthesis", "compose", "synthesize"]
 
 IntArray = NDArray[np.int64]
 
@@ -68,8 +68,9 @@ class Synthesis:
     unreachable: int
 
 
-class _Frames:
-    """The graph's clips end to end: root positions, local rotations, contacts."""
+class FrameData:
+    """The graph's clips end to end: ``root`` (n, 3) positions (retargeted to the first
+    clip's body), ``quats`` (n, J, 4), ``states`` (n, 2) contacts, and the ``skeleton``."""
 
     def __init__(self, graph: MotionGraph, clips: Sequence[Clip]) -> None:
         by_name = {c.name: c for c in clips}
@@ -89,10 +90,10 @@ class _Frames:
         self.states = np.concatenate([c.contacts.states for c in chosen])
 
 
-def _compose(
+def compose(
     yaw: float, trans: FloatArray, a_yaw: float, a_trans: FloatArray
 ) -> tuple[float, FloatArray]:
-    """``T o A`` for rigid maps ``p -> R_y(yaw) p + trans``."""
+    """``T o A`` for the rigid maps ``p -> R_y(yaw) p + trans`` of the graph's alignments."""
     return yaw + a_yaw, rotate_y(a_trans, yaw) + trans
 
 
@@ -131,7 +132,7 @@ def synthesize(
     max_offset : metres; a planted foot held further than this from where the blended
         motion puts it slides along instead (the paper's "allow the foot to slip").
     """
-    data = _Frames(graph, clips)
+    data = FrameData(graph, clips)
     frames = np.asarray(frames, dtype=np.int64)
     jumps = np.asarray(jumps, dtype=np.int64)
     edges = np.asarray(edges, dtype=np.int64)
@@ -147,7 +148,7 @@ def synthesize(
     seg_trans = np.zeros((n_seg, 3))
     for m, e in enumerate(edges):
         a = graph.align[e].astype(np.float64)
-        seg_yaw[m + 1], seg_trans[m + 1] = _compose(seg_yaw[m], seg_trans[m], a[0], a[1:])
+        seg_yaw[m + 1], seg_trans[m + 1] = compose(seg_yaw[m], seg_trans[m], a[0], a[1:])
     seg = np.searchsorted(jumps, np.arange(n_out), side="right")
 
     def aligned(g: IntArray, s: IntArray) -> tuple[FloatArray, FloatArray]:

@@ -7,9 +7,33 @@ from numpy.typing import NDArray
 
 from ._graph import MotionGraph
 
-__all__ = ["random_walk"]
+__all__ = ["random_step", "random_walk"]
 
 IntArray = NDArray[np.int64]
+
+
+def random_step(
+    graph: MotionGraph,
+    frame: int,
+    u: float,
+    indptr: IntArray,
+    like: NDArray[np.float64],
+    plays: NDArray[np.bool_],
+) -> tuple[int, int]:
+    """One step of eq. 1 from ``frame`` with the uniform draw ``u``: ``(next frame, edge)``,
+    edge -1 for playback. ``indptr``, ``like``, ``plays`` are the graph's (passed in so
+    that a loop computes them once)."""
+    lo, hi = indptr[frame], indptr[frame + 1]
+    w_play = 1.0 if plays[frame] else 0.0
+    total = w_play + float(like[lo:hi].sum())
+    if total <= 0.0:
+        raise RuntimeError(f"dead end at graph frame {frame}: the component is broken")
+    x = u * total
+    if x < w_play:
+        return frame + 1, -1
+    e = lo + int(np.searchsorted(np.cumsum(like[lo:hi]), x - w_play, side="right"))
+    e = min(e, hi - 1)
+    return int(graph.dst[e]), int(e)
 
 
 def random_walk(
@@ -49,19 +73,9 @@ def random_walk(
     frames[0] = f
     u = rng.random(n_frames)
     for t in range(1, n_frames):
-        lo, hi = indptr[f], indptr[f + 1]
-        w_play = 1.0 if plays[f] else 0.0
-        total = w_play + float(like[lo:hi].sum())
-        if total <= 0.0:
-            raise RuntimeError(f"dead end at graph frame {f}: the component is broken")
-        x = u[t] * total
-        if x < w_play:
-            f += 1
-        else:
-            e = lo + int(np.searchsorted(np.cumsum(like[lo:hi]), x - w_play, side="right"))
-            e = min(e, hi - 1)
+        f, e = random_step(graph, f, float(u[t]), indptr, like, plays)
+        if e >= 0:
             jumps.append(t)
             edges.append(e)
-            f = int(graph.dst[e])
         frames[t] = f
     return frames, np.array(jumps, dtype=np.int64), np.array(edges, dtype=np.int64)

@@ -1,0 +1,38 @@
+"""Higher layer (Lee et al. §4.2): motion states, spherical Gaussian mixture by BIC, the
+cluster forest, cluster paths and their most probable motions."""
+
+from ._forest import ClusterForest, ClusterTree, build_forest
+from ._gmm import (
+    SEEDINGS,
+    Clustering,
+    decorrelation_frames,
+    effective_bic,
+    fit_mixture,
+    keyframe_seeds,
+    select_by_bic,
+)
+from ._layer import DEFAULT_KS, HigherLayer, build_higher_layer
+from ._paths import ProbableMotion, most_probable_motion, transition_log_probs
+from ._state import orientation_distance, reference_orientation, state_vectors
+
+__all__ = [
+    "DEFAULT_KS",
+    "SEEDINGS",
+    "ClusterForest",
+    "ClusterTree",
+    "Clustering",
+    "HigherLayer",
+    "ProbableMotion",
+    "build_forest",
+    "build_higher_layer",
+    "decorrelation_frames",
+    "effective_bic",
+    "fit_mixture",
+    "keyframe_seeds",
+    "most_probable_motion",
+    "orientation_distance",
+    "reference_orientation",
+    "select_by_bic",
+    "state_vectors",
+    "transition_log_probs",
+]

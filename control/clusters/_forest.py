@@ -1,0 +1,277 @@
+"""The cluster forest (Lee et al. §4.2.2): a tree of reachable clusters for every frame.
+
+The tree of frame ``r`` starts as one node, ``r``'s cluster. Following the graph from
+``r`` (playback and transitions), each step into a frame of another cluster moves to a
+child node of that cluster (made on first use); steps within the cluster stay on the
+node. The traversal stops at the time bound (15 s by default).
+
+Enumerating paths explodes, so the traversal runs over states ``(frame, node)`` in order
+of arrival time (a priority queue) and visits each state once, at its earliest time:
+anything reachable from a later visit is reachable from the earlier one. Playback runs
+are skipped in one step each up to the next cluster change or branching frame. Trees are
+capped at ``max_nodes`` nodes (nodes are made in order of arrival time, so a capped tree
+holds the nearest behaviours); capped trees are counted in the report.
+
+Frames with a single exit (playback only) share the tree of the first branching frame
+they play into, as in the paper.
+"""
+
+from __future__ import annotations
+
+import heapq
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any
+
+import numba
+import numpy as np
+from numba import types
+from numba.typed import Dict
+from numpy.typing import NDArray
+
+from ..graph import MotionGraph
+
+__all__ = ["ClusterForest", "ClusterTree", "build_forest"]
+
+IntArray = NDArray[np.int64]
+
+
+@dataclass(frozen=True, eq=False)
+class ClusterTree:
+    """One cluster tree.
+
+    Attributes
+    ----------
+    root_frame : the frame it was built from.
+    parent : (N,) parent node, -1 for the root (node 0).
+    cluster : (N,) cluster of each node.
+    arrival : (N,) earliest time (frames after the root frame) the node is reached.
+    truncated : a cap (nodes or states) was hit.
+    horizon : frames ahead up to which the tree is complete (the time bound unless the
+        state cap stopped the traversal earlier).
+    """
+
+    root_frame: int
+    parent: IntArray
+    cluster: IntArray
+    arrival: IntArray
+    truncated: bool = False
+    horizon: int = 0
+
+    @property
+    def size(self) -> int:
+        return int(self.parent.size)
+
+    def leaves(self) -> IntArray:
+        """Nodes without children."""
+        has_child = np.zeros(self.size, dtype=bool)
+        has_child[self.parent[self.parent >= 0]] = True
+        return np.flatnonzero(~has_child).astype(np.int64)
+
+    def path_to(self, node: int) -> IntArray:
+        """Nodes from the root to ``node`` (a cluster path when ``node`` is a leaf)."""
+        out = [node]
+        while self.parent[out[-1]] >= 0:
+            out.append(int(self.parent[out[-1]]))
+        return np.array(out[::-1], dtype=np.int64)
+
+    def clusters_to(self, node: int) -> IntArray:
+        return self.cluster[self.path_to(node)]
+
+
+@dataclass(frozen=True, eq=False)
+class ClusterForest:
+    """Trees for the branching frames; ``tree_of[f]`` indexes ``trees`` (-1: no tree,
+    for frames outside the graph's strongly connected component)."""
+
+    trees: tuple[ClusterTree, ...]
+    tree_of: IntArray
+    bound: int
+    report: dict[str, Any] = field(default_factory=dict)
+
+    def tree(self, frame: int) -> ClusterTree:
+        t = int(self.tree_of[frame])
+        if t < 0:
+            raise ValueError(f"frame {frame} is outside the graph's component: no tree")
+        return self.trees[t]
+
+
+class _Runs:
+    """Playback shortcuts: from a frame, where the next cluster change or branch is."""
+
+    def __init__(self, graph: MotionGraph, labels: IntArray) -> None:
+        n = graph.n_frames
+        indptr = graph.indptr
+        self.branch = (indptr[1:] - indptr[:-1]) > 0
+        self.plays = graph.plays_on()
+        # next_event[f]: first g >= f that is a branch, cannot play on, or whose
+        # successor changes cluster; found by a backward sweep.
+        nxt = np.empty(n, dtype=np.int64)
+        following = n  # sentinel
+        for f in range(n - 1, -1, -1):
+            stop = self.branch[f] or not self.plays[f] or labels[f + 1] != labels[f]
+            following = f if stop else following
+            nxt[f] = following
+        self.next_event = nxt
+
+
+@numba.njit(cache=True, nogil=True)
+def _tree_kernel(
+    root: int,
+    labels: np.ndarray,
+    next_event: np.ndarray,
+    plays: np.ndarray,
+    indptr: np.ndarray,
+    dst: np.ndarray,
+    bound: int,
+    max_nodes: int,
+    n_clusters: int,
+    max_states: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool, int]:
+    parent = np.empty(max_nodes, np.int64)
+    cluster = np.empty(max_nodes, np.int64)
+    arrival = np.empty(max_nodes, np.int64)
+    parent[0] = -1
+    cluster[0] = labels[root]
+    arrival[0] = 0
+    n_nodes = 1
+    children = Dict.empty(types.int64, types.int64)
+    seen = Dict.empty(types.int64, types.int64)
+    heap = [(np.int64(0), np.int64(root), np.int64(0))]
+    truncated = False
+    horizon = bound
+    stride = np.int64(max_nodes)
+    while len(heap) > 0:
+        t, f, node = heapq.heappop(heap)
+        key = f * stride + node
+        if key in seen:
+            continue
+        seen[key] = 1
+        if len(seen) > max_states:
+            truncated = True
+            horizon = int(t)
+            break
+        g = next_event[f]
+        tg = t + (g - f)
+        if tg >= bound:
+            continue
+        if g != f:
+            seen[g * stride + node] = 1
+        lo = indptr[g]
+        hi = indptr[g + 1]
+        n_out = hi - lo + (1 if plays[g] else 0)
+        for k in range(n_out):
+            fn = g + 1 if (plays[g] and k == n_out - 1) else dst[lo + k]
+            c = labels[fn]
+            nd = node
+            if c != cluster[node]:
+                ck = node * n_clusters + c
+                if ck in children:
+                    nd = children[ck]
+                else:
+                    if n_nodes >= max_nodes:
+                        truncated = True
+                        continue
+                    nd = np.int64(n_nodes)
+                    children[ck] = nd
+                    parent[nd] = node
+                    cluster[nd] = c
+                    arrival[nd] = tg + 1
+                    n_nodes += 1
+            if (fn * stride + nd) not in seen:
+                heapq.heappush(heap, (tg + 1, fn, nd))
+    return (
+        parent[:n_nodes].copy(),
+        cluster[:n_nodes].copy(),
+        arrival[:n_nodes].copy(),
+        truncated,
+        horizon,
+    )
+
+
+def _build_tree(
+    root: int,
+    labels: IntArray,
+    runs: _Runs,
+    indptr: IntArray,
+    dst: IntArray,
+    bound: int,
+    max_nodes: int,
+    n_clusters: int,
+    max_states: int,
+) -> ClusterTree:
+    parent, cluster, arrival, truncated, horizon = _tree_kernel(
+        root,
+        labels,
+        runs.next_event,
+        runs.plays,
+        indptr,
+        dst,
+        bound,
+        max_nodes,
+        n_clusters,
+        max_states,
+    )
+    return ClusterTree(root, parent, cluster, arrival, bool(truncated), int(horizon))
+
+
+def build_forest(
+    graph: MotionGraph,
+    labels: IntArray,
+    bound_seconds: float = 15.0,
+    max_nodes: int = 4096,
+    max_states: int = 200_000,
+) -> ClusterForest:
+    """Cluster trees for every branching frame of ``graph`` with frame clusters ``labels``."""
+    labels = np.asarray(labels, dtype=np.int64)
+    if labels.shape != (graph.n_frames,):
+        raise ValueError(f"labels must have one cluster per graph frame ({graph.n_frames})")
+    if not bound_seconds > 0 or max_nodes < 1:
+        raise ValueError("bound_seconds must be positive and max_nodes at least 1")
+    t0 = time.perf_counter()
+    bound = max(1, round(bound_seconds * graph.fps))
+    runs = _Runs(graph, labels)
+    indptr = graph.indptr
+    in_scc = graph.in_scc
+    branching = np.flatnonzero(runs.branch & in_scc)
+    n_clusters = int(labels.max()) + 1
+    dst = np.ascontiguousarray(graph.dst, dtype=np.int64)
+
+    def one(f: int) -> ClusterTree:
+        return _build_tree(f, labels, runs, indptr, dst, bound, max_nodes, n_clusters, max_states)
+
+    # the kernel releases the GIL: threads build trees in parallel
+    with ThreadPoolExecutor(max_workers=min(4, os.cpu_count() or 1)) as pool:
+        trees = list(pool.map(one, (int(f) for f in branching)))
+    tree_of = np.full(graph.n_frames, -1, dtype=np.int64)
+    tree_of[branching] = np.arange(branching.size)
+    # single-exit frames: the tree of the first branching frame they play into
+    for f in range(graph.n_frames - 1, -1, -1):
+        if in_scc[f] and tree_of[f] < 0 and runs.plays[f]:
+            tree_of[f] = tree_of[f + 1]
+    sizes = np.array([t.size for t in trees]) if trees else np.zeros(1, dtype=np.int64)
+    leaves = np.array([t.leaves().size for t in trees]) if trees else np.zeros(1, dtype=np.int64)
+    report = {
+        "trees": len(trees),
+        "frames_with_tree": int((tree_of >= 0).sum()),
+        "frames_in_component": int(in_scc.sum()),
+        "bound_frames": bound,
+        "nodes": {
+            "mean": float(sizes.mean()),
+            "median": float(np.median(sizes)),
+            "p95": float(np.percentile(sizes, 95)),
+            "max": int(sizes.max()),
+        },
+        "leaves": {"mean": float(leaves.mean()), "max": int(leaves.max())},
+        "truncated": int(sum(t.truncated for t in trees)),
+        "horizon_seconds": {
+            "min": float(min((t.horizon for t in trees), default=0)) / graph.fps,
+            "median": float(np.median([t.horizon for t in trees] or [0])) / graph.fps,
+        },
+        "max_nodes": max_nodes,
+        "max_states": max_states,
+        "seconds": round(time.perf_counter() - t0, 3),
+    }
+    return ClusterForest(tuple(trees), tree_of, bound, report)

@@ -1,0 +1,55 @@
+"""Motion state vectors (Lee et al. eq. 4) and the reference root orientation.
+
+``x_i = [p_i0, log(q_hat^-1 q_i0), log(q_i1), ..., log(q_im)]`` over the weighted joints
+(weight 1: pelvis, spine chain, hips, knees, shoulders, elbows; the others are left out,
+which is weight 0). ``log`` is the paper's: a vector of length half the rotation angle.
+The root terms follow the graph's coordinates (see ``control.graph.FrameFeatures``):
+world position and orientation for ``fixed``; height and heading-free orientation for
+``relative``; for ``terrain``, height and heading-free orientation too (its quarter turns
+and block shifts make world position and heading meaningless for clustering).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..graph import FrameFeatures, yaw_of
+from ..graph._features import yaw_q
+from ..motion import qconj, qlog, qmul
+from ..motion._quat import FloatArray
+
+__all__ = ["orientation_distance", "reference_orientation", "state_vectors"]
+
+
+def orientation_distance(qa: FloatArray, qb: FloatArray) -> FloatArray:
+    """``min(|log(qa^-1 qb)|, |log(qa^-1 (-qb))|)``: half the angle between the rotations."""
+    return 0.5 * np.linalg.norm(qlog(qmul(qconj(qa), qb)), axis=-1)
+
+
+def reference_orientation(q: FloatArray, block: int = 2048) -> FloatArray:
+    """The orientation among ``q`` (N, 4) that minimises the distance to the farthest one.
+
+    Exact over all pairs, in blocks: the distance is ``arccos(|q_a . q_b|)``, so the
+    farthest orientation from ``a`` is the one with the smallest ``|q_a . q_b|``.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    if q.ndim != 2 or q.shape[1] != 4 or q.shape[0] == 0:
+        raise ValueError("q must be a non-empty (N, 4) array")
+    worst = np.empty(q.shape[0])
+    for s in range(0, q.shape[0], block):
+        worst[s : s + block] = np.min(np.abs(q[s : s + block] @ q.T), axis=1)
+    return q[int(np.argmax(worst))].copy()
+
+
+def state_vectors(feat: FrameFeatures) -> tuple[FloatArray, FloatArray]:
+    """``(X (n, 3 + 3 + 3K), q_hat (4,))``: eq. 4 for every frame of ``feat``."""
+    if feat.coords == "terrain":
+        root_q = qmul(yaw_q(-yaw_of(feat.root_q)), feat.root_q)
+        root_p = np.zeros_like(feat.world_p)
+        root_p[:, 1] = feat.world_p[:, 1]
+    else:
+        root_q, root_p = feat.root_q, feat.root_p
+    q_hat = reference_orientation(root_q)
+    root = 0.5 * qlog(qmul(qconj(q_hat), root_q))
+    joints = 0.5 * qlog(feat.joint_q).reshape(feat.n, -1)
+    return np.concatenate((root_p, root, joints), axis=1), q_hat
