@@ -85,10 +85,12 @@ def offer(
     lead = tree.root_frame - frame  # frames played before the tree's own frame
     t = (tree.arrival + lead) / fps
     selected = np.ones(tree.size, dtype=bool)
+    bound = None
     if lookahead is not None:
         t_min, t_max = lookahead
         selected = (t >= t_min) & (t <= t_max)
         selected[0] = True
+        bound = int(np.floor(t_max * fps + 1e-9))
     has_selected_child = np.zeros(tree.size, dtype=bool)
     kids = np.flatnonzero(selected & (tree.parent >= 0))
     has_selected_child[tree.parent[kids]] = True
@@ -125,7 +127,7 @@ def offer(
             gap = np.min(((cm[:, None, :] - pm[None]) ** 2).sum(-1), axis=1)
             nxt = pool[int(np.argmax(gap))]
         candidates.remove(nxt)
-        motion = layer.motion_to(frame, nxt)
+        motion = layer.motion_to(frame, nxt, bound)
         if motion is None:
             continue
         root_path = _root_path(avatar, data, motion.frames, motion.edges)

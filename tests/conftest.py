@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from control.motion import Library, load_library
+
 REPO = Path(__file__).resolve().parents[1]
 
 
@@ -49,3 +51,25 @@ def amc_path(clip: str) -> Path:
 
 def asf_path(clip: str) -> Path:
     return SUBJECTS / clip[:2] / f"{clip[:2]}.asf"
+
+
+@pytest.fixture(scope="session")
+def walk_lib(mocap: Path, tmp_path_factory: pytest.TempPathFactory) -> Library:
+    """Subject 02's walks, run and jump (164 frames at 15 frames/s): small enough for
+    brute force over all pairs."""
+    cache = tmp_path_factory.mktemp("motion-cache")
+    return load_library(mocap, clips=["02_0[1-4]"], cache_dir=cache)
+
+
+@pytest.fixture(scope="session")
+def medium_lib(mocap: Path, tmp_path_factory: pytest.TempPathFactory) -> Library:
+    """Subjects 02 and 03 (about 3,000 frames): a graph worth walking in."""
+    cache = tmp_path_factory.mktemp("motion-cache")
+    return load_library(mocap, clips=["02_*", "03_*"], cache_dir=cache)
+
+
+@pytest.fixture(scope="session")
+def playground_lib(mocap: Path, tmp_path_factory: pytest.TempPathFactory) -> Library:
+    """Subject 01, the paper's playground (6,864 frames at 15 frames/s)."""
+    cache = tmp_path_factory.mktemp("motion-cache")
+    return load_library(mocap, clips=["01_*"], cache_dir=cache)

@@ -157,8 +157,6 @@ def _tree_kernel(
         tg = t + (g - f)
         if tg >= bound:
             continue
-        if g != f:
-            seen[g * stride + node] = 1
         lo = indptr[g]
         hi = indptr[g + 1]
         n_out = hi - lo + (1 if plays[g] else 0)
@@ -170,6 +168,8 @@ def _tree_kernel(
                 ck = node * n_clusters + c
                 if ck in children:
                     nd = children[ck]
+                    if tg + 1 < arrival[nd]:  # runs differ in length: keep the earliest
+                        arrival[nd] = tg + 1
                 else:
                     if n_nodes >= max_nodes:
                         truncated = True

@@ -47,8 +47,9 @@ class HigherLayer:
     def labels(self) -> NDArray[np.int64]:
         return self.clustering.labels
 
-    def motion_to(self, frame: int, node: int) -> ProbableMotion | None:
-        """The most probable motion from ``frame`` to the cluster of ``node`` of its tree.
+    def motion_to(self, frame: int, node: int, bound: int | None = None) -> ProbableMotion | None:
+        """The most probable motion from ``frame`` to the cluster of ``node`` of its tree,
+        at most ``bound`` frames long (default: the forest's time bound).
 
         A frame without a tree of its own plays on to the frame whose tree it shares;
         those frames come first.
@@ -57,13 +58,16 @@ class HigherLayer:
         r = tree.root_frame
         if r < frame:
             raise ValueError(f"frame {frame} does not lead to its tree's frame {r}")
+        limit = self.forest.bound if bound is None else min(bound - (r - frame), self.forest.bound)
+        if limit < 0:
+            return None
         best = most_probable_motion(
             self.graph,
             self.labels,
             self.clustering.posterior,
             r,
             tree.clusters_to(node),
-            self.forest.bound,
+            limit,
             self.tables,
         )
         if best is None or r == frame:

@@ -1,0 +1,78 @@
+"""The cluster forest against a brute-force construction from the paper's definition."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from control.clusters import build_forest
+from tests.clusters.test_paths import small_graph
+
+
+def brute_force_tree(g, labels, root, bound):
+    """Every walk of at most ``bound`` steps from ``root``; a node per sequence of
+    clusters visited (consecutive repeats merged), reached at the walk's length."""
+    plays = g.plays_on()
+    nodes: dict[tuple[int, ...], int] = {}
+
+    def go(f, seq, t):
+        if seq not in nodes or t < nodes[seq]:
+            nodes[seq] = t
+        if t == bound:
+            return
+        nxt = [int(d) for d in g.dst[g.src == f]]
+        if plays[f]:
+            nxt.append(f + 1)
+        for h in nxt:
+            c = int(labels[h])
+            go(h, seq if c == seq[-1] else (*seq, c), t + 1)
+
+    go(root, (int(labels[root]),), 0)
+    return nodes
+
+
+def forest_nodes(tree):
+    out = {}
+    for node in range(tree.size):
+        out[tuple(int(c) for c in tree.clusters_to(node))] = int(tree.arrival[node])
+    return out
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_trees_equal_brute_force(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    g = small_graph(rng, n_clips=3, length=5, n_edges=7)
+    labels = rng.integers(0, 3, g.n_frames)
+    bound = 7
+    forest = build_forest(g, labels, bound_seconds=bound / g.fps)
+    assert forest.bound == bound
+    branching = np.flatnonzero(np.diff(g.indptr) > 0)
+    assert len(forest.trees) == branching.size
+    for tree in forest.trees:
+        assert not tree.truncated and tree.horizon == bound
+        assert forest_nodes(tree) == brute_force_tree(g, labels, tree.root_frame, bound)
+    # frames without transitions share the tree of the branching frame they play into
+    plays = g.plays_on()
+    for f in range(g.n_frames):
+        if f in set(branching.tolist()):
+            assert forest.trees[forest.tree_of[f]].root_frame == f
+            continue
+        h = f
+        while plays[h] and h not in set(branching.tolist()):
+            h += 1
+        want = forest.tree_of[h] if h in set(branching.tolist()) else -1
+        assert forest.tree_of[f] == want
+
+
+def test_caps_truncate_and_say_so() -> None:
+    rng = np.random.default_rng(3)
+    g = small_graph(rng, n_clips=4, length=8, n_edges=30)
+    labels = rng.integers(0, 5, g.n_frames)
+    full = build_forest(g, labels, bound_seconds=12 / g.fps)
+    capped = build_forest(g, labels, bound_seconds=12 / g.fps, max_nodes=4)
+    assert max(t.size for t in capped.trees) <= 4
+    assert capped.report["truncated"] > 0 and full.report["truncated"] == 0
+    few = build_forest(g, labels, bound_seconds=12 / g.fps, max_states=5)
+    assert all(t.horizon <= 12 for t in few.trees) and few.report["truncated"] > 0
+    with pytest.raises(ValueError, match="one cluster per graph frame"):
+        build_forest(g, labels[:-1])

@@ -1,0 +1,102 @@
+"""Motion state vectors (eq. 4), the reference orientation, and the mixture with BIC."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from control.clusters import (
+    decorrelation_frames,
+    fit_mixture,
+    keyframe_seeds,
+    orientation_distance,
+    reference_orientation,
+    select_by_bic,
+    state_vectors,
+)
+from control.graph import frame_features, weighted_joints
+from control.motion import Library, qexp
+
+
+def _random_q(rng: np.random.Generator, n: int, spread: float) -> np.ndarray:
+    return qexp(rng.normal(scale=spread, size=(n, 3)))
+
+
+def test_reference_orientation_is_the_minimax_one(rng: np.random.Generator) -> None:
+    q = _random_q(rng, 200, 1.2)
+    q[::3] *= -1.0  # the sign of a quaternion must not matter
+    ref = reference_orientation(q, block=17)
+    d = orientation_distance(q[:, None, :], q[None, :, :])
+    worst = d.max(axis=1)
+    assert np.max(orientation_distance(ref, q)) == pytest.approx(worst.min(), abs=1e-9)
+
+
+def test_orientation_distance_is_half_the_angle() -> None:
+    a = np.array([1.0, 0.0, 0.0, 0.0])
+    b = qexp(np.array([0.0, 1.0, 0.0]))  # 1 rad about Y
+    assert orientation_distance(a, b) == pytest.approx(0.5)
+    assert orientation_distance(a, -b) == pytest.approx(0.5)
+
+
+def test_state_vectors_follow_eq4(walk_lib: Library) -> None:
+    feat = frame_features(walk_lib.clips, "fixed")
+    x, q_hat = state_vectors(feat)
+    k = weighted_joints(walk_lib.clips[0].motion.skeleton).size
+    assert x.shape == (feat.n, 3 + 3 + 3 * k)
+    np.testing.assert_allclose(x[:, :3], feat.root_p)
+    # the reference orientation is one of the frames': its own root term is zero
+    i = int(np.argmin(np.linalg.norm(x[:, 3:6], axis=1)))
+    assert np.linalg.norm(x[i, 3:6]) < 1e-9
+    assert abs(abs(float(np.dot(feat.root_q[i], q_hat))) - 1.0) < 1e-12
+    # joint terms: half angles
+    np.testing.assert_allclose(
+        np.linalg.norm(x[:, 6:9], axis=1),
+        orientation_distance(np.array([1.0, 0.0, 0.0, 0.0]), feat.joint_q[:, 0]),
+        atol=1e-9,
+    )
+    xr, _ = state_vectors(frame_features(walk_lib.clips, "relative"))
+    np.testing.assert_allclose(xr[:, [0, 2]], 0.0)  # no horizontal position
+
+
+def _blobs(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    centres = np.array([[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [0.0, 4.0, 4.0]])
+    truth = rng.integers(0, 3, 600)
+    return centres[truth] + rng.normal(scale=0.5, size=(600, 3)), truth
+
+
+def test_mixture_finds_known_clusters_and_bic_picks_three(rng: np.random.Generator) -> None:
+    x, truth = _blobs(rng)
+    best, fits, curve = select_by_bic(x, [1, 2, 3, 4, 5, 6])
+    assert best.k == 3 and curve["chosen_k"] == 3 and curve["bic_effective"] is None
+    # the clusters are the blobs, up to naming
+    pairs = {(int(a), int(b)) for a, b in zip(best.labels, truth, strict=True)}
+    assert len(pairs) == 3
+    np.testing.assert_allclose(np.sort(best.variances), 0.25, rtol=0.2)
+    assert best.sizes().sum() == 600 and np.all(best.posterior > 0.3)
+    assert [f.k for f in fits] == [1, 2, 3, 4, 5, 6]
+    # the paper's sign: larger is better; m = k d + k + k - 1 for spherical
+    assert best.n_params == 3 * 3 + 3 + 2
+    ll = best.log_likelihood
+    assert best.bic == pytest.approx(2 * ll - best.n_params * np.log(600))
+
+
+def test_seeding_is_reproducible_and_from_real_frames(rng: np.random.Generator) -> None:
+    x, _ = _blobs(rng)
+    s1 = keyframe_seeds(x, 5, seed=3)
+    assert np.array_equal(s1, keyframe_seeds(x, 5, seed=3)) and len(set(s1.tolist())) == 5
+    a = fit_mixture(x, 3, seeding="keyframes", seed=1)
+    b = fit_mixture(x, 3, seeding="keyframes", seed=1)
+    assert np.array_equal(a.labels, b.labels) and a.log_likelihood == b.log_likelihood
+    r = fit_mixture(x, 3, seeding="random", seed=1)
+    assert r.log_likelihood == pytest.approx(a.log_likelihood, rel=1e-3)
+    with pytest.raises(ValueError, match="seeding"):
+        fit_mixture(x, 3, seeding="by hand")
+
+
+def test_decorrelation_of_smooth_and_white_signals(rng: np.random.Generator) -> None:
+    white = rng.normal(size=(400, 4))
+    assert decorrelation_frames(white, np.array([0, 400])) == 1
+    t = np.arange(400)[:, None]
+    smooth = np.sin(t / 20.0 + np.arange(4)) + 0.01 * white
+    d = decorrelation_frames(smooth, np.array([0, 200, 400]))
+    assert 10 < d < 60
