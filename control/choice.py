@@ -76,6 +76,10 @@ def offer(
     layer : the higher layer of the avatar's graph. ``data`` : ``FrameData`` of it.
     lookahead : ``(t_min, t_max)`` seconds: only tree nodes first reached in this window.
     region : ``(x, z, radius)`` metres: only actions whose root ends inside this circle.
+
+    Returns an empty list when nothing can be chosen within the look-ahead (the avatar
+    must first play on to its next branching frame, further away than ``t_max``) or no
+    action ends in the region.
     """
     if n < 1:
         raise ValueError("n must be at least 1")

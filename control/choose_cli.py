@@ -128,6 +128,10 @@ def run_choice_session(
         )
         for i, o in enumerate(options, 1):
             print(f"  [{i}] {_describe(o, layer, library)}")
+        if not options:
+            print("  (nothing to choose yet: moving on)")
+            avatar.advance(0.5)
+            continue
         where, cmd, value = next(commands, ("end", "wait", args.seconds))
         if cmd == "quit":
             break
