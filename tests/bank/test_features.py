@@ -1,0 +1,63 @@
+"""Silhouette features: hand-worked shapes, skimage's Hu moments, invariances."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from skimage.measure import moments_central, moments_hu, moments_normalized
+
+from silhouette_bank import hu_log, silhouette_features
+
+
+def _figure(h: int = 120, w: int = 160) -> np.ndarray:
+    """A crude person: a torso rectangle, a head disc, two legs, one raised arm."""
+    m = np.zeros((h, w), dtype=np.uint8)
+    m[30:70, 70:90] = 1
+    cv2.circle(m, (80, 20), 9, 1, -1)
+    m[70:110, 71:78] = 1
+    m[70:110, 82:89] = 1
+    cv2.line(m, (90, 35), (115, 10), 1, 4)
+    return m
+
+
+def test_square_by_hand() -> None:
+    m = np.zeros((20, 30), dtype=np.uint8)
+    m[5:15, 10:20] = 1  # 10 x 10 square, centre (14.5, 9.5)
+    f = silhouette_features(m, origin=(0.0, 0.0))
+    assert f[7] == pytest.approx(14.5 / 10) and f[8] == pytest.approx(-9.5 / 10)
+    # a square's first Hu moment: (mu20 + mu02) / m00^2 = 2 (n^4 / 12) / n^4 = 1/6
+    # (discrete pixels: n^2 - 1 instead of n^2 in mu20)
+    assert 10 ** -f[0] == pytest.approx(2 * (10**2 * (10**2 - 1) / 12) / 100**2, rel=1e-9)
+
+
+def test_hu_moments_match_skimage() -> None:
+    m = _figure().astype(float)
+    mu = moments_central(m)
+    ref = moments_hu(moments_normalized(mu, 3))
+    ours = cv2.HuMoments(cv2.moments(_figure(), binaryImage=True)).ravel()
+    # skimage mirrors the sign of the 7th moment (its y axis); magnitudes agree
+    np.testing.assert_allclose(ours[:6], ref[:6], rtol=1e-6)
+    np.testing.assert_allclose(abs(ours[6]), abs(ref[6]), rtol=1e-6)
+    np.testing.assert_allclose(silhouette_features(_figure())[:6], hu_log(ref[:6]), rtol=1e-9)
+
+
+def test_unchanged_by_translation_and_nearly_by_scale() -> None:
+    m = _figure()
+    f = silhouette_features(m, origin=(80.0, 60.0))
+    shifted = np.roll(np.roll(m, 13, axis=1), -7, axis=0)
+    g = silhouette_features(shifted, origin=(93.0, 53.0))
+    np.testing.assert_allclose(g, f, atol=1e-12)
+    big = cv2.resize(m, (320, 240), interpolation=cv2.INTER_NEAREST)
+    b = silhouette_features(big, origin=(160.0 - 0.5, 120.0 - 0.5))
+    # scale: the same to within the pixel grid's error
+    np.testing.assert_allclose(b[:4], f[:4], atol=0.05)
+    np.testing.assert_allclose(b[7:], f[7:], atol=0.02)
+
+
+def test_empty_and_bad_masks() -> None:
+    assert np.isnan(silhouette_features(np.zeros((10, 10), dtype=bool))).all()
+    with pytest.raises(ValueError, match="2-D"):
+        silhouette_features(np.zeros((2, 3, 4)))
+    f = silhouette_features(_figure().astype(bool))
+    np.testing.assert_allclose(f, silhouette_features(_figure() * 255))
