@@ -50,7 +50,7 @@ def silhouette_features(
     if mom["m00"] <= 0:
         return np.full(N_FEATURES, np.nan)
     out = np.empty(N_FEATURES)
-    out[:7] = hu_log(cv2.HuMoments(mom).ravel())
+    out[:7] = hu_log(np.asarray(cv2.HuMoments(mom), dtype=np.float64).ravel())
     rows = np.flatnonzero(m.any(axis=1))
     height = float(rows[-1] - rows[0] + 1)
     cx = mom["m10"] / mom["m00"]

@@ -80,10 +80,10 @@ def _raster_kernel(
                 ua, va = cx + f * ax / za, cy - f * ay / za
                 ub, vb = cx + f * bx / zb, cy - f * by / zb
                 ext = r * f / (min(za, zb) - r) + 1.0 if min(za, zb) > r + _NEAR else w + h
-                u0 = max(0, int(math.floor(min(ua, ub) - ext)))
-                u1 = min(w - 1, int(math.ceil(max(ua, ub) + ext)))
-                v0 = max(0, int(math.floor(min(va, vb) - ext)))
-                v1 = min(h - 1, int(math.ceil(max(va, vb) + ext)))
+                u0 = max(0, math.floor(min(ua, ub) - ext))
+                u1 = min(w - 1, math.ceil(max(ua, ub) + ext))
+                v0 = max(0, math.floor(min(va, vb) - ext))
+                v1 = min(h - 1, math.ceil(max(va, vb) + ext))
             else:  # crosses the camera plane: test the whole image
                 u0, u1, v0, v1 = 0, w - 1, 0, h - 1
             r2 = r * r
