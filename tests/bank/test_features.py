@@ -28,7 +28,16 @@ def test_square_by_hand() -> None:
     assert f[7] == pytest.approx(14.5 / 10) and f[8] == pytest.approx(-9.5 / 10)
     # a square's first Hu moment: (mu20 + mu02) / m00^2 = 2 (n^4 / 12) / n^4 = 1/6
     # (discrete pixels: n^2 - 1 instead of n^2 in mu20)
-    assert 10 ** -f[0] == pytest.approx(2 * (10**2 * (10**2 - 1) / 12) / 100**2, rel=1e-9)
+    h1 = 2 * (10**2 * (10**2 - 1) / 12) / 100**2
+    assert f[0] == pytest.approx(np.log10(1 + h1 / 1e-7), rel=1e-12)
+
+
+def test_log_scale_is_continuous_through_zero() -> None:
+    h = np.array([-1e-6, -1e-9, 0.0, 1e-9, 1e-6, 0.2])
+    y = hu_log(np.tile(h[:, None], (1, 7)))[:, 0]
+    assert np.all(np.diff(y) > 0) and y[2] == 0.0
+    assert abs(y[1]) < 0.01 and abs(y[3]) < 0.01  # tiny values of either sign are near 0
+    assert y[5] == pytest.approx(np.log10(0.2) + 7, abs=1e-6)
 
 
 def test_hu_moments_match_skimage() -> None:
@@ -39,7 +48,7 @@ def test_hu_moments_match_skimage() -> None:
     # skimage mirrors the sign of the 7th moment (its y axis); magnitudes agree
     np.testing.assert_allclose(ours[:6], ref[:6], rtol=1e-6)
     np.testing.assert_allclose(abs(ours[6]), abs(ref[6]), rtol=1e-6)
-    np.testing.assert_allclose(silhouette_features(_figure())[:6], hu_log(ref[:6]), rtol=1e-9)
+    np.testing.assert_allclose(silhouette_features(_figure())[:6], hu_log(ref)[:6], rtol=1e-9)
 
 
 def test_unchanged_by_translation_and_nearly_by_scale() -> None:

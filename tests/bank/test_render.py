@@ -1,0 +1,121 @@
+"""Body, cameras, the numba rasterizer, and headless pyrender (GL tests run in CI)."""
+
+from __future__ import annotations
+
+import resource
+
+import numpy as np
+import pytest
+
+from silhouette_bank import (
+    BodyShape,
+    CameraRing,
+    capsule_body,
+    capsule_segments,
+    motion_features,
+    motion_silhouettes,
+)
+
+
+@pytest.fixture(scope="module")
+def exercise(mocap, tmp_path_factory):
+    from control.motion import load_library
+
+    lib = load_library(mocap, clips=["13_29"], cache_dir=tmp_path_factory.mktemp("c"))
+    return lib.clip("13_29").motion
+
+
+def test_ring_looks_at_the_avatar() -> None:
+    ring = CameraRing()
+    root = np.array([2.0, 0.95, -1.0])
+    poses = ring.poses(root)
+    assert poses.shape == (18, 4, 4)
+    target = np.array([2.0, ring.target_height, -1.0])
+    uv = ring.project(ring.to_camera(np.broadcast_to(target, (18, 1, 3)), poses)[:, 0])
+    np.testing.assert_allclose(uv, np.tile(ring.centre, (18, 1)), atol=1e-9)
+    eyes = poses[:, :3, 3]
+    np.testing.assert_allclose(np.hypot(eyes[:, 0] - 2.0, eyes[:, 2] + 1.0), ring.distance)
+    np.testing.assert_allclose(eyes[:, 1], ring.height)
+    az = np.degrees(np.arctan2(eyes[:, 0] - 2.0, eyes[:, 2] + 1.0)) % 360
+    np.testing.assert_allclose(np.sort(az), np.arange(0, 360, 20), atol=1e-9)
+
+
+def test_body_covers_the_skeleton(exercise) -> None:
+    body = capsule_body(exercise.skeleton)
+    assert body.start.size == exercise.skeleton.n_joints - 1 + exercise.skeleton.end_parents.size
+    heavy = capsule_body(exercise.skeleton, BodyShape(width=1.3))
+    np.testing.assert_allclose(heavy.radius, body.radius * 1.3)
+    tall = capsule_segments(exercise, capsule_body(exercise.skeleton, BodyShape(height=1.1)))
+    base = capsule_segments(exercise, body)
+    assert tall[..., 1].max() == pytest.approx(base[..., 1].max() * 1.1, rel=1e-6)
+    with pytest.raises(ValueError, match="width and height"):
+        BodyShape(width=0.0)
+
+
+def test_same_pose_farther_away_gives_the_same_features(exercise) -> None:
+    body = capsule_body(exercise.skeleton)
+    near = CameraRing(distance=3.0, width=320, height_px=240)
+    far = CameraRing(distance=4.5, width=320, height_px=240)
+    frames = np.array([40, 200, 400])
+    fn, _ = motion_features(exercise, body, near, frames)
+    ff, _ = motion_features(exercise, body, far, frames)
+    # perspective changes a little with distance; Hu moments and centre barely move
+    np.testing.assert_allclose(ff[..., :2], fn[..., :2], atol=0.1)
+    assert np.abs(ff[..., :7] - fn[..., :7]).mean() < 0.3
+    np.testing.assert_allclose(ff[..., 7:], fn[..., 7:], atol=0.03)
+
+
+def test_root_motion_shows_a_walk(mocap, tmp_path_factory) -> None:
+    from control.motion import load_library
+
+    lib = load_library(mocap, clips=["02_01"], cache_dir=tmp_path_factory.mktemp("c"))
+    m = lib.clip("02_01").motion
+    feats, moves = motion_features(m, capsule_body(m.skeleton), CameraRing())
+    assert feats.shape == (m.n_frames, 18, 9) and moves.shape == (m.n_frames, 18, 2)
+    assert np.all(moves[0] == 0.0)
+    speed = np.abs(moves[1:, :, 0]).mean(axis=0)  # sideways image motion per view
+    # walking past the camera moves the root sideways; walking towards it hardly
+    assert speed.max() > 4.0 * speed.min()
+
+
+@pytest.mark.gl
+def test_pyrender_agrees_with_the_rasterizer(exercise) -> None:
+    from silhouette_bank._gl import GLRenderer
+
+    ring = CameraRing()
+    body = capsule_body(exercise.skeleton)
+    seg = capsule_segments(exercise, body)
+    frames = np.array([0, 150, 300, 450])
+    ras = motion_silhouettes(exercise, body, ring, frames)
+    poses = ring.poses(exercise.root_pos)
+    ious = []
+    with GLRenderer(ring) as gl:
+        for i, f in enumerate(frames):
+            gl.set_body(seg[f], body.radius)
+            for v in range(ring.n_views):
+                g = gl.render(poses[f, v])
+                assert set(np.unique(g)) <= {0, 1}
+                a = ras[i, v]
+                ious.append((g & a).sum() / (g | a).sum())
+    # the mesh is a low-poly version of the exact capsules
+    assert min(ious) > 0.9 and np.mean(ious) > 0.95
+
+
+@pytest.mark.gl
+def test_two_thousand_renders_with_flat_memory(exercise) -> None:
+    from silhouette_bank._gl import GLRenderer
+
+    ring = CameraRing()
+    body = capsule_body(exercise.skeleton)
+    seg = capsule_segments(exercise, body)
+    poses = ring.poses(exercise.root_pos)
+    with GLRenderer(ring) as gl:
+        for k in range(2000):
+            if k % 18 == 0:
+                gl.set_body(seg[(k // 18) % exercise.n_frames], body.radius)
+            gl.render(poses[0, k % 18])
+            if k == 199:
+                rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        assert gl.renders == 2000
+    grown_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss) / 1024
+    assert grown_mb < 20, f"memory grew {grown_mb:.1f} MB over 1,800 renders"
