@@ -1,20 +1,42 @@
 """Offline half of the vision interface (Lee et al. §5.3): the silhouette bank."""
 
+from ._bank import (
+    BANK_VERSION,
+    Bank,
+    BankFileError,
+    BankSettings,
+    StaleBankError,
+    bank_cache_dir,
+    build_bank,
+    ensure_bank,
+    load_bank,
+)
 from ._body import BodyShape, CapsuleBody, capsule_body, capsule_segments
 from ._camera import CameraRing
 from ._features import HU_SCALE, N_FEATURES, hu_log, silhouette_features
 from ._raster import rasterize
-from ._render import motion_features, motion_silhouettes
+from ._render import gl_features, gl_silhouettes, motion_features, motion_silhouettes
 
 __all__ = [
+    "BANK_VERSION",
     "HU_SCALE",
     "N_FEATURES",
+    "Bank",
+    "BankFileError",
+    "BankSettings",
     "BodyShape",
     "CameraRing",
     "CapsuleBody",
+    "StaleBankError",
+    "bank_cache_dir",
+    "build_bank",
     "capsule_body",
     "capsule_segments",
+    "ensure_bank",
+    "gl_features",
+    "gl_silhouettes",
     "hu_log",
+    "load_bank",
     "motion_features",
     "motion_silhouettes",
     "rasterize",

@@ -10,9 +10,10 @@ from control.motion import Motion
 from ._body import CapsuleBody, capsule_segments
 from ._camera import CameraRing
 from ._features import N_FEATURES, silhouette_features
+from ._gl import GLRenderer
 from ._raster import rasterize
 
-__all__ = ["motion_features", "motion_silhouettes"]
+__all__ = ["gl_features", "gl_silhouettes", "motion_features", "motion_silhouettes"]
 
 FloatArray = NDArray[np.float64]
 
@@ -41,6 +42,39 @@ def motion_silhouettes(
     return masks.reshape(f, v, ring.height_px, ring.width)
 
 
+def _features_of(
+    masks: NDArray[np.uint8],
+    here: FloatArray,
+    before: FloatArray,
+    first: NDArray[np.bool_],
+) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """Features and root motion of masks ``(n, V, H, W)`` given the root's projection
+    now and at the previous frame ``(n, V, 2)``; ``first`` marks clip starts."""
+    n, v = masks.shape[:2]
+    feats = np.empty((n, v, N_FEATURES), dtype=np.float32)
+    moves = np.zeros((n, v, 2), dtype=np.float32)
+    for i in range(n):
+        for j in range(v):
+            feats[i, j] = silhouette_features(
+                masks[i, j], (float(here[i, j, 0]), float(here[i, j, 1]))
+            )
+            rows = np.flatnonzero(masks[i, j].any(axis=1))
+            if rows.size and not first[i]:
+                d = (here[i, j] - before[i, j]) / float(rows[-1] - rows[0] + 1)
+                moves[i, j] = (d[0], -d[1])
+    return feats, moves
+
+
+def _root_pixels(
+    motion: Motion, ring: CameraRing, fr: NDArray[np.int64], poses: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    root = motion.root_pos[fr]
+    here = ring.project(ring.to_camera(root[:, None, None, :], poses)[..., 0, :])
+    prev = motion.root_pos[np.maximum(fr - 1, 0)]
+    before = ring.project(ring.to_camera(prev[:, None, None, :], poses)[..., 0, :])
+    return here, before
+
+
 def motion_features(
     motion: Motion,
     body: CapsuleBody,
@@ -48,7 +82,7 @@ def motion_features(
     frames: NDArray[np.int64] | None = None,
     chunk: int = 64,
 ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-    """Features ``(F, V, 9)`` and root image motion ``(F, V, 2)`` of ``frames``.
+    """Features ``(F, V, 9)`` and root image motion ``(F, V, 2)`` of ``frames``, rasterized.
 
     The centre features are relative to the projection of the root; the root motion is
     the root's displacement since the previous frame as the current frame's camera sees
@@ -59,21 +93,34 @@ def motion_features(
     moves = np.zeros((frames.size, ring.n_views, 2), dtype=np.float32)
     for s in range(0, frames.size, chunk):
         fr = frames[s : s + chunk]
-        cam, poses, root = _camera_segments(motion, body, ring, fr)
+        cam, poses, _ = _camera_segments(motion, body, ring, fr)
         n, v = cam.shape[:2]
         masks = rasterize(cam.reshape(n * v, *cam.shape[2:]), body.radius, ring).reshape(
             n, v, ring.height_px, ring.width
         )
-        here = ring.project(ring.to_camera(root[:, None, None, :], poses)[..., 0, :])  # (n, v, 2)
-        prev_root = motion.root_pos[np.maximum(fr - 1, 0)]
-        before = ring.project(ring.to_camera(prev_root[:, None, None, :], poses)[..., 0, :])
-        for i in range(n):
-            for j in range(v):
-                x = silhouette_features(masks[i, j], (float(here[i, j, 0]), float(here[i, j, 1])))
-                feats[s + i, j] = x
-                rows = np.flatnonzero(masks[i, j].any(axis=1))
-                if rows.size and fr[i] > 0:
-                    hgt = float(rows[-1] - rows[0] + 1)
-                    d = (here[i, j] - before[i, j]) / hgt
-                    moves[s + i, j] = (d[0], -d[1])
+        here, before = _root_pixels(motion, ring, fr, poses)
+        feats[s : s + n], moves[s : s + n] = _features_of(masks, here, before, fr == 0)
     return feats, moves
+
+
+def gl_silhouettes(
+    gl: GLRenderer, motion: Motion, body: CapsuleBody, ring: CameraRing, frames: NDArray[np.int64]
+) -> NDArray[np.uint8]:
+    """Masks ``(F, V, H, W)`` drawn by pyrender (the body as one mesh per frame)."""
+    seg = capsule_segments(motion, body)[frames]
+    poses = ring.poses(motion.root_pos[frames])
+    out = np.empty((frames.size, ring.n_views, ring.height_px, ring.width), dtype=np.uint8)
+    for i in range(frames.size):
+        gl.set_body(seg[i], body.radius)
+        for j in range(ring.n_views):
+            out[i, j] = gl.render(poses[i, j])
+    return out
+
+
+def gl_features(
+    gl: GLRenderer, motion: Motion, body: CapsuleBody, ring: CameraRing, frames: NDArray[np.int64]
+) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """As ``motion_features``, drawn by pyrender."""
+    masks = gl_silhouettes(gl, motion, body, ring, frames)
+    here, before = _root_pixels(motion, ring, frames, ring.poses(motion.root_pos[frames]))
+    return _features_of(masks, here, before, frames == 0)

@@ -10,6 +10,8 @@ from collections.abc import Sequence
 from control.cli import add_graph_commands, add_library_commands
 from control.graph import GraphFileError
 from control.motion import MotionFormatError
+from silhouette_bank._bank import BankFileError
+from silhouette_bank.cli import add_bank_commands
 
 __all__ = ["build_parser", "main"]
 
@@ -23,6 +25,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     add_library_commands(sub)
     add_graph_commands(sub)
+    add_bank_commands(sub)
     return parser
 
 
@@ -35,7 +38,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     try:
         return int(args.func(args))
-    except (MotionFormatError, GraphFileError, FileNotFoundError, KeyError, ValueError) as exc:
+    except (
+        MotionFormatError,
+        GraphFileError,
+        BankFileError,
+        FileNotFoundError,
+        KeyError,
+        ValueError,
+        OSError,
+    ) as exc:
         print(f"mimic: error: {exc}", file=sys.stderr)
         return 2
 

@@ -1,0 +1,361 @@
+"""The bank on disk: features of every library frame from every view.
+
+Layout of a bank folder::
+
+    manifest.json          format, version, library digest, settings and their hash,
+                           clips, shard table, complete flag
+    shard-00003.npz        features (n, V, 9) float32, root_motion (n, V, 2) float32,
+                           for the frames [start, stop) of the library (one file a shard)
+    bank.npz               all shards merged (written last; the bank is complete)
+
+Everything is written to a temporary file and renamed. Shards are independent, so they
+can be built by several processes (``workers``) or machines and merged; a build that was
+interrupted finds its finished shards (checked against the manifest's key) and does only
+the rest. A bank whose library or settings differ from the requested ones is stale: it
+is rebuilt, never used. Files are read without pickle; a corrupt or truncated file is a
+``BankFileError`` that names it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import multiprocessing
+import os
+import time
+import zipfile
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from control.graph import clips_digest
+from control.motion import Clip, Motion, default_cache_dir
+from control.motion._text import atomic_write
+
+from ._body import BodyShape, capsule_body
+from ._camera import CameraRing
+from ._features import HU_SCALE, N_FEATURES
+from ._render import motion_features
+
+__all__ = [
+    "BANK_VERSION",
+    "Bank",
+    "BankFileError",
+    "BankSettings",
+    "StaleBankError",
+    "bank_cache_dir",
+    "build_bank",
+    "ensure_bank",
+    "load_bank",
+]
+
+#: Bump when features or rendering change for the same settings.
+BANK_VERSION = 1
+FloatArray = NDArray[np.float32]
+
+
+class BankFileError(ValueError):
+    """A bank file that cannot be used; the message names the file and the problem."""
+
+    def __init__(self, path: str | Path, problem: str) -> None:
+        self.path = str(path)
+        super().__init__(f"{path}: {problem}")
+
+
+class StaleBankError(BankFileError):
+    """A bank built from another library or with other settings."""
+
+
+@dataclass(frozen=True)
+class BankSettings:
+    """Everything that changes the bank's numbers: the ring, the body, the renderer."""
+
+    ring: CameraRing = field(default_factory=CameraRing)
+    body: BodyShape = field(default_factory=BodyShape)
+    renderer: str = "raster"
+
+    def __post_init__(self) -> None:
+        if self.renderer not in ("raster", "gl"):
+            raise ValueError(f"renderer must be 'raster' or 'gl', not {self.renderer!r}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "ring": self.ring.to_dict(),
+            "body": self.body.to_dict(),
+            "renderer": self.renderer,
+            "hu_scale": [float(x) for x in HU_SCALE],
+            "version": BANK_VERSION,
+        }
+
+    def digest(self) -> str:
+        return hashlib.sha256(json.dumps(self.to_dict(), sort_keys=True).encode()).hexdigest()
+
+    @staticmethod
+    def from_dict(d: dict[str, Any]) -> BankSettings:
+        return BankSettings(CameraRing(**d["ring"]), BodyShape(**d["body"]), d["renderer"])
+
+
+@dataclass(frozen=True, eq=False)
+class Bank:
+    """A complete bank.
+
+    Attributes
+    ----------
+    features : (n, V, 9) per library frame and view (see ``silhouette_features``).
+    root_motion : (n, V, 2) the root's image motion since the previous frame.
+    clip_names, clip_start : which frames belong to which clip.
+    settings : how it was rendered. library_digest : what it was rendered from.
+    path : the folder.
+    """
+
+    features: FloatArray
+    root_motion: FloatArray
+    clip_names: tuple[str, ...]
+    clip_start: NDArray[np.int64]
+    settings: BankSettings
+    library_digest: str
+    path: str
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.clip_start[-1])
+
+    def frame_of(self, clip: str, frame: int) -> int:
+        if clip not in self.clip_names:
+            raise ValueError(f"the bank has no clip {clip!r}")
+        c = self.clip_names.index(clip)
+        if not 0 <= frame < self.clip_start[c + 1] - self.clip_start[c]:
+            raise ValueError(f"clip {clip} has no frame {frame}")
+        return int(self.clip_start[c] + frame)
+
+
+def bank_cache_dir() -> Path:
+    """``$MIMIC_CACHE/bank`` or ``~/.cache/mimic/bank``."""
+    return default_cache_dir().parent / "bank"
+
+
+def _key(digest: str, settings: BankSettings) -> str:
+    return hashlib.sha256(f"{digest}|{settings.digest()}".encode()).hexdigest()[:24]
+
+
+def _shard_job(
+    job: tuple[int, list[tuple[Motion, int, int]], BankSettings, str],
+) -> tuple[int, str]:
+    """Render one shard (``[(motion, first, stop)]`` pieces of clips) and write its file."""
+    index, pieces, settings, path = job
+    feats, moves = [], []
+    gl = None
+    for motion, a, b in pieces:
+        body = capsule_body(motion.skeleton, settings.body)
+        frames = np.arange(a, b)
+        if settings.renderer == "raster":
+            f, m = motion_features(motion, body, settings.ring, frames)
+        else:
+            from ._gl import GLRenderer
+            from ._render import gl_features
+
+            gl = gl or GLRenderer(settings.ring)
+            f, m = gl_features(gl, motion, body, settings.ring, frames)
+        feats.append(f)
+        moves.append(m)
+    if gl is not None:
+        gl.close()
+    with atomic_write(path, "wb") as fh:
+        np.savez(fh, features=np.concatenate(feats), root_motion=np.concatenate(moves))
+    return index, path
+
+
+def _read_npz(path: Path, keys: Sequence[str]) -> dict[str, np.ndarray]:
+    try:
+        with path.open("rb") as fh, np.load(fh, allow_pickle=False) as z:
+            missing = [k for k in keys if k not in z.files]
+            if missing:
+                raise BankFileError(path, f"not a bank file (missing {', '.join(missing)})")
+            return {k: z[k] for k in keys}
+    except (OSError, zipfile.BadZipFile, EOFError, ValueError) as exc:
+        if isinstance(exc, BankFileError):
+            raise
+        raise BankFileError(path, f"unreadable or truncated ({exc})") from exc
+
+
+def _shard_ok(path: Path, n: int, views: int) -> bool:
+    if not path.is_file():
+        return False
+    try:
+        d = _read_npz(path, ("features", "root_motion"))
+    except BankFileError:
+        return False
+    return d["features"].shape == (n, views, N_FEATURES) and d["root_motion"].shape == (n, views, 2)
+
+
+def build_bank(
+    clips: Sequence[Clip],
+    settings: BankSettings,
+    folder: str | Path,
+    shard_frames: int = 1000,
+    workers: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> Bank:
+    """Render every frame of ``clips`` into the bank at ``folder`` (resuming if possible)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    if shard_frames < 1:
+        raise ValueError("shard_frames must be at least 1")
+    digest = clips_digest(clips)
+    key = _key(digest, settings)
+    sizes = [c.motion.n_frames for c in clips]
+    starts = np.concatenate(([0], np.cumsum(sizes))).astype(np.int64)
+    n = int(starts[-1])
+    bounds = [*range(0, n, shard_frames), n]
+    shards: list[dict[str, Any]] = [
+        {"index": i, "start": a, "stop": b, "file": f"shard-{i:05d}-{key[:8]}.npz"}
+        for i, (a, b) in enumerate(itertools.pairwise(bounds))
+    ]
+    manifest: dict[str, Any] = {
+        "format": "mimic-bank",
+        "version": BANK_VERSION,
+        "key": key,
+        "library_digest": digest,
+        "settings": settings.to_dict(),
+        "settings_digest": settings.digest(),
+        "clip_names": [c.name for c in clips],
+        "clip_start": starts.tolist(),
+        "views": settings.ring.n_views,
+        "shards": shards,
+        "complete": False,
+        "built": None,
+    }
+    old = folder / "manifest.json"
+    if old.is_file():
+        try:
+            previous = json.loads(old.read_text())
+        except (OSError, json.JSONDecodeError):
+            previous = {}
+        if previous.get("key") != key:  # another library or settings: start afresh
+            for p in folder.glob("shard-*.npz"):
+                p.unlink()
+            (folder / "bank.npz").unlink(missing_ok=True)
+    with atomic_write(old) as fh:
+        json.dump(manifest, fh, indent=1)
+    views = settings.ring.n_views
+    todo = []
+    for s in shards:
+        path = folder / str(s["file"])
+        if _shard_ok(path, int(s["stop"]) - int(s["start"]), views):
+            continue
+        pieces = []
+        for c, clip in enumerate(clips):
+            a = max(int(s["start"]), int(starts[c]))
+            b = min(int(s["stop"]), int(starts[c + 1]))
+            if a < b:
+                pieces.append((clip.motion, a - int(starts[c]), b - int(starts[c])))
+        todo.append((int(s["index"]), pieces, settings, str(path)))
+    done = len(shards) - len(todo)
+    if progress:
+        progress(done, len(shards))
+    n_workers = min(workers or min(os.cpu_count() or 1, 4), max(len(todo), 1))
+    t0 = time.perf_counter()
+    if n_workers > 1:
+        # spawn, not fork: numba's OpenMP threads in this process make fork unsafe
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(n_workers, mp_context=ctx) as pool:
+            for _ in pool.map(_shard_job, todo):
+                done += 1
+                if progress:
+                    progress(done, len(shards))
+    else:
+        for job in todo:
+            _shard_job(job)
+            done += 1
+            if progress:
+                progress(done, len(shards))
+    parts = [_read_npz(folder / str(s["file"]), ("features", "root_motion")) for s in shards]
+    features = np.concatenate([p["features"] for p in parts])
+    root_motion = np.concatenate([p["root_motion"] for p in parts])
+    with atomic_write(folder / "bank.npz", "wb") as fh:
+        np.savez(
+            fh,
+            features=features,
+            root_motion=root_motion,
+            clip_start=starts,
+            key=np.array(key),
+        )
+    manifest["complete"] = True
+    manifest["built"] = {
+        "seconds": round(time.perf_counter() - t0, 3),
+        "rendered_shards": len(todo),
+    }
+    with atomic_write(old) as fh:
+        json.dump(manifest, fh, indent=1)
+    return load_bank(folder)
+
+
+def load_bank(
+    folder: str | Path,
+    clips: Sequence[Clip] | None = None,
+    settings: BankSettings | None = None,
+) -> Bank:
+    """Read a complete bank; with ``clips`` / ``settings``, refuse a stale one."""
+    folder = Path(folder)
+    mpath = folder / "manifest.json"
+    if not mpath.is_file():
+        raise FileNotFoundError(f"no bank at {folder} (no manifest.json)")
+    try:
+        manifest = json.loads(mpath.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise BankFileError(mpath, f"unreadable manifest ({exc})") from exc
+    if manifest.get("format") != "mimic-bank":
+        raise BankFileError(mpath, "not a mimic bank manifest")
+    if manifest.get("version") != BANK_VERSION:
+        raise StaleBankError(
+            mpath, f"bank version {manifest.get('version')}, this mimic writes {BANK_VERSION}"
+        )
+    if not manifest.get("complete"):
+        raise BankFileError(
+            mpath, "the bank is incomplete (an interrupted build): build it again to resume"
+        )
+    if clips is not None and clips_digest(clips) != manifest["library_digest"]:
+        raise StaleBankError(mpath, "built from another motion library")
+    if settings is not None and settings.digest() != manifest["settings_digest"]:
+        raise StaleBankError(mpath, "built with other render settings")
+    d = _read_npz(folder / "bank.npz", ("features", "root_motion", "clip_start", "key"))
+    n = int(manifest["clip_start"][-1])
+    views = int(manifest["views"])
+    if str(d["key"]) != manifest["key"]:
+        raise BankFileError(folder / "bank.npz", "does not belong to this manifest")
+    if d["features"].shape != (n, views, N_FEATURES) or d["root_motion"].shape != (n, views, 2):
+        raise BankFileError(folder / "bank.npz", "arrays of the wrong shape")
+    return Bank(
+        features=d["features"],
+        root_motion=d["root_motion"],
+        clip_names=tuple(manifest["clip_names"]),
+        clip_start=np.asarray(manifest["clip_start"], dtype=np.int64),
+        settings=BankSettings.from_dict(manifest["settings"]),
+        library_digest=str(manifest["library_digest"]),
+        path=str(folder),
+    )
+
+
+def ensure_bank(
+    clips: Sequence[Clip],
+    settings: BankSettings,
+    folder: str | Path | None = None,
+    **build_options: Any,
+) -> tuple[Bank, bool]:
+    """The bank of ``clips`` with ``settings``: loaded when fresh, else (re)built.
+
+    ``folder`` defaults to ``bank_cache_dir() / <hash of library and settings>``.
+    Returns ``(bank, built)``.
+    """
+    if folder is None:
+        folder = bank_cache_dir() / _key(clips_digest(clips), settings)
+    try:
+        return load_bank(folder, clips, settings), False
+    except (FileNotFoundError, BankFileError):
+        return build_bank(clips, settings, folder, **build_options), True

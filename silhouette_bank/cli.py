@@ -1,0 +1,192 @@
+"""``mimic bank ...``: build, inspect and look at the silhouette bank."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from control.motion import Library, load_library
+
+from ._bank import BankSettings, ensure_bank, load_bank
+from ._body import BodyShape, capsule_body
+from ._camera import CameraRing
+from ._render import motion_silhouettes
+
+__all__ = ["add_bank_commands", "contact_sheet"]
+
+
+def _add_settings(p: argparse.ArgumentParser) -> None:
+    p.add_argument("dir", nargs="?", default=None, help="motion library (default: ../shared/mocap)")
+    p.add_argument("--clips", action="append", metavar="PATTERN", help="only these clips")
+    p.add_argument("--fps", type=float, default=15.0, help="library frame rate (default 15)")
+    p.add_argument("--mirror", action="store_true", help="add mirrored copies of every clip")
+    d = CameraRing()
+    p.add_argument("--bank", help="bank folder (default: the cache, by content hash)")
+    p.add_argument("--width", type=int, default=d.width, help="image width, pixels")
+    p.add_argument("--height", type=int, default=d.height_px, help="image height, pixels")
+    p.add_argument("--views", type=int, default=d.n_views, help="cameras on the ring")
+    p.add_argument("--distance", type=float, default=d.distance, help="camera distance, m")
+    p.add_argument("--camera-height", type=float, default=d.height, help="camera height, m")
+    p.add_argument("--target-height", type=float, default=d.target_height, help="look-at height, m")
+    p.add_argument("--fov", type=float, default=d.fov_y, help="vertical field of view, degrees")
+    p.add_argument("--body-width", type=float, default=1.0, help="radius scale of the body")
+    p.add_argument("--body-height", type=float, default=1.0, help="height scale of the body")
+    p.add_argument(
+        "--renderer",
+        choices=("raster", "gl"),
+        default="raster",
+        help="numba capsule rasterizer (default) or pyrender",
+    )
+
+
+def _settings(args: argparse.Namespace) -> BankSettings:
+    ring = CameraRing(
+        n_views=args.views,
+        distance=args.distance,
+        height=args.camera_height,
+        target_height=args.target_height,
+        fov_y=args.fov,
+        width=args.width,
+        height_px=args.height,
+    )
+    return BankSettings(ring, BodyShape(args.body_width, args.body_height), args.renderer)
+
+
+def add_bank_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    bank = sub.add_parser("bank", help="the silhouette bank (every frame from 18 views)")
+    bsub = bank.add_subparsers(dest="bank_command", required=True)
+    build = bsub.add_parser(
+        "build",
+        help="render every library frame from every view and store the features",
+        description="Built in shards (parallel, resumable); a stale bank is rebuilt.",
+    )
+    _add_settings(build)
+    build.add_argument("--workers", type=int, default=None, help="processes (default: cores)")
+    build.add_argument("--shard-frames", type=int, default=1000, help="frames per shard")
+    build.set_defaults(func=_build)
+    info = bsub.add_parser("info", help="what a bank holds and how it was made")
+    info.add_argument("folder", help="bank folder")
+    info.add_argument("--json", action="store_true")
+    info.set_defaults(func=_info)
+    show = bsub.add_parser("show", help="a PNG contact sheet of one frame's silhouettes")
+    show.add_argument("frame", help="CLIP:FRAME (library frame at --fps)")
+    _add_settings(show)
+    show.add_argument("--out", required=True, help="PNG to write")
+    show.set_defaults(func=_show)
+
+
+def _library(args: argparse.Namespace) -> Library:
+    return load_library(args.dir, fps=args.fps, mirror=args.mirror, clips=args.clips)
+
+
+def _bar(done: int, total: int) -> None:
+    width = 30
+    fill = round(width * done / max(total, 1))
+    sys.stderr.write(f"\r[{'#' * fill}{'.' * (width - fill)}] {done}/{total} shards")
+    if done == total:
+        sys.stderr.write("\n")
+    sys.stderr.flush()
+
+
+def _build(args: argparse.Namespace) -> int:
+    library = _library(args)
+    settings = _settings(args)
+    bank, built = ensure_bank(
+        library.clips,
+        settings,
+        args.bank,
+        shard_frames=args.shard_frames,
+        workers=args.workers,
+        progress=_bar,
+    )
+    how = "built" if built else "up to date"
+    print(
+        f"bank {bank.path} ({how}): {bank.n_frames} frames x {settings.ring.n_views} views, "
+        f"{settings.ring.width}x{settings.ring.height_px}, renderer {settings.renderer}"
+    )
+    return 0
+
+
+def _info(args: argparse.Namespace) -> int:
+    path = Path(args.folder)
+    manifest: dict[str, Any] = (
+        json.loads((path / "manifest.json").read_text())
+        if (path / "manifest.json").is_file()
+        else {}
+    )
+    if not manifest:
+        raise FileNotFoundError(f"no bank at {path} (no manifest.json)")
+    bank = load_bank(path)
+    f = bank.features
+    summary: dict[str, Any] = {
+        "folder": str(path),
+        "frames": bank.n_frames,
+        "views": int(f.shape[1]),
+        "clips": len(bank.clip_names),
+        "settings": bank.settings.to_dict(),
+        "library_digest": bank.library_digest[:16],
+        "empty_silhouettes": int(np.isnan(f[..., 0]).sum()),
+        "built": manifest.get("built"),
+        "bytes": sum(p.stat().st_size for p in path.iterdir() if p.is_file()),
+    }
+    if args.json:
+        print(json.dumps(summary, indent=2))
+        return 0
+    ring = summary["settings"]["ring"]
+    print(
+        f"bank {path}: {summary['frames']} frames of {summary['clips']} clips x "
+        f"{summary['views']} views, {ring['width']}x{ring['height_px']}, camera "
+        f"{ring['distance']} m away at {ring['height']} m, fov {ring['fov_y']} deg, body "
+        f"{summary['settings']['body']}, renderer {summary['settings']['renderer']}; "
+        f"{summary['empty_silhouettes']} empty silhouettes; {summary['bytes'] / 1e6:.1f} MB"
+    )
+    return 0
+
+
+def contact_sheet(masks: np.ndarray, cols: int = 6) -> np.ndarray:
+    """Masks ``(V, H, W)`` tiled into one image (white silhouettes, grey borders)."""
+    v, h, w = masks.shape
+    rows = (v + cols - 1) // cols
+    sheet = np.full((rows * (h + 2), cols * (w + 2)), 64, dtype=np.uint8)
+    for i in range(v):
+        r, c = divmod(i, cols)
+        sheet[r * (h + 2) + 1 : r * (h + 2) + 1 + h, c * (w + 2) + 1 : c * (w + 2) + 1 + w] = (
+            masks[i] * 255
+        )
+    return sheet
+
+
+def _show(args: argparse.Namespace) -> int:
+    library = _library(args)
+    settings = _settings(args)
+    clip_name, _, frame = args.frame.rpartition(":")
+    if not clip_name or not frame.isdigit():
+        raise ValueError(f"FRAME must be CLIP:FRAME, not {args.frame!r}")
+    clip = library.clip(clip_name)
+    f = int(frame)
+    if not 0 <= f < clip.motion.n_frames:
+        raise ValueError(f"clip {clip_name} has no frame {f} (it has {clip.motion.n_frames})")
+    body = capsule_body(clip.motion.skeleton, settings.body)
+    if settings.renderer == "gl":
+        from ._gl import GLRenderer
+        from ._render import gl_silhouettes
+
+        with GLRenderer(settings.ring) as gl:
+            masks = gl_silhouettes(gl, clip.motion, body, settings.ring, np.array([f]))[0]
+    else:
+        masks = motion_silhouettes(clip.motion, body, settings.ring, np.array([f]))[0]
+    sheet = contact_sheet(masks)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.name}.tmp.png")
+    if not cv2.imwrite(str(tmp), sheet):
+        raise OSError(f"could not write {out}")
+    tmp.replace(out)
+    print(f"wrote {out}: {clip_name} frame {f}, {masks.shape[0]} views")
+    return 0

@@ -1,0 +1,121 @@
+"""The bank on disk: shards, parallel build, resume, staleness, bad files, the CLI."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from control.motion import Library, load_library
+from silhouette_bank import (
+    BankFileError,
+    BankSettings,
+    BodyShape,
+    CameraRing,
+    StaleBankError,
+    build_bank,
+    capsule_body,
+    ensure_bank,
+    load_bank,
+    motion_features,
+)
+from vision.cli import main
+
+SMALL = BankSettings(CameraRing(n_views=6, width=80, height_px=60))
+
+
+@pytest.fixture(scope="module")
+def lib(mocap: Path, tmp_path_factory: pytest.TempPathFactory) -> Library:
+    return load_library(
+        mocap, clips=["02_01", "02_02", "02_03"], cache_dir=tmp_path_factory.mktemp("c")
+    )
+
+
+def test_bank_holds_every_frame_and_view(lib: Library, tmp_path: Path) -> None:
+    bank = build_bank(lib.clips, SMALL, tmp_path / "b", shard_frames=40, workers=1)
+    assert bank.features.shape == (103, 6, 9) and bank.root_motion.shape == (103, 6, 2)
+    assert bank.clip_names == ("02_01", "02_02", "02_03")
+    # the same numbers as rendering one clip directly
+    clip = lib.clip("02_02")
+    f, m = motion_features(clip.motion, capsule_body(clip.motion.skeleton), SMALL.ring)
+    k = bank.frame_of("02_02", 0)
+    np.testing.assert_array_equal(bank.features[k : k + clip.motion.n_frames], f)
+    np.testing.assert_array_equal(bank.root_motion[k : k + clip.motion.n_frames], m)
+    # two processes give the same bank
+    par = build_bank(lib.clips, SMALL, tmp_path / "p", shard_frames=40, workers=2)
+    np.testing.assert_array_equal(par.features, bank.features)
+
+
+def test_resume_only_redoes_missing_or_broken_shards(lib: Library, tmp_path: Path) -> None:
+    folder = tmp_path / "b"
+    build_bank(lib.clips, SMALL, folder, shard_frames=30, workers=1)
+    shards = sorted(folder.glob("shard-*.npz"))
+    assert len(shards) == 4
+    shards[1].unlink()
+    shards[2].write_bytes(shards[2].read_bytes()[:100])  # truncated by a crash
+    before = shards[0].stat().st_mtime_ns
+    build_bank(lib.clips, SMALL, folder, shard_frames=30, workers=1)
+    manifest = json.loads((folder / "manifest.json").read_text())
+    assert manifest["complete"] and manifest["built"]["rendered_shards"] == 2
+    assert shards[0].stat().st_mtime_ns == before
+
+
+def test_stale_and_broken_banks(lib: Library, tmp_path: Path) -> None:
+    folder = tmp_path / "b"
+    build_bank(lib.clips, SMALL, folder, shard_frames=50, workers=1)
+    other = BankSettings(SMALL.ring, BodyShape(width=1.2))
+    with pytest.raises(StaleBankError, match="other render settings"):
+        load_bank(folder, settings=other)
+    with pytest.raises(StaleBankError, match="another motion library"):
+        load_bank(folder, clips=lib.clips[:2])
+    bank, built = ensure_bank(lib.clips, other, folder, shard_frames=50, workers=1)
+    assert built and bank.settings == other  # rebuilt, not used
+    bank, built = ensure_bank(lib.clips, other, folder, shard_frames=50, workers=1)
+    assert not built
+    data = (folder / "bank.npz").read_bytes()
+    (folder / "bank.npz").write_bytes(data[: len(data) // 3])
+    with pytest.raises(BankFileError, match=r"bank\.npz: unreadable or truncated"):
+        load_bank(folder)
+    manifest = json.loads((folder / "manifest.json").read_text())
+    manifest["complete"] = False
+    (folder / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(BankFileError, match="incomplete"):
+        load_bank(folder)
+    (folder / "manifest.json").write_text("{not json")
+    with pytest.raises(BankFileError, match="unreadable manifest"):
+        load_bank(folder)
+    with pytest.raises(FileNotFoundError):
+        load_bank(tmp_path / "nowhere")
+
+
+@pytest.mark.gl
+def test_gl_bank_agrees_with_raster(lib: Library, tmp_path: Path) -> None:
+    gl = BankSettings(SMALL.ring, renderer="gl")
+    a = build_bank(lib.clips[:1], gl, tmp_path / "gl", workers=1)
+    b = build_bank(lib.clips[:1], SMALL, tmp_path / "r", workers=1)
+    assert np.abs(a.features[..., :2] - b.features[..., :2]).mean() < 0.05
+    assert np.abs(a.features[..., 7:] - b.features[..., 7:]).mean() < 0.01
+
+
+def test_cli_build_info_show(
+    mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = tmp_path / "bank"
+    common = [str(mocap), "--clips", "02_03", "--views", "6", "--width", "80", "--height", "60"]
+    assert main(["bank", "build", *common, "--bank", str(folder), "--workers", "1"]) == 0
+    assert "(built)" in capsys.readouterr().out
+    assert main(["bank", "build", *common, "--bank", str(folder), "--workers", "1"]) == 0
+    assert "(up to date)" in capsys.readouterr().out
+    assert main(["bank", "info", str(folder), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["frames"] == 22 and info["views"] == 6 and info["empty_silhouettes"] == 0
+    out = tmp_path / "sheet.png"
+    assert main(["bank", "show", "02_03:10", *common, "--out", str(out)]) == 0
+    sheet = cv2.imread(str(out), cv2.IMREAD_GRAYSCALE)
+    assert sheet.shape == (62, 6 * 82) and (sheet == 255).sum() > 100
+    assert main(["bank", "show", "02_03:99", *common, "--out", str(out)]) == 2
+    assert "no frame 99" in capsys.readouterr().err
+    assert main(["bank", "info", str(tmp_path / "none")]) == 2
