@@ -1,0 +1,61 @@
+"""DTW against its definition, against dtaidistance, and the exactness of early abandoning."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from dtaidistance import dtw_ndim
+
+from vision._dtw import dtw, dtw_batch, dtw_reference
+
+
+def test_textbook_case() -> None:
+    a = np.array([[0.0], [1.0], [2.0]])
+    b = np.array([[0.0], [0.0], [1.0], [2.0]])
+    assert dtw(a, b) == 0.0  # the repeated 0 is absorbed by warping
+    c = np.array([[0.0], [2.0], [2.0]])
+    assert dtw(a, c) == pytest.approx(1.0)  # one step of 1
+    assert dtw(a, a) == 0.0
+
+
+@pytest.mark.parametrize("window", [0, 3, 6])
+def test_matches_reference_and_dtaidistance(rng: np.random.Generator, window: int) -> None:
+    for n, m in ((15, 15), (12, 17), (20, 9)):
+        a = rng.normal(size=(n, 9))
+        b = rng.normal(size=(m, 9))
+        ours = dtw(a, b, window)
+        assert ours == pytest.approx(dtw_reference(a, b, window), rel=1e-12)
+        if window == 0:
+            assert ours == pytest.approx(dtw_ndim.distance(a, b), rel=1e-9)
+        elif n == m:
+            # dtaidistance's window w allows |i - j| < w, as ours does on equal lengths
+            assert ours == pytest.approx(dtw_ndim.distance(a, b, window=window), rel=1e-9)
+
+
+def test_batch_equals_one_by_one_and_abandoning_is_exact(rng: np.random.Generator) -> None:
+    q = rng.normal(size=(15, 9))
+    refs = rng.normal(size=(120, 15, 9))
+    refs[37] = q + 0.01 * rng.normal(size=q.shape)  # a clear winner
+    refs[80] = q + 0.3 * rng.normal(size=q.shape)  # a runner-up in another group
+    one = np.array([dtw(q, r, 4) for r in refs])
+    np.testing.assert_allclose(dtw_batch(q, refs, window=4), one, rtol=1e-12)
+    group = np.arange(120) // 6  # 20 paths x 6 views
+    got = dtw_batch(q, refs, group, window=4)
+    best = np.array([one[group == g].min() for g in range(20)])
+    gbest = np.array([got[group == g].min() for g in range(20)])
+    order = np.argsort(best)
+    # the best and the runner-up groups, and their costs, are exact
+    assert np.argmin(gbest) == order[0]
+    assert gbest[order[0]] == pytest.approx(best[order[0]], rel=1e-12)
+    second = np.sort(gbest)[1]
+    assert second == pytest.approx(best[order[1]], rel=1e-12)
+    assert np.isinf(got).sum() > 30  # and it did abandon most
+    finite = np.isfinite(got)
+    np.testing.assert_allclose(got[finite], one[finite], rtol=1e-12)
+
+
+def test_bad_input() -> None:
+    with pytest.raises(ValueError, match="same d"):
+        dtw(np.zeros((3, 2)), np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="empty"):
+        dtw(np.zeros((0, 2)), np.zeros((3, 2)))

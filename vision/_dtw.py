@@ -1,0 +1,158 @@
+"""Dynamic time warping of feature sequences: one query against many references.
+
+``cost(a, b) = sqrt(min over warping paths of sum ||a_i - b_j||^2)``, the convention of
+dtaidistance's ``dtw_ndim.distance``, optionally inside a Sakoe-Chiba band of half-width
+``window`` (|i - j| < window when the sequences have the same length; the band follows
+the diagonal when they do not).
+
+The batched kernel keeps the two best costs found so far over *groups* (a group is a
+candidate path, its members the 18 views) and abandons a reference as soon as every cell
+of a row exceeds the second-best group cost: such a reference cannot change the best or
+the runner-up group, so both stay exact.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["dtw", "dtw_batch", "dtw_reference"]
+
+FloatArray = NDArray[np.float64]
+
+
+@numba.njit(cache=True, nogil=True)
+def _dtw_sq(
+    a: np.ndarray, b: np.ndarray, window: int, limit: float, row: np.ndarray, prev: np.ndarray
+) -> float:
+    """Squared DTW cost, or ``inf`` once it must exceed ``limit`` (squared)."""
+    n, m, d = a.shape[0], b.shape[0], a.shape[1]
+    inf = np.inf
+    for j in range(m + 1):
+        prev[j] = inf
+    prev[0] = 0.0
+    for i in range(1, n + 1):
+        # band centred on the diagonal i * m / n
+        centre = (i * m) // n if n > 0 else 0
+        lo = max(1, centre - window + 1) if window > 0 else 1
+        hi = min(m, centre + window) if window > 0 else m
+        for j in range(m + 1):
+            row[j] = inf
+        best_row = inf
+        for j in range(lo, hi + 1):
+            s = 0.0
+            for k in range(d):
+                x = a[i - 1, k] - b[j - 1, k]
+                s += x * x
+            c = prev[j - 1]
+            if prev[j] < c:
+                c = prev[j]
+            if row[j - 1] < c:
+                c = row[j - 1]
+            v = s + c
+            row[j] = v
+            if v < best_row:
+                best_row = v
+        if best_row > limit:
+            return inf
+        for j in range(m + 1):
+            prev[j] = row[j]
+    return prev[m]
+
+
+@numba.njit(cache=True, nogil=True)
+def _batch_kernel(
+    query: np.ndarray,
+    refs: np.ndarray,
+    group: np.ndarray,
+    n_groups: int,
+    window: int,
+    out: np.ndarray,
+) -> None:
+    m = refs.shape[1]
+    row = np.empty(m + 1)
+    prev = np.empty(m + 1)
+    gbest = np.full(n_groups, np.inf)  # best squared cost per group so far
+    top = -1  # the best group
+    best1 = np.inf
+    best2 = np.inf  # the best cost of any other group
+    for r in range(refs.shape[0]):
+        g = group[r]
+        # what this reference must beat to change the best or the runner-up group
+        limit = gbest[g] if g == top else min(gbest[g], best2)
+        c = _dtw_sq(query, refs[r], window, limit, row, prev)
+        out[r] = c
+        if c < gbest[g]:
+            gbest[g] = c
+            if g == top:
+                best1 = c
+            elif c < best1:
+                best2 = best1
+                best1 = c
+                top = g
+            elif c < best2:
+                best2 = c
+
+
+def dtw(a: FloatArray, b: FloatArray, window: int = 0) -> float:
+    """DTW cost of two sequences ``(n, d)`` and ``(m, d)``; ``window`` 0 means no band."""
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    b = np.ascontiguousarray(b, dtype=np.float64)
+    if a.ndim != 2 or b.ndim != 2 or a.shape[1] != b.shape[1]:
+        raise ValueError("sequences must be (n, d) and (m, d) with the same d")
+    if a.shape[0] == 0 or b.shape[0] == 0:
+        raise ValueError("sequences must not be empty")
+    m = b.shape[0]
+    c = _dtw_sq(a, b, int(window), np.inf, np.empty(m + 1), np.empty(m + 1))
+    return math.sqrt(c)
+
+
+def dtw_batch(
+    query: FloatArray,
+    refs: FloatArray,
+    group: NDArray[np.int64] | None = None,
+    window: int = 0,
+) -> FloatArray:
+    """DTW costs ``(B,)`` of ``query (n, d)`` against ``refs (B, m, d)``.
+
+    With ``group`` (B,) ints (e.g. the candidate path of each view's sequence), costs of
+    references that can beat neither the best nor the second-best group are ``inf``
+    (abandoned early); the best cost of every group that could rank first or second is
+    exact. Without ``group`` every cost is exact.
+    """
+    q = np.ascontiguousarray(query, dtype=np.float64)
+    r = np.ascontiguousarray(refs, dtype=np.float64)
+    if q.ndim != 2 or r.ndim != 3 or r.shape[2] != q.shape[1]:
+        raise ValueError("query must be (n, d) and refs (B, m, d) with the same d")
+    out = np.empty(r.shape[0])
+    if r.shape[0] == 0:
+        return out
+    if group is None:
+        row = np.empty(r.shape[1] + 1)
+        prev = np.empty(r.shape[1] + 1)
+        for i in range(r.shape[0]):
+            out[i] = _dtw_sq(q, r[i], int(window), np.inf, row, prev)
+        return np.sqrt(out)
+    grp = np.ascontiguousarray(group, dtype=np.int64)
+    if grp.shape != (r.shape[0],) or grp.min() < 0:
+        raise ValueError("group must give a non-negative group per reference")
+    _batch_kernel(q, r, grp, int(grp.max()) + 1, int(window), out)
+    return np.sqrt(out)
+
+
+def dtw_reference(a: FloatArray, b: FloatArray, window: int = 0) -> float:
+    """Plain-Python DTW (the definition, for tests)."""
+    n, m = len(a), len(b)
+    cost = [[math.inf] * (m + 1) for _ in range(n + 1)]
+    cost[0][0] = 0.0
+    for i in range(1, n + 1):
+        centre = (i * m) // n
+        for j in range(1, m + 1):
+            if window > 0 and not (centre - window + 1 <= j <= centre + window):
+                continue
+            d = float(np.sum((np.asarray(a[i - 1]) - np.asarray(b[j - 1])) ** 2))
+            cost[i][j] = d + min(cost[i - 1][j - 1], cost[i - 1][j], cost[i][j - 1])
+    return math.sqrt(cost[n][m])
