@@ -34,6 +34,7 @@ class CameraRing:
     target_height : the point looked at, metres above the floor (0.9).
     fov_y : vertical field of view, degrees (50).
     width, height_px : image size in pixels (160 x 120).
+    azimuth_offset : degrees added to every view's azimuth (0: view 0 on +Z).
     """
 
     n_views: int = 18
@@ -43,6 +44,7 @@ class CameraRing:
     fov_y: float = 50.0
     width: int = 160
     height_px: int = 120
+    azimuth_offset: float = 0.0
 
     def __post_init__(self) -> None:
         if self.n_views < 1 or self.width < 8 or self.height_px < 8:
@@ -64,7 +66,7 @@ class CameraRing:
         return 0.5 * self.width, 0.5 * self.height_px
 
     def azimuths(self) -> FloatArray:
-        return np.radians(np.arange(self.n_views) * 360.0 / self.n_views)
+        return np.radians(np.arange(self.n_views) * 360.0 / self.n_views + self.azimuth_offset)
 
     def poses(self, root: FloatArray) -> FloatArray:
         """Camera-to-world transforms ``(..., V, 4, 4)`` for root positions ``(..., 3)``."""

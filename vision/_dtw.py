@@ -60,7 +60,7 @@ def _dtw_sq(
             return inf
         for j in range(m + 1):
             prev[j] = row[j]
-    return prev[m]
+    return float(prev[m])
 
 
 @numba.njit(cache=True, nogil=True)

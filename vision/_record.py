@@ -1,0 +1,163 @@
+"""``mimic record``: a clip rendered as a performer's silhouette video, with ground truth.
+
+The performer is not the avatar: another body shape, a camera at a height and azimuth
+that the bank's ring does not contain, a static camera (the performer moves across the
+image), and the flaws of real masks: ragged edges, small holes, a shadow blob at the
+feet. The video is lossless (FFV1 in Matroska), white silhouettes on black; a JSON
+sidecar gives, per video frame, the source clip's frame (at the source rate) and its
+action label where the clip has labels.
+"""
+
+from __future__ import annotations
+
+import json
+import shlex
+import sys
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from control.motion import Clip
+from control.motion._text import atomic_write
+from silhouette_bank import BodyShape, CameraRing, capsule_body, capsule_segments, rasterize
+
+__all__ = ["RecordSettings", "add_mask_noise", "record_clip"]
+
+
+@dataclass(frozen=True)
+class RecordSettings:
+    """How the performer is filmed. Defaults differ from the bank's on purpose."""
+
+    body: BodyShape = field(default_factory=lambda: BodyShape(width=1.15, height=0.97))
+    azimuth: float = 10.0  # degrees: half-way between two ring views
+    camera_height: float = 1.0
+    target_height: float = 0.9
+    distance: float = 3.5
+    fov_y: float = 50.0
+    width: int = 320
+    height: int = 240
+    edge_noise: float = 1.0  # pixels of ragged edge
+    holes: int = 3  # small holes per frame
+    shadow: bool = True
+    seed: int = 0
+
+    def ring(self) -> CameraRing:
+        return CameraRing(
+            n_views=1,
+            distance=self.distance,
+            height=self.camera_height,
+            target_height=self.target_height,
+            fov_y=self.fov_y,
+            width=self.width,
+            height_px=self.height,
+            azimuth_offset=self.azimuth,
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["body"] = self.body.to_dict()
+        return d
+
+
+def add_mask_noise(
+    mask: NDArray[np.uint8],
+    rng: np.random.Generator,
+    edge: float,
+    holes: int,
+    shadow_at: tuple[float, float, float] | None,
+) -> NDArray[np.uint8]:
+    """A clean mask made real: ragged edges, holes, a shadow ellipse ``(x, y, half-width)``."""
+    m = mask.copy()
+    if shadow_at is not None:
+        x, y, w = shadow_at
+        cv2.ellipse(
+            m, (round(x), round(y)), (max(2, round(w)), max(1, round(w / 4))), 0, 0, 360, 1, -1
+        )
+    if edge > 0:
+        k = max(1, round(edge))
+        kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1, 2 * k + 1))
+        band = cv2.dilate(m, kernel) != cv2.erode(m, kernel)
+        flip = band & (rng.random(m.shape) < 0.35)
+        m = np.where(flip, 1 - m, m).astype(np.uint8)
+    ys, xs = np.nonzero(m)
+    for _ in range(holes if ys.size else 0):
+        i = int(rng.integers(0, ys.size))
+        cv2.circle(m, (int(xs[i]), int(ys[i])), int(rng.integers(1, 3)), 0, -1)
+    return m
+
+
+def record_clip(
+    clip: Clip,
+    out: str | Path,
+    settings: RecordSettings | None = None,
+    start: int = 0,
+    stop: int | None = None,
+) -> dict[str, Any]:
+    """Render frames ``[start, stop)`` of ``clip`` (already at the recording's rate) to
+    ``out`` (``.mkv``) and ``out`` + ``.json``; returns the sidecar."""
+    settings = settings or RecordSettings()
+    out = Path(out)
+    m = clip.motion
+    stop = m.n_frames if stop is None else stop
+    if not 0 <= start < stop <= m.n_frames:
+        raise ValueError(f"frame range {start}..{stop} is not inside {clip.name} (0..{m.n_frames})")
+    ring = settings.ring()
+    body = capsule_body(m.skeleton, settings.body)
+    frames = np.arange(start, stop)
+    seg = capsule_segments(m, body)[frames]
+    centre = m.root_pos[frames].mean(axis=0)  # a static camera on the middle of the action
+    pose = ring.poses(centre)[0]
+    b = seg.shape[1]
+    cam = ring.to_camera(seg.reshape(-1, b * 2, 3), np.broadcast_to(pose, (frames.size, 4, 4)))
+    masks = rasterize(cam.reshape(frames.size, b, 2, 3), body.radius, ring)
+    ground = m.root_pos[frames].copy()
+    ground[:, 1] = 0.0
+    gpix = ring.project(
+        ring.to_camera(ground[:, None, :], np.broadcast_to(pose, (frames.size, 4, 4)))[:, 0]
+    )
+    scale = (
+        ring.focal
+        * 0.35
+        / np.maximum(
+            -ring.to_camera(ground[:, None, :], np.broadcast_to(pose, (frames.size, 4, 4)))[
+                :, 0, 2
+            ],
+            0.1,
+        )
+    )
+    rng = np.random.default_rng(settings.seed)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.stem}.tmp{out.suffix or '.mkv'}")
+    writer = cv2.VideoWriter(
+        str(tmp), cv2.VideoWriter.fourcc(*"FFV1"), m.fps, (ring.width, ring.height_px), False
+    )
+    if not writer.isOpened():
+        raise OSError(f"{out}: cannot write an FFV1 video here")
+    try:
+        for i in range(frames.size):
+            shadow = (
+                (float(gpix[i, 0]), float(gpix[i, 1]), float(scale[i])) if settings.shadow else None
+            )
+            noisy = add_mask_noise(masks[i], rng, settings.edge_noise, settings.holes, shadow)
+            writer.write(noisy * 255)
+    finally:
+        writer.release()
+    tmp.replace(out)
+    sidecar = {
+        "video": out.name,
+        "clip": clip.name,
+        "source": Path(clip.path).name,
+        "fps": m.fps,
+        "frames": frames.tolist(),
+        "source_frames": [round(float(x), 3) for x in clip.source_frames[frames]],
+        "labels": [clip.label_at(int(f)) for f in frames],
+        "settings": settings.to_dict(),
+        "command": "mimic " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv else "",
+    }
+    with atomic_write(out.with_suffix(out.suffix + ".json")) as fh:
+        json.dump(sidecar, fh, indent=1)
+    return sidecar

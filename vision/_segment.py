@@ -1,0 +1,87 @@
+"""Foreground segmentation with OpenCV background subtractors, and mask cleanup.
+
+The subtractor learns the background from the first ``learn_frames`` frames (the
+performer should stay out of view meanwhile: the camera flow says so), then stops
+learning slowly. Cleanup: a small opening (removes speckle), a closing (fills cracks),
+the largest connected component, holes filled. Masks smaller than ``min_area`` of the
+image count as "no silhouette".
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["METHODS", "Segmenter", "clean_mask"]
+
+METHODS = ("mog2", "knn", "cnt", "gsoc", "lsbp", "gmg", "mog")
+
+
+def clean_mask(mask: NDArray[np.generic], min_area: float = 0.003) -> NDArray[np.bool_] | None:
+    """The largest blob of ``mask`` with speckle removed and holes filled, or ``None``
+    when it covers less than ``min_area`` of the image."""
+    m: np.ndarray = (np.asarray(mask) > 0).astype(np.uint8)
+    if m.ndim != 2:
+        raise ValueError(f"mask must be 2-D, got shape {m.shape}")
+    k3 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
+    m = cv2.morphologyEx(m, cv2.MORPH_OPEN, k3)
+    m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5)))
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
+    if n <= 1:
+        return None
+    k = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    if stats[k, cv2.CC_STAT_AREA] < min_area * m.size:
+        return None
+    blob = (labels == k).astype(np.uint8)
+    # fill holes: flood the background from the border; what it cannot reach is a hole
+    pad = np.pad(blob, 1)
+    flood = pad.copy()
+    cv2.floodFill(flood, None, (0, 0), 1)
+    holes = (flood == 0)[1:-1, 1:-1]
+    return (blob > 0) | holes
+
+
+class Segmenter:
+    """A background subtractor plus cleanup. ``apply`` returns the mask, or ``None`` while
+    learning the background and when nothing (big enough) is in view."""
+
+    def __init__(
+        self, method: str = "mog2", learn_frames: int = 30, min_area: float = 0.003
+    ) -> None:
+        if method not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}, not {method!r}")
+        self.method = method
+        self.learn_frames = learn_frames
+        self.min_area = min_area
+        self._sub = self._make(method)
+        self._n = 0
+
+    @staticmethod
+    def _make(method: str) -> cv2.BackgroundSubtractor:
+        if method == "mog2":
+            return cv2.createBackgroundSubtractorMOG2(
+                history=500, varThreshold=16, detectShadows=True
+            )
+        if method == "knn":
+            return cv2.createBackgroundSubtractorKNN(detectShadows=True)
+        bg = cv2.bgsegm
+        return {
+            "cnt": lambda: bg.createBackgroundSubtractorCNT(),
+            "gsoc": lambda: bg.createBackgroundSubtractorGSOC(),
+            "lsbp": lambda: bg.createBackgroundSubtractorLSBP(),
+            "gmg": lambda: bg.createBackgroundSubtractorGMG(),
+            "mog": lambda: bg.createBackgroundSubtractorMOG(),
+        }[method]()
+
+    @property
+    def learning(self) -> bool:
+        return self._n < self.learn_frames
+
+    def apply(self, image: NDArray[np.uint8]) -> NDArray[np.bool_] | None:
+        rate = -1.0 if self.learning else 0.001
+        fg = self._sub.apply(image, learningRate=rate)
+        self._n += 1
+        if self.learning:
+            return None
+        return clean_mask(fg >= 200, self.min_area)  # 127 marks shadows in MOG2/KNN

@@ -1,0 +1,228 @@
+"""Where frames come from: a webcam, a video file, a folder of masks, a silhouette video.
+
+Every source yields ``Frame`` objects with a media time in seconds. A file source ends
+(``read()`` returns ``None``); a camera never ends: when it fails it yields frames
+without an image while it reconnects with back-off, so the performance loop keeps going.
+``realtime=True`` paces a file as if it were a camera.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "CameraSource",
+    "Frame",
+    "MaskFolderSource",
+    "Source",
+    "SourceError",
+    "VideoSource",
+    "open_source",
+]
+
+log = logging.getLogger(__name__)
+
+IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm"}
+
+
+class SourceError(OSError):
+    """A source that cannot be opened or read; the message names it."""
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One frame: ``t`` seconds of media time; ``image`` (H, W, 3) BGR, or ``mask``
+    (H, W) bool for sources that are already silhouettes; neither when the source has
+    nothing right now (a camera reconnecting)."""
+
+    t: float
+    index: int
+    image: NDArray[np.uint8] | None = None
+    mask: NDArray[np.bool_] | None = None
+
+
+class Source(Protocol):
+    fps: float
+    name: str
+
+    def read(self) -> Frame | None: ...
+
+    def close(self) -> None: ...
+
+
+class _Pacer:
+    def __init__(self, realtime: bool) -> None:
+        self.realtime = realtime
+        self.start: float | None = None
+
+    def wait(self, t: float) -> None:
+        if not self.realtime:
+            return
+        now = time.monotonic()
+        if self.start is None:
+            self.start = now - t
+        delay = self.start + t - now
+        if delay > 0:
+            time.sleep(delay)
+
+
+class VideoSource:
+    """A video file. ``silhouette=True``: the video already holds binary silhouettes
+    (white on black), so frames come as masks (no segmentation)."""
+
+    def __init__(self, path: str | Path, silhouette: bool = False, realtime: bool = False) -> None:
+        self.path = Path(path)
+        self.name = str(self.path)
+        if not self.path.is_file():
+            raise SourceError(f"{self.path}: no such video file")
+        self._cap = cv2.VideoCapture(str(self.path))
+        if not self._cap.isOpened():
+            raise SourceError(f"{self.path}: cannot open this video (unknown format or codec)")
+        fps = float(self._cap.get(cv2.CAP_PROP_FPS) or 0.0)
+        self.fps = fps if 1.0 <= fps <= 1000.0 else 30.0
+        self.silhouette = silhouette
+        self._i = 0
+        self._pacer = _Pacer(realtime)
+
+    def read(self) -> Frame | None:
+        ok, img = self._cap.read()
+        if not ok or img is None:
+            return None
+        t = self._i / self.fps
+        self._pacer.wait(t)
+        i = self._i
+        self._i += 1
+        if self.silhouette:
+            gray = img if img.ndim == 2 else img[..., 1]
+            return Frame(t, i, mask=gray > 127)
+        return Frame(t, i, image=np.asarray(img, dtype=np.uint8))
+
+    def close(self) -> None:
+        self._cap.release()
+
+
+class MaskFolderSource:
+    """A folder of mask images (any of PNG, JPEG, BMP, TIFF, PGM), in name order, at ``fps``."""
+
+    def __init__(self, folder: str | Path, fps: float = 30.0, realtime: bool = False) -> None:
+        self.folder = Path(folder)
+        self.name = str(self.folder)
+        if not self.folder.is_dir():
+            raise SourceError(f"{self.folder}: not a folder of mask images")
+        self.files = sorted(p for p in self.folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+        if not self.files:
+            raise SourceError(
+                f"{self.folder}: no mask images ({', '.join(sorted(IMAGE_SUFFIXES))})"
+            )
+        if not fps > 0:
+            raise ValueError("fps must be positive")
+        self.fps = float(fps)
+        self._i = 0
+        self._pacer = _Pacer(realtime)
+
+    def read(self) -> Frame | None:
+        if self._i >= len(self.files):
+            return None
+        path = self.files[self._i]
+        img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        if img is None:
+            raise SourceError(f"{path}: not a readable image")
+        t = self._i / self.fps
+        self._pacer.wait(t)
+        i = self._i
+        self._i += 1
+        return Frame(t, i, mask=img > 127)
+
+    def close(self) -> None:
+        pass
+
+
+class CameraSource:
+    """A webcam. Failures never end the stream: it yields empty frames and reopens the
+    device with back-off (0.5 s doubling up to ``max_backoff``)."""
+
+    def __init__(
+        self, index: int, fps: float = 30.0, max_backoff: float = 8.0, opener: object = None
+    ) -> None:
+        self.index = index
+        self.name = f"camera {index}"
+        self.fps = fps
+        self.max_backoff = max_backoff
+        self._open = opener or (lambda: cv2.VideoCapture(index))
+        self._cap: object | None = None
+        self._t0 = time.monotonic()
+        self._i = 0
+        self._backoff = 0.5
+        self._retry_at = 0.0
+        self.reconnects = 0
+
+    def _connect(self) -> bool:
+        now = time.monotonic()
+        if now < self._retry_at:
+            return False
+        cap = self._open()  # type: ignore[operator]
+        if cap is not None and cap.isOpened():
+            self._cap = cap
+            self._backoff = 0.5
+            return True
+        log.warning("%s not available; retrying in %.1f s", self.name, self._backoff)
+        self._retry_at = now + self._backoff
+        self._backoff = min(self._backoff * 2.0, self.max_backoff)
+        return False
+
+    def read(self) -> Frame | None:
+        t = time.monotonic() - self._t0
+        i = self._i
+        self._i += 1
+        if self._cap is None and not self._connect():
+            time.sleep(1.0 / self.fps)
+            return Frame(t, i)
+        ok, img = self._cap.read()  # type: ignore[union-attr]
+        if not ok or img is None:
+            log.warning("%s lost; reconnecting", self.name)
+            self._cap.release()  # type: ignore[union-attr]
+            self._cap = None
+            self.reconnects += 1
+            return Frame(t, i)
+        return Frame(t, i, image=img)
+
+    def close(self) -> None:
+        if self._cap is not None:
+            self._cap.release()  # type: ignore[attr-defined]
+
+
+def open_source(
+    camera: int | None = None,
+    video: str | None = None,
+    masks: str | None = None,
+    silhouette: bool | None = None,
+    realtime: bool = False,
+    fps: float = 30.0,
+) -> Source:
+    """The one source named. A video is read as silhouettes when ``silhouette`` is True,
+    or when it is None and the video looks binary (its first frame has only black and
+    white pixels)."""
+    if sum(x is not None for x in (camera, video, masks)) != 1:
+        raise ValueError("give exactly one of a camera, a video or a folder of masks")
+    if camera is not None:
+        return CameraSource(camera, fps=fps)
+    if masks is not None:
+        return MaskFolderSource(masks, fps=fps, realtime=realtime)
+    assert video is not None
+    if silhouette is None:
+        probe = VideoSource(video)
+        first = probe.read()
+        probe.close()
+        if first is None or first.image is None:
+            raise SourceError(f"{video}: the video has no frames")
+        img = first.image
+        silhouette = bool(np.mean((img > 32) & (img < 223)) < 0.01)
+    return VideoSource(video, silhouette=silhouette, realtime=realtime)
