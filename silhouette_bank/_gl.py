@@ -81,6 +81,16 @@ def capsule_mesh(segments: FloatArray, radius: FloatArray) -> tuple[FloatArray, 
     return world.reshape(-1, 3), faces
 
 
+def _normals(vertices: FloatArray, faces: NDArray[np.int64]) -> FloatArray:
+    """Per-vertex normals (area-weighted face normals)."""
+    v = vertices[faces]
+    fn = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    out = np.zeros_like(vertices)
+    for k in range(3):
+        np.add.at(out, faces[:, k], fn)
+    return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)
+
+
 def gl_available() -> str | None:
     """``None`` when a headless context can be made, else why not."""
     try:
@@ -106,7 +116,13 @@ class GLRenderer:
             fx=ring.focal, fy=ring.focal, cx=cx, cy=cy, znear=0.05, zfar=100.0
         )
         self._camera = self._scene.add(camera, pose=np.eye(4))
+        self._light = self._scene.add(
+            pyrender.DirectionalLight(color=np.ones(3), intensity=3.0), pose=np.eye(4)
+        )
         self._body: Any = None
+        self._material = pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=(0.75, 0.72, 0.68, 1.0), metallicFactor=0.0, roughnessFactor=0.8
+        )
         self.renders = 0
 
     @staticmethod
@@ -135,7 +151,11 @@ class GLRenderer:
         pyrender = self._pyrender
         vertices, faces = capsule_mesh(np.asarray(segments, dtype=np.float64), np.asarray(radius))
         prim = pyrender.Primitive(
-            positions=vertices.astype(np.float32), indices=faces.astype(np.uint32), mode=4
+            material=self._material,
+            positions=vertices.astype(np.float32),
+            normals=_normals(vertices, faces).astype(np.float32),
+            indices=faces.astype(np.uint32),
+            mode=4,
         )
         if self._body is not None:
             self._scene.remove_node(self._body)
@@ -147,6 +167,15 @@ class GLRenderer:
         depth = self._r.render(self._scene, flags=self._pyrender.RenderFlags.DEPTH_ONLY)
         self.renders += 1
         return (np.asarray(depth) > 0).astype(np.uint8)
+
+    def render_shaded(self, camera_pose: FloatArray) -> NDArray[np.uint8]:
+        """A shaded RGB image ``(H, W, 3)`` of the body, lit from the camera."""
+        pose = np.asarray(camera_pose, dtype=np.float64)
+        self._scene.set_pose(self._camera, pose)
+        self._scene.set_pose(self._light, pose)
+        color, _ = self._r.render(self._scene)
+        self.renders += 1
+        return np.asarray(color, dtype=np.uint8)
 
     def close(self) -> None:
         self._r.delete()

@@ -147,10 +147,16 @@ class MaskFolderSource:
 
 class CameraSource:
     """A webcam. Failures never end the stream: it yields empty frames and reopens the
-    device with back-off (0.5 s doubling up to ``max_backoff``)."""
+    device with back-off (``min_backoff`` seconds, doubling up to ``max_backoff``).
+    ``opener`` replaces ``cv2.VideoCapture(index)`` (tests)."""
 
     def __init__(
-        self, index: int, fps: float = 30.0, max_backoff: float = 8.0, opener: object = None
+        self,
+        index: int,
+        fps: float = 30.0,
+        max_backoff: float = 8.0,
+        opener: object = None,
+        min_backoff: float = 0.5,
     ) -> None:
         self.index = index
         self.name = f"camera {index}"
@@ -160,7 +166,8 @@ class CameraSource:
         self._cap: object | None = None
         self._t0 = time.monotonic()
         self._i = 0
-        self._backoff = 0.5
+        self.min_backoff = min_backoff
+        self._backoff = min_backoff
         self._retry_at = 0.0
         self.reconnects = 0
 
@@ -171,7 +178,7 @@ class CameraSource:
         cap = self._open()  # type: ignore[operator]
         if cap is not None and cap.isOpened():
             self._cap = cap
-            self._backoff = 0.5
+            self._backoff = self.min_backoff
             return True
         log.warning("%s not available; retrying in %.1f s", self.name, self._backoff)
         self._retry_at = now + self._backoff

@@ -12,6 +12,8 @@ from control.graph import GraphFileError
 from control.motion import MotionFormatError
 from silhouette_bank._bank import BankFileError
 from silhouette_bank.cli import add_bank_commands
+from vision._sources import SourceError
+from vision.perform_cli import add_perform_commands
 
 __all__ = ["build_parser", "main"]
 
@@ -26,6 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_library_commands(sub)
     add_graph_commands(sub)
     add_bank_commands(sub)
+    add_perform_commands(sub)
     return parser
 
 
@@ -42,6 +45,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         MotionFormatError,
         GraphFileError,
         BankFileError,
+        SourceError,
         FileNotFoundError,
         KeyError,
         ValueError,

@@ -1,0 +1,155 @@
+"""The matcher and the performance loop on a small real library (13_30)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from control.clusters import HigherLayer, build_higher_layer
+from control.graph import GraphOptions, build_graph
+from control.motion import Library, load_library, read_bvh
+from silhouette_bank import Bank, BankSettings, build_bank
+from tests.conftest import REPO
+from vision._matcher import Matcher, MatchSettings
+from vision._perform import PerformSettings, perform
+from vision._sources import CameraSource, MaskFolderSource, VideoSource
+from vision.cli import main
+
+RECORDING = REPO / "recordings" / "13_29_first12s_160x120.mkv"
+
+
+@pytest.fixture(scope="module")
+def setup(
+    mocap: Path, tmp_path_factory: pytest.TempPathFactory
+) -> tuple[Library, HigherLayer, Bank]:
+    lib = load_library(mocap, clips=["13_30"], cache_dir=tmp_path_factory.mktemp("c"))
+    g = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.03))
+    layer = build_higher_layer(g, lib.clips, k=12)
+    bank = build_bank(lib.clips, BankSettings(), tmp_path_factory.mktemp("bank"), workers=1)
+    return lib, layer, bank
+
+
+def test_matcher_finds_a_path_from_its_own_silhouettes(setup) -> None:
+    _, layer, bank = setup
+    matcher = Matcher(layer, bank, MatchSettings(window=1.0, lookahead=1.5))
+    rng = np.random.default_rng(2)
+    hits = 0
+    trials = 0
+    for f in rng.choice(np.flatnonzero(layer.graph.in_scc), 40, replace=False):
+        cands = matcher.candidates(int(f))
+        if len(cands) < 2:
+            continue
+        trials += 1
+        k = int(rng.integers(len(cands)))
+        frames = matcher._window_frames(cands[k][1])
+        view = int(rng.integers(18))
+        # the performer is exactly the avatar doing candidate k, seen from one ring view
+        b = matcher.to_bank[frames]
+        feats = bank.features[b, view].astype(float)
+        move = bank.root_motion[b, view].astype(float)
+        centre = np.cumsum(move, axis=0) - move[0] + feats[:, 7:]
+        performer = np.concatenate((feats[:, :7], centre), axis=1)
+        d = matcher.decide(int(f), performer)
+        assert d is not None and d.cost <= 1e-6 + d.runner_up
+        same = np.array_equal(matcher._window_frames(d.frames), frames)
+        hits += same or d.cost < 1e-6
+    assert trials >= 10 and hits == trials
+
+
+def _run(setup, source, **kw):
+    lib, layer, bank = setup
+    return perform(source, layer, bank, lib.clips, PerformSettings(**kw), seed=3)
+
+
+def test_replaying_a_recording_is_deterministic(setup) -> None:
+    a = _run(setup, VideoSource(RECORDING, silhouette=True))
+    b = _run(setup, VideoSource(RECORDING, silhouette=True))
+    strip = [{k: v for k, v in d.items() if k != "latency_ms"} for d in a.decisions]
+    assert strip == [{k: v for k, v in d.items() if k != "latency_ms"} for d in b.decisions]
+    made = [d for d in a.decisions if d.get("decision") is not None]
+    assert len(made) > 0.8 * len(a.decisions)
+    assert a.avatar.n_frames == pytest.approx(12 * 15, abs=2)
+
+
+def test_no_silhouette_stretch_keeps_the_avatar_moving(setup, tmp_path: Path) -> None:
+    cap = cv2.VideoCapture(str(RECORDING))
+    for i in range(180):  # 6 s; frames 60-119 are empty (nobody in view)
+        ok, img = cap.read()
+        assert ok
+        mask = img[..., 0] if not 60 <= i < 120 else np.zeros(img.shape[:2], dtype=np.uint8)
+        cv2.imwrite(str(tmp_path / f"{i:04d}.png"), mask)
+    r = _run(setup, MaskFolderSource(tmp_path, fps=30))
+    assert r.avatar.n_frames == pytest.approx(6 * 15, abs=2)
+    # decisions go on while half the 1 s window still has silhouettes, then stop
+    gap = [d for d in r.decisions if 2.6 <= d["t"] <= 3.9]
+    assert gap and all(d["decision"] is None and d["reason"] == "no silhouette" for d in gap)
+    after = [d for d in r.decisions if d["t"] >= 5.2]
+    assert any(d["decision"] is not None for d in after)  # back as soon as the buffer refills
+
+
+class _DyingCapture:
+    """Serves the recording, then dies for good after 50 frames."""
+
+    def __init__(self) -> None:
+        self.cap = cv2.VideoCapture(str(RECORDING))
+        self.n = 0
+
+    def isOpened(self) -> bool:
+        return True
+
+    def read(self) -> tuple[bool, np.ndarray | None]:
+        self.n += 1
+        return (False, None) if self.n > 50 else self.cap.read()
+
+    def release(self) -> None:
+        pass
+
+
+def test_a_camera_that_fails_mid_run_does_not_stop_the_avatar(setup) -> None:
+    opened = {"n": 0}
+
+    def opener() -> object:
+        opened["n"] += 1
+        return _DyingCapture() if opened["n"] == 1 else None
+
+    cam = CameraSource(0, fps=30.0, opener=opener, min_backoff=0.05, max_backoff=0.2)
+    r = _run(setup, cam, seconds=3.0)
+    assert r.media_seconds >= 2.9 and r.avatar.n_frames >= 40
+    assert opened["n"] >= 2 and cam.reconnects == 1
+
+
+def test_cli_perform_writes_bvh_log_and_video(mocap: Path, tmp_path: Path, capsys) -> None:
+    out, log, video = tmp_path / "a.bvh", tmp_path / "d.jsonl", tmp_path / "v.mp4"
+    argv = [
+        "perform",
+        "--video",
+        str(RECORDING),
+        str(mocap),
+        "--clips",
+        "13_30",
+        "--k",
+        "12",
+        "--seconds",
+        "4",
+        "--out",
+        str(out),
+        "--log",
+        str(log),
+        "--video-out",
+        str(video),
+    ]
+    assert main(argv) == 0
+    lines = [json.loads(x) for x in log.read_text().splitlines()]
+    assert len(lines) == 40 and {"t", "frame", "decision"} <= set(lines[-1])
+    assert read_bvh(out).n_frames >= 55
+    cap = cv2.VideoCapture(str(video))
+    assert cap.isOpened() and int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) >= 55
+    assert (
+        main(["perform", "--video", str(tmp_path / "none.mp4"), str(mocap), "--clips", "13_30"])
+        == 2
+    )
+    assert "no such video file" in capsys.readouterr().err

@@ -1,0 +1,129 @@
+"""Sources (files, masks, a camera that fails), segmentation and mask cleanup."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from tests.conftest import REPO
+from vision._segment import Segmenter, clean_mask
+from vision._sources import CameraSource, MaskFolderSource, SourceError, VideoSource, open_source
+
+RECORDING = REPO / "recordings" / "13_29_first12s_160x120.mkv"
+REAL = REPO.parent / "shared" / "video" / "pose_1.mp4"
+
+
+def test_video_sources_and_autodetection() -> None:
+    src = open_source(video=str(RECORDING))
+    assert isinstance(src, VideoSource) and src.silhouette and src.fps == 30.0
+    first = src.read()
+    assert first is not None and first.mask is not None and first.t == 0.0
+    second = src.read()
+    assert second is not None and second.t == pytest.approx(1 / 30)
+    src.close()
+    colour = open_source(video=str(REAL))
+    frame = colour.read()
+    assert frame is not None and frame.image is not None and frame.image.ndim == 3
+    colour.close()
+
+
+def test_bad_sources_are_clear_errors(tmp_path: Path) -> None:
+    with pytest.raises(SourceError, match="no such video file"):
+        VideoSource(tmp_path / "missing.mp4")
+    junk = tmp_path / "junk.mp4"
+    junk.write_text("not a video")
+    with pytest.raises(SourceError, match=r"junk\.mp4: cannot open"):
+        VideoSource(junk)
+    with pytest.raises(SourceError, match="no mask images"):
+        MaskFolderSource(tmp_path)
+    (tmp_path / "a.png").write_bytes(b"broken")
+    with pytest.raises(SourceError, match=r"a\.png: not a readable image"):
+        MaskFolderSource(tmp_path).read()
+    with pytest.raises(ValueError, match="exactly one"):
+        open_source()
+
+
+def test_mask_folder_in_name_order(tmp_path: Path) -> None:
+    for i in (2, 0, 1):
+        m = np.zeros((20, 20), dtype=np.uint8)
+        m[i : i + 5, 5:10] = 255
+        cv2.imwrite(str(tmp_path / f"m{i:03d}.png"), m)
+    src = MaskFolderSource(tmp_path, fps=10)
+    frames = [src.read() for _ in range(4)]
+    assert frames[3] is None
+    assert [f.t for f in frames[:3]] == [0.0, 0.1, 0.2]
+    assert [int(np.argmax(f.mask.any(axis=1))) for f in frames[:3]] == [0, 1, 2]
+
+
+class _FlakyCapture:
+    def __init__(self, frames: int) -> None:
+        self.left = frames
+
+    def isOpened(self) -> bool:
+        return True
+
+    def read(self) -> tuple[bool, np.ndarray | None]:
+        if self.left <= 0:
+            return False, None
+        self.left -= 1
+        return True, np.zeros((4, 4, 3), dtype=np.uint8)
+
+    def release(self) -> None:
+        pass
+
+
+def test_camera_reconnects_with_backoff_and_never_ends() -> None:
+    opened = {"n": 0}
+
+    def opener() -> object:
+        opened["n"] += 1
+        return None if opened["n"] in (1, 3) else _FlakyCapture(3)
+
+    cam = CameraSource(0, fps=1000.0, max_backoff=0.004, opener=opener, min_backoff=0.001)
+    got = [cam.read() for _ in range(200)]
+    assert all(f is not None for f in got)
+    with_images = sum(f.image is not None for f in got if f is not None)
+    assert with_images >= 6 and cam.reconnects >= 2 and opened["n"] >= 4
+
+
+def _scene(t: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(1)
+    bg = (rng.random((120, 160, 3)) * 120 + 60).astype(np.uint8)
+    img = bg.copy()
+    truth = np.zeros((120, 160), dtype=bool)
+    if t >= 30:
+        x = 20 + (t - 30) * 2
+        truth[30:100, x : x + 25] = True
+        img[truth] = (30, 200, 60)
+    noise = np.random.default_rng(t).normal(0, 3, img.shape)
+    return np.clip(img + noise, 0, 255).astype(np.uint8), truth
+
+
+@pytest.mark.parametrize("method", ["mog2", "knn"])
+def test_segmenter_finds_the_performer(method: str) -> None:
+    seg = Segmenter(method, learn_frames=30)
+    ious = []
+    for t in range(70):
+        img, truth = _scene(t)
+        mask = seg.apply(img)
+        if t < 30:
+            assert mask is None  # learning, nobody in view
+        else:
+            assert mask is not None
+            ious.append((mask & truth).sum() / (mask | truth).sum())
+    assert min(ious) > 0.8
+
+
+def test_clean_mask_keeps_the_largest_blob_and_fills_holes() -> None:
+    m = np.zeros((60, 60), dtype=np.uint8)
+    m[10:50, 20:40] = 1
+    m[25:28, 28:31] = 0  # a hole
+    m[5, 5] = 1  # speckle
+    m[52:56, 50:54] = 1  # a smaller blob
+    out = clean_mask(m)
+    assert out is not None and out[26, 29] and not out[5, 5] and not out[53, 52]
+    assert clean_mask(np.zeros((60, 60))) is None
+    assert clean_mask(np.pad(np.ones((2, 2)), 29)) is None  # too small

@@ -1,0 +1,197 @@
+"""The matcher (Lee et al. §5.3): which of the avatar's possible actions looks like what
+the performer just did?
+
+Every decision takes the candidate cluster paths from the avatar's current frame (the
+nodes of its cluster tree reached within ``lookahead`` seconds), the most probable
+motion of each, and the first ``window`` seconds of that motion as the bank sees it from
+each of its views. DTW compares each with the last ``window`` seconds of the performer's
+features; a path's cost is its best view; the cheapest path wins.
+
+Features compared per frame: the 7 log-Hu moments, standardised with the bank's spread,
+and the silhouette centre's displacement since the window's first frame, in silhouette
+heights (performer: from the image; bank: the root's image motion accumulated plus the
+centre relative to the root), times ``centre_weight``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from control.clusters import HigherLayer
+from silhouette_bank import Bank
+
+from ._dtw import dtw_batch
+
+__all__ = ["Decision", "MatchSettings", "Matcher", "performer_sequence"]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class MatchSettings:
+    """``window`` seconds of performer compared; candidates reached within ``lookahead``
+    seconds; DTW band ``band`` frames; ``centre_weight`` against the Hu moments."""
+
+    window: float = 1.0
+    lookahead: float = 1.5
+    band: int = 4
+    centre_weight: float = 3.0
+    max_candidates: int = 64
+
+
+@dataclass(frozen=True, eq=False)
+class Decision:
+    """The chosen path (``frames``, ``edges`` from the avatar's frame) and the costs."""
+
+    frames: IntArray
+    edges: IntArray
+    cluster_path: IntArray
+    cost: float
+    runner_up: float
+    view: int
+    candidates: int
+    latency_ms: float
+    extra: dict[str, float] = field(default_factory=dict)
+
+
+def _hu_stats(bank: Bank) -> tuple[FloatArray, FloatArray]:
+    hu = bank.features[..., :7].reshape(-1, 7).astype(np.float64)
+    hu = hu[np.isfinite(hu).all(axis=1)]
+    return hu.mean(axis=0), np.maximum(hu.std(axis=0), 1e-6)
+
+
+def performer_sequence(
+    features: FloatArray, mean: FloatArray, std: FloatArray, centre_weight: float
+) -> FloatArray:
+    """DTW features ``(n, 9)`` of a performer's raw features ``(n, 9)`` (centre in image
+    coordinates / height)."""
+    out = np.empty((features.shape[0], 9))
+    out[:, :7] = (features[:, :7] - mean) / std
+    out[:, 7:] = (features[:, 7:] - features[0, 7:]) * centre_weight
+    return out
+
+
+class Matcher:
+    """Matches a performer's recent features against the avatar's candidate actions."""
+
+    def __init__(
+        self, layer: HigherLayer, bank: Bank, settings: MatchSettings | None = None
+    ) -> None:
+        self.layer = layer
+        self.graph = layer.graph
+        self.bank = bank
+        self.settings = settings or MatchSettings()
+        self.n = max(2, round(self.settings.window * self.graph.fps))
+        self.bound = max(1, round(self.settings.lookahead * self.graph.fps))
+        # graph frame -> bank frame
+        index = {name: i for i, name in enumerate(bank.clip_names)}
+        missing = [c for c in self.graph.clip_names if c not in index]
+        if missing:
+            raise ValueError(f"the bank lacks clips of the graph: {', '.join(missing)}")
+        self.to_bank = np.concatenate(
+            [
+                np.arange(bank.clip_start[index[c]], bank.clip_start[index[c] + 1])
+                for c in self.graph.clip_names
+            ]
+        )
+        if self.to_bank.size != self.graph.n_frames:
+            raise ValueError("the bank and the graph disagree on clip lengths (rebuild the bank)")
+        self.mean, self.std = _hu_stats(bank)
+        self.plays = self.graph.plays_on()
+        self._cache: dict[tuple[int, int], tuple[IntArray, IntArray] | None] = {}
+
+    def _path(self, frame: int, node: int) -> tuple[IntArray, IntArray] | None:
+        tree = self.layer.forest.tree(frame)
+        key = (tree.root_frame, node)
+        if key not in self._cache:
+            m = self.layer.motion_to(tree.root_frame, node)
+            self._cache[key] = None if m is None else (m.frames, m.edges)
+            if len(self._cache) > 200_000:
+                self._cache.clear()
+        got = self._cache[key]
+        if got is None:
+            return None
+        frames, edges = got
+        lead = np.arange(frame, tree.root_frame, dtype=np.int64)
+        return (
+            np.concatenate((lead, frames)),
+            np.concatenate((np.full(lead.size, -1, dtype=np.int64), edges)),
+        )
+
+    def _window_frames(self, frames: IntArray) -> IntArray:
+        """The first ``n`` frames of a path, played on past its end when it is short."""
+        if frames.size >= self.n:
+            return frames[: self.n]
+        out = list(frames)
+        f = int(frames[-1])
+        while len(out) < self.n and self.plays[f]:
+            f += 1
+            out.append(f)
+        while len(out) < self.n:
+            out.append(f)
+        return np.array(out, dtype=np.int64)
+
+    def _bank_sequences(self, frames: IntArray) -> FloatArray:
+        """DTW features ``(V, n, 9)`` of graph ``frames`` in every view."""
+        b = self.to_bank[frames]
+        f = self.bank.features[b].astype(np.float64)  # (n, V, 9)
+        move = self.bank.root_motion[b].astype(np.float64)  # (n, V, 2)
+        out = np.empty_like(f)
+        out[..., :7] = (f[..., :7] - self.mean) / self.std
+        path = np.cumsum(move, axis=0) - move[0]
+        centre = path + f[..., 7:]
+        out[..., 7:] = (centre - centre[0]) * self.settings.centre_weight
+        return np.nan_to_num(out.transpose(1, 0, 2), nan=0.0)
+
+    def candidates(self, frame: int) -> list[tuple[int, IntArray, IntArray]]:
+        """``(node, frames, edges)`` of the candidate paths from ``frame``."""
+        tree = self.layer.forest.tree(frame)
+        lead = tree.root_frame - frame
+        reach = tree.arrival + lead <= self.bound
+        reach[0] = True
+        nodes = np.flatnonzero(reach)
+        nodes = nodes[np.argsort(tree.arrival[nodes], kind="stable")][
+            : self.settings.max_candidates
+        ]
+        out = []
+        for node in nodes:
+            p = self._path(frame, int(node))
+            if p is not None:
+                out.append((int(node), p[0], p[1]))
+        return out
+
+    def decide(self, frame: int, performer: FloatArray) -> Decision | None:
+        """The best path from ``frame`` for the performer's last features ``(n, 9)``
+        (NaN rows, frames without a silhouette, are dropped); ``None`` without enough."""
+        t0 = time.perf_counter()
+        ok = np.isfinite(performer).all(axis=1)
+        if ok.sum() < max(2, self.n // 2):
+            return None
+        query = performer_sequence(performer[ok], self.mean, self.std, self.settings.centre_weight)
+        cands = self.candidates(frame)
+        if not cands:
+            return None
+        views = self.bank.features.shape[1]
+        refs = np.concatenate([self._bank_sequences(self._window_frames(f)) for _, f, _ in cands])
+        group = np.repeat(np.arange(len(cands)), views)
+        costs = dtw_batch(query, refs, group, window=self.settings.band).reshape(len(cands), views)
+        per_path = costs.min(axis=1)
+        order = np.argsort(per_path)
+        best = int(order[0])
+        node, frames, edges = cands[best]
+        tree = self.layer.forest.tree(frame)
+        return Decision(
+            frames=frames,
+            edges=edges,
+            cluster_path=tree.clusters_to(node),
+            cost=float(per_path[best]),
+            runner_up=float(per_path[order[1]]) if len(order) > 1 else float("inf"),
+            view=int(np.argmin(costs[best])),
+            candidates=len(cands),
+            latency_ms=(time.perf_counter() - t0) * 1e3,
+        )

@@ -1,0 +1,200 @@
+"""The performance loop (Lee et al. §5.3): frames in, a decision every 0.1 s, avatar out.
+
+Media time drives everything (a file runs as fast as it can unless paced; a camera runs
+on the clock). The performer's features are sampled into a buffer at the library's rate;
+every ``decide_every`` seconds the matcher picks the best candidate path from the avatar's
+current frame and the avatar takes it (blending into it). Without a usable silhouette
+(nobody in view, a dark frame, a camera that is reconnecting) the avatar simply keeps
+moving: along its current path, then on its own.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import deque
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from control.avatar import Avatar
+from control.clusters import HigherLayer
+from control.motion import Clip
+from silhouette_bank import Bank, silhouette_features
+
+from ._matcher import Matcher, MatchSettings
+from ._segment import Segmenter, clean_mask
+from ._sources import Source
+
+__all__ = ["PerformResult", "PerformSettings", "perform"]
+
+
+@dataclass(frozen=True)
+class PerformSettings:
+    decide_every: float = 0.1
+    segmentation: str = "mog2"
+    learn_frames: int = 30
+    match: MatchSettings = field(default_factory=MatchSettings)
+    seconds: float | None = None  # stop after this much media time (cameras never end)
+
+
+@dataclass
+class PerformResult:
+    avatar: Avatar
+    decisions: list[dict[str, Any]]
+    masks: list[NDArray[np.bool_] | None]  # the performer's mask per avatar frame (for video)
+    views: list[int]  # the best-matching view per avatar frame
+    media_seconds: float
+    frames_read: int
+
+
+def perform(
+    source: Source,
+    layer: HigherLayer,
+    bank: Bank,
+    clips: Sequence[Clip],
+    settings: PerformSettings | None = None,
+    start: int | None = None,
+    seed: int = 0,
+    log: IO[str] | None = None,
+    keep_masks: bool = False,
+    on_frame: Callable[[float, NDArray[np.bool_] | None, Avatar], None] | None = None,
+) -> PerformResult:
+    """Run the loop until the source ends (or ``settings.seconds`` of media time)."""
+    settings = settings or PerformSettings()
+    graph = layer.graph
+    matcher = Matcher(layer, bank, settings.match)
+    avatar = Avatar(graph, clips, start=start, seed=seed)
+    segmenter: Segmenter | None = None
+    period = 1.0 / graph.fps
+    buffer: deque[NDArray[np.float64]] = deque(maxlen=matcher.n)
+    latest = np.full(9, np.nan)
+    latest_mask: NDArray[np.bool_] | None = None
+    next_tick = 0.0
+    next_decision = settings.decide_every
+    t_avatar = 0.0
+    decisions: list[dict[str, Any]] = []
+    masks: list[NDArray[np.bool_] | None] = [None]
+    views: list[int] = [0]
+    view = 0
+    n_read = 0
+    t = 0.0
+    while True:
+        frame = source.read()
+        if frame is None:
+            break
+        n_read += 1
+        t = frame.t
+        if settings.seconds is not None and t > settings.seconds:
+            break
+        mask: NDArray[np.bool_] | None
+        if frame.mask is not None:
+            mask = clean_mask(frame.mask)
+        elif frame.image is not None:
+            if segmenter is None:
+                segmenter = Segmenter(settings.segmentation, settings.learn_frames)
+            mask = segmenter.apply(frame.image)
+        else:
+            mask = None
+        latest = silhouette_features(mask) if mask is not None else np.full(9, np.nan)
+        latest_mask = mask
+        if on_frame is not None:
+            on_frame(t, mask, avatar)
+        # the library-rate buffer, and the avatar's clock
+        while next_tick <= t + 1e-9:
+            buffer.append(latest)
+            next_tick += period
+        while t_avatar + period <= t + 1e-9:
+            avatar.step()
+            t_avatar += period
+            masks.append(latest_mask if keep_masks else None)
+            views.append(view)
+        while next_decision <= t + 1e-9:
+            next_decision += settings.decide_every
+            clip, f = graph.locate(avatar.frame)
+            entry: dict[str, Any] = {
+                "t": round(t, 3),
+                "frame": avatar.frame,
+                "clip": clip,
+                "clip_frame": f,
+            }
+            d = matcher.decide(avatar.frame, np.array(buffer)) if len(buffer) == matcher.n else None
+            if d is None:
+                entry["decision"] = None
+                entry["reason"] = (
+                    "no silhouette" if not np.isfinite(latest).all() else "filling buffer"
+                )
+            else:
+                avatar.take(d.frames, d.edges)
+                view = d.view
+                entry.update(
+                    decision=[int(c) for c in d.cluster_path],
+                    cost=round(d.cost, 4),
+                    runner_up=round(d.runner_up, 4) if np.isfinite(d.runner_up) else None,
+                    view=d.view,
+                    candidates=d.candidates,
+                    latency_ms=round(d.latency_ms, 3),
+                )
+            decisions.append(entry)
+            if log is not None:
+                log.write(json.dumps(entry) + "\n")
+    return PerformResult(avatar, decisions, masks, views, t, n_read)
+
+
+def write_video(result: PerformResult, bank: Bank, path: str | Path, height: int = 240) -> None:
+    """An MP4: the performer's silhouette beside the shaded avatar, seen from the view
+    that matched best, one frame per avatar frame."""
+    import cv2
+
+    from silhouette_bank import CameraRing, capsule_body, capsule_segments
+    from silhouette_bank._gl import GLRenderer
+
+    syn = result.avatar.motion()
+    motion = syn.motion
+    r = bank.settings.ring
+    ring = CameraRing(
+        n_views=r.n_views,
+        distance=r.distance,
+        height=r.height,
+        target_height=r.target_height,
+        fov_y=r.fov_y,
+        width=round(height * 4 / 3),
+        height_px=height,
+        azimuth_offset=r.azimuth_offset,
+    )
+    body = capsule_body(motion.skeleton, bank.settings.body)
+    seg = capsule_segments(motion, body)
+    poses = ring.poses(motion.root_pos)
+    path = Path(path)
+    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    w = ring.width
+    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter.fourcc(*"mp4v"), motion.fps, (2 * w, height))
+    if not writer.isOpened():
+        raise OSError(f"{path}: cannot write an MP4 here")
+    try:
+        with GLRenderer(ring) as gl:
+            for i in range(motion.n_frames):
+                gl.set_body(seg[i], body.radius)
+                right = gl.render_shaded(poses[i, result.views[min(i, len(result.views) - 1)]])[
+                    ..., ::-1
+                ]
+                left = np.zeros((height, w, 3), dtype=np.uint8)
+                m = result.masks[i] if i < len(result.masks) else None
+                if m is not None:
+                    mh, mw = m.shape
+                    scale = height / mh
+                    small = cv2.resize(
+                        m.astype(np.uint8) * 255,
+                        (max(1, round(mw * scale)), height),
+                        interpolation=cv2.INTER_NEAREST,
+                    )
+                    x0 = max(0, (small.shape[1] - w) // 2)
+                    crop = small[:, x0 : x0 + w]
+                    left[:, : crop.shape[1]] = crop[..., None]
+                writer.write(np.ascontiguousarray(np.concatenate((left, right), axis=1)))
+    finally:
+        writer.release()
+    tmp.replace(path)

@@ -1,0 +1,165 @@
+"""``mimic perform`` and ``mimic record``."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+from typing import Any
+
+import numpy as np
+
+from control.cli import _add_graph_args, _add_library_args, _graph_for
+from control.clusters import build_higher_layer
+from control.motion import load_library, write_bvh
+from silhouette_bank import BankSettings, BodyShape, ensure_bank
+
+from ._matcher import MatchSettings
+from ._perform import PerformSettings, perform, write_video
+from ._record import RecordSettings, record_clip
+from ._segment import METHODS
+from ._sources import open_source
+
+__all__ = ["add_perform_commands"]
+
+
+def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser(
+        "perform",
+        help="the avatar follows a performer: camera, video, or masks in; BVH, MP4, log out",
+        description="Every 0.1 s of media time the performer's last silhouettes are matched "
+        "against the avatar's possible next actions (the silhouette bank); the best is taken.",
+    )
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--camera", type=int, help="webcam index")
+    src.add_argument("--video", help="a video file (colour, or a silhouette video)")
+    src.add_argument("--masks", help="a folder of mask images")
+    _add_library_args(p)
+    _add_graph_args(p)
+    p.add_argument("--realtime", action="store_true", help="pace a file like a camera")
+    p.add_argument("--seconds", type=float, help="stop after this much media time")
+    p.add_argument("--window", type=float, default=1.0, help="seconds of performer matched")
+    p.add_argument("--lookahead", type=float, default=1.5, help="candidate actions within, s")
+    p.add_argument("--segmentation", choices=METHODS, default="mog2")
+    p.add_argument("--learn-frames", type=int, default=30, help="frames to learn the background")
+    p.add_argument("--k", type=int, help="number of clusters (default: BIC)")
+    p.add_argument("--start", help="avatar starts at CLIP:FRAME")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", help="BVH of the avatar's motion")
+    p.add_argument("--video-out", help="MP4: performer silhouette beside the avatar")
+    p.add_argument("--log", help="JSON-lines decision log")
+    p.set_defaults(func=_perform)
+
+    r = sub.add_parser(
+        "record",
+        help="render a clip as a performer's silhouette video with ground truth",
+        description="Another body than the avatar's, a camera off the bank's ring, mask "
+        "noise; FFV1 video plus a JSON sidecar (source frame and label per video frame).",
+    )
+    r.add_argument("clip", help="clip name, e.g. 13_29")
+    r.add_argument("--library", default=None, help="motion library (default ../shared/mocap)")
+    r.add_argument("--out", required=True, help="video to write (.mkv)")
+    r.add_argument("--from", dest="start", type=float, default=0.0, help="start, seconds")
+    r.add_argument("--to", dest="stop", type=float, help="end, seconds (default: clip end)")
+    d = RecordSettings()
+    r.add_argument("--fps", type=float, default=30.0)
+    r.add_argument("--size", default=f"{d.width}x{d.height}", help="WIDTHxHEIGHT")
+    r.add_argument("--body-width", type=float, default=d.body.width)
+    r.add_argument("--body-height", type=float, default=d.body.height)
+    r.add_argument("--azimuth", type=float, default=d.azimuth, help="camera azimuth, degrees")
+    r.add_argument("--camera-height", type=float, default=d.camera_height)
+    r.add_argument("--distance", type=float, default=d.distance)
+    r.add_argument("--no-noise", action="store_true", help="clean masks")
+    r.add_argument("--seed", type=int, default=0)
+    r.set_defaults(func=_record)
+
+
+def _record(args: argparse.Namespace) -> int:
+    try:
+        w, h = (int(v) for v in args.size.lower().split("x"))
+    except ValueError as exc:
+        raise ValueError(f"--size must be WIDTHxHEIGHT, not {args.size!r}") from exc
+    library = load_library(args.library, fps=args.fps, clips=[args.clip])
+    clip = library.clip(args.clip)
+    start = round(args.start * args.fps)
+    stop = clip.motion.n_frames if args.stop is None else round(args.stop * args.fps)
+    settings = RecordSettings(
+        body=BodyShape(args.body_width, args.body_height),
+        azimuth=args.azimuth,
+        camera_height=args.camera_height,
+        distance=args.distance,
+        width=w,
+        height=h,
+        edge_noise=0.0 if args.no_noise else RecordSettings().edge_noise,
+        holes=0 if args.no_noise else RecordSettings().holes,
+        shadow=not args.no_noise,
+        seed=args.seed,
+    )
+    side = record_clip(clip, args.out, settings, start, stop)
+    print(f"wrote {args.out} and {args.out}.json: {len(side['frames'])} frames of {args.clip}")
+    return 0
+
+
+def _perform(args: argparse.Namespace) -> int:
+    source = open_source(args.camera, args.video, args.masks, realtime=args.realtime)
+    if args.camera is not None and args.seconds is None:
+        print("a camera never ends: stop with Ctrl-C (or give --seconds)", file=sys.stderr)
+    if args.video is None and args.masks is None:
+        print(
+            "step out of view for two seconds so that the background can be learned",
+            file=sys.stderr,
+        )
+    library, graph, _, _ = _graph_for(args)
+    layer = build_higher_layer(graph, library.clips, k=args.k)
+    bank, built = ensure_bank(library.clips, BankSettings(), progress=None)
+    start = None
+    if args.start:
+        clip, _, frame = args.start.rpartition(":")
+        if not clip or not frame.isdigit():
+            raise ValueError(f"--start must be CLIP:FRAME, not {args.start!r}")
+        start = graph.frame_of(clip, int(frame))
+    settings = PerformSettings(
+        segmentation=args.segmentation,
+        learn_frames=args.learn_frames,
+        match=MatchSettings(window=args.window, lookahead=args.lookahead),
+        seconds=args.seconds,
+    )
+    with contextlib.ExitStack() as stack:
+        log: Any = stack.enter_context(open(args.log, "w")) if args.log else None
+        try:
+            result = perform(
+                source,
+                layer,
+                bank,
+                library.clips,
+                settings,
+                start=start,
+                seed=args.seed,
+                log=log,
+                keep_masks=bool(args.video_out),
+            )
+        except KeyboardInterrupt:
+            print("stopped", file=sys.stderr)
+            return 130
+        finally:
+            source.close()
+    made = [c for c in result.decisions if c.get("decision") is not None]
+    if args.out:
+        write_bvh(result.avatar.motion().motion, args.out)
+    if args.video_out:
+        write_video(result, bank, args.video_out)
+    lat = [c["latency_ms"] for c in made]
+    print(
+        f"{result.frames_read} frames, {result.media_seconds:.1f} s of media; "
+        f"{len(result.decisions)} decision points, {len(made)} decisions"
+        + (
+            f", matcher p50 {np.percentile(lat, 50):.2f} ms, p99 {np.percentile(lat, 99):.2f} ms"
+            if lat
+            else ""
+        )
+        + ("; bank built" if built else "")
+    )
+    for name in ("out", "video_out", "log"):
+        if getattr(args, name):
+            print(f"wrote {getattr(args, name)}")
+    return 0
