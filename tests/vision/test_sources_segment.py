@@ -102,9 +102,9 @@ def _scene(t: int) -> tuple[np.ndarray, np.ndarray]:
     return np.clip(img + noise, 0, 255).astype(np.uint8), truth
 
 
-@pytest.mark.parametrize("method", ["mog2", "knn"])
-def test_segmenter_finds_the_performer(method: str) -> None:
-    seg = Segmenter(method, learn_frames=30)
+@pytest.mark.parametrize(("method", "adapt"), [("mog2", 0.0), ("mog", 0.0), ("knn", 0.001)])
+def test_segmenter_finds_the_performer(method: str, adapt: float) -> None:
+    seg = Segmenter(method, learn_frames=30, adapt=adapt)
     ious = []
     for t in range(70):
         img, truth = _scene(t)

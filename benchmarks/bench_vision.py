@@ -1,0 +1,179 @@
+"""Vision speed: segmentation per camera frame, matcher latency, replay real-time factor;
+and the choice of background subtractor, by measurement.
+
+Usage: python -m benchmarks.bench_vision [LIBRARY_DIR] [--out FILE]
+
+- Subtractors (MOG2, KNN and opencv-contrib's bgsegm CNT, GSOC, LSBP, GMG, MOG) on a
+  640x480 composite: the committed recording's silhouettes, filled with a textured
+  "shirt", moving over a textured background with sensor noise and a slow illumination
+  drift, after 30 frames without the performer. IoU with the true silhouette, and frames
+  per second for segmentation + cleanup + features on one core. Target >= 60 frames/s.
+- Matcher latency per decision (p50, p99) and candidate counts, on the playground and the
+  all-shared libraries (default graph, 1 s window, 1.5 s look-ahead). Target p99 <= 5 ms
+  on all-shared.
+- A 60 s silhouette recording (13_29, made here) replayed offline through `perform`:
+  wall time and real-time factor.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from control.clusters import build_higher_layer
+from control.graph import GraphOptions, build_graph
+from control.motion import default_library_path, load_library
+from control.motion._text import atomic_write
+from silhouette_bank import BankSettings, ensure_bank, silhouette_features
+from vision._matcher import Matcher
+from vision._perform import PerformSettings, perform
+from vision._record import RecordSettings, record_clip
+from vision._segment import METHODS, Segmenter
+from vision._sources import VideoSource
+
+RECORDING = Path("recordings/13_29_first12s_160x120.mkv")
+
+
+def composite_frames(n_empty: int = 30) -> tuple[list[np.ndarray], list[np.ndarray | None]]:
+    cap = cv2.VideoCapture(str(RECORDING))
+    masks = []
+    while True:
+        ok, img = cap.read()
+        if not ok:
+            break
+        masks.append(cv2.resize(img[..., 0], (640, 480), interpolation=cv2.INTER_NEAREST) > 127)
+    rng = np.random.default_rng(0)
+    yy, xx = np.mgrid[0:480, 0:640]
+    bg = np.stack(
+        [
+            90 + 40 * np.sin(xx / 37.0) + 20 * np.cos(yy / 23.0),
+            110 + 30 * np.sin((xx + yy) / 51.0),
+            100 + 25 * np.cos(xx / 13.0) * np.sin(yy / 17.0),
+        ],
+        axis=-1,
+    )
+    bg += rng.normal(0, 10, bg.shape)
+    shirt = np.stack(
+        [60 + 40 * np.sin(xx / 5.0), 60 + 30 * np.cos(yy / 7.0), 150 + 0 * xx], axis=-1
+    )
+    frames: list[np.ndarray] = []
+    truth: list[np.ndarray | None] = []
+    for i in range(n_empty + len(masks)):
+        drift = 1.0 + 0.05 * np.sin(i / 40.0)
+        img = bg * drift
+        m = masks[i - n_empty] if i >= n_empty else None
+        if m is not None:
+            img = np.where(m[..., None], shirt, img)
+        img = img + rng.normal(0, 4, img.shape)
+        frames.append(np.clip(img, 0, 255).astype(np.uint8))
+        truth.append(m)
+    return frames, truth
+
+
+def subtractors() -> dict[str, Any]:
+    cv2.setNumThreads(1)
+    frames, truth = composite_frames()
+    out: dict[str, Any] = {}
+    for method, adapt in [(m, 0.0) for m in METHODS] + [("mog2", 0.001), ("knn", 0.001)]:
+        seg = Segmenter(method, learn_frames=30, adapt=adapt)
+        ious = []
+        t = time.perf_counter()
+        for img, m in zip(frames, truth, strict=True):
+            mask = seg.apply(img)
+            if mask is not None:
+                silhouette_features(mask.astype(np.uint8))
+            if m is not None:
+                ious.append(0.0 if mask is None else float((mask & m).sum() / (mask | m).sum()))
+        fps = len(frames) / (time.perf_counter() - t)
+        out[method] = {
+            "iou_mean": float(np.mean(ious)),
+            "iou_p10": float(np.percentile(ious, 10)),
+            "fps": fps,
+        }
+    cv2.setNumThreads(-1)
+    return out
+
+
+def matcher_latency(root: Path, patterns: list[str] | None) -> dict[str, Any]:
+    lib = load_library(root, clips=patterns)
+    g = build_graph(lib.clips, GraphOptions())
+    layer = build_higher_layer(g, lib.clips)
+    bank, _ = ensure_bank(lib.clips, BankSettings())
+    matcher = Matcher(layer, bank)
+    src = VideoSource(RECORDING, silhouette=True)
+    feats = []
+    while (f := src.read()) is not None:
+        if f.index % 2 == 0:
+            feats.append(silhouette_features(np.asarray(f.mask, dtype=np.uint8)))
+    perf = np.array(feats)
+    rng = np.random.default_rng(0)
+    lat, cands = [], []
+    for f in rng.choice(np.flatnonzero(g.in_scc), 400):
+        s = int(rng.integers(0, perf.shape[0] - matcher.n))
+        matcher.decide(int(f), perf[s : s + matcher.n])  # warm the path cache as a run would
+        d = matcher.decide(int(f), perf[s : s + matcher.n])
+        if d is not None:
+            lat.append(d.latency_ms)
+            cands.append(d.candidates)
+    return {
+        "frames": g.n_frames,
+        "decisions": len(lat),
+        "latency_ms_p50": float(np.percentile(lat, 50)),
+        "latency_ms_p99": float(np.percentile(lat, 99)),
+        "candidates_median": float(np.median(cands)),
+        "candidates_p99": float(np.percentile(cands, 99)),
+    }
+
+
+def replay(root: Path) -> dict[str, Any]:
+    lib = load_library(root, clips=["13_30"])
+    g = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.03))
+    layer = build_higher_layer(g, lib.clips)
+    bank, _ = ensure_bank(lib.clips, BankSettings())
+    with tempfile.TemporaryDirectory() as tmp:
+        clip = load_library(root, fps=30, clips=["13_29"]).clip("13_29")
+        video = Path(tmp) / "60s.mkv"
+        record_clip(
+            clip, video, RecordSettings(width=320, height=240), 0, min(1800, clip.motion.n_frames)
+        )
+        t = time.perf_counter()
+        r = perform(VideoSource(video, silhouette=True), layer, bank, lib.clips, PerformSettings())
+        wall = time.perf_counter() - t
+    return {
+        "media_seconds": r.media_seconds,
+        "wall_seconds": wall,
+        "real_time_factor": r.media_seconds / wall,
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("root", nargs="?", default=str(default_library_path()))
+    ap.add_argument("--out", default="benchmarks/results/vision.json")
+    args = ap.parse_args()
+    root = Path(args.root)
+    result: dict[str, Any] = {
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, "
+        f"Python {platform.python_version()}",
+        "date": time.strftime("%Y-%m-%d"),
+        "subtractors_640x480": subtractors(),
+        "matcher_playground": matcher_latency(root, ["01_*"]),
+        "matcher_all_shared": matcher_latency(root, None),
+        "replay": replay(root),
+    }
+    with atomic_write(args.out) as fh:
+        json.dump(result, fh, indent=2)
+    print(json.dumps(result, indent=2))
+
+
+if __name__ == "__main__":
+    main()
