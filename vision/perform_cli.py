@@ -14,6 +14,7 @@ from control.clusters import build_higher_layer
 from control.motion import load_library, write_bvh
 from silhouette_bank import BankSettings, BodyShape, ensure_bank
 
+from ._live import LiveView
 from ._matcher import MatchSettings
 from ._perform import PerformSettings, perform, write_video
 from ._record import RecordSettings, record_clip
@@ -48,6 +49,12 @@ def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
     p.add_argument("--out", help="BVH of the avatar's motion")
     p.add_argument("--video-out", help="MP4: performer silhouette beside the avatar")
     p.add_argument("--log", help="JSON-lines decision log")
+    p.add_argument(
+        "--live-port",
+        type=int,
+        default=8765,
+        help="with --camera, a live view at http://127.0.0.1:PORT/ (0: none)",
+    )
     p.set_defaults(func=_perform)
 
     r = sub.add_parser(
@@ -98,6 +105,32 @@ def _record(args: argparse.Namespace) -> int:
     side = record_clip(clip, args.out, settings, start, stop)
     print(f"wrote {args.out} and {args.out}.json: {len(side['frames'])} frames of {args.clip}")
     return 0
+
+
+def _live_painter(view: LiveView, library: Any, graph: Any, bank: Any) -> Any:
+    """A callback drawing the performer's mask beside the avatar's current pose."""
+    import cv2
+
+    from silhouette_bank import capsule_body, motion_silhouettes
+
+    ring = bank.settings.ring
+    last = {"t": -1.0}
+
+    def paint(t: float, mask: np.ndarray | None, avatar: Any) -> None:
+        if t - last["t"] < 1.0 / 15.0:
+            return
+        last["t"] = t
+        h, w = ring.height_px * 2, ring.width * 2
+        left = np.zeros((h, w), dtype=np.uint8)
+        if mask is not None:
+            left = cv2.resize(mask.astype(np.uint8) * 255, (w, h), interpolation=cv2.INTER_NEAREST)
+        clip_name, f = graph.locate(avatar.frame)
+        motion = library.clip(clip_name).motion
+        sil = motion_silhouettes(motion, capsule_body(motion.skeleton), ring, np.array([f]))[0, 0]
+        right = cv2.resize(sil * 200, (w, h), interpolation=cv2.INTER_NEAREST)
+        view.update(np.concatenate((left, right), axis=1))
+
+    return paint
 
 
 def _perform(args: argparse.Namespace) -> int:

@@ -1,0 +1,149 @@
+"""Vision accuracy on performers the library has never seen (Lee et al. §5.3, issue 6).
+
+Usage: python -m benchmarks.bench_accuracy [LIBRARY_DIR] [--out FILE]
+
+Two folds on the labelled exercise clips: the performer is a recording of 13_29 (or
+13_30) made by ``mimic record`` (another body, a camera off the ring, mask noise); the
+library is every other clip. For each match setting (window, look-ahead) and each lag
+(the avatar is compared with what the performer did ``lag`` seconds earlier):
+
+- pose score: joint-angle error (weighted joints, squared half-angles as in the graph's
+  distance) between the avatar's frame and the performer's true frame, normalised so
+  that a random walk on the same graph scores 0 and the nearest library pose of every
+  performer frame scores 1;
+- label agreement: the fraction of decisions at which the avatar's frame carries the
+  performer's action label (frames of unlabelled clips count as disagreement).
+
+Targets (issue 6) at a lag of 1 s or less: score >= 0.7, agreement >= 80%.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from control.clusters import build_higher_layer
+from control.graph import GraphOptions, build_graph, random_walk, weighted_joints
+from control.motion import default_library_path, load_library, qconj, qlog, qmul
+from control.motion._text import atomic_write
+from silhouette_bank import BankSettings, ensure_bank
+from vision._matcher import MatchSettings
+from vision._perform import PerformSettings, perform
+from vision._record import RecordSettings, record_clip
+from vision._sources import VideoSource
+
+LAGS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0)
+SETTINGS = ((1.0, 1.5), (1.0, 3.0), (2.0, 3.0), (2.0, 5.0))
+
+
+def _pose_dist(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
+    """Sum over weighted joints of squared half-angles, rows of ``(N, K, 4)``."""
+    return np.sum((np.linalg.norm(qlog(qmul(qconj(qb), qa)), axis=-1) / 2.0) ** 2, axis=-1)
+
+
+def fold(root: Path, test: str) -> dict[str, Any]:
+    everything = load_library(root)
+    train = [c for c in everything.clips if c.name != test and c.motion.skeleton.n_joints == 31]
+    g = build_graph(train, GraphOptions(coords="relative"))
+    layer = build_higher_layer(g, train)
+    bank, _ = ensure_bank(train, BankSettings())
+    joints = weighted_joints(train[0].motion.skeleton)
+    lib_q = np.concatenate([c.motion.quats for c in train])[:, joints]
+    lib_labels = np.concatenate(
+        [np.array([c.label_at(i) or "" for i in range(c.motion.n_frames)]) for c in train]
+    )
+    assert g.clip_names == tuple(c.name for c in train)  # the graph's frames are train's
+    perf_clip = load_library(root, fps=30, clips=[test]).clip(test)
+    truth_q = perf_clip.motion.quats[:, joints]
+    # nearest library pose of every performer frame (the best any avatar could do)
+    nearest = np.array(
+        [_pose_dist(lib_q, q[None].repeat(lib_q.shape[0], 0)).min() for q in truth_q[::3]]
+    )
+    walk_frames, _, _ = random_walk(g, 4000, seed=1)
+    rw = lib_q[walk_frames]
+    random_err = float(
+        np.mean([_pose_dist(rw, q[None].repeat(rw.shape[0], 0)).mean() for q in truth_q[::15]])
+    )
+    out: dict[str, Any] = {
+        "test": test,
+        "train_frames": g.n_frames,
+        "clusters": layer.clustering.k,
+        "nearest_error": float(nearest.mean()),
+        "random_error": random_err,
+        "runs": [],
+    }
+    with tempfile.TemporaryDirectory() as tmp:
+        video = Path(tmp) / f"{test}.mkv"
+        side = record_clip(perf_clip, video, RecordSettings())
+        perf_labels = side["labels"]
+        for window, lookahead in SETTINGS:
+            r = perform(
+                VideoSource(video, silhouette=True),
+                layer,
+                bank,
+                train,
+                PerformSettings(match=MatchSettings(window=window, lookahead=lookahead)),
+            )
+            frames = [d["frame"] for d in r.decisions]
+            times = np.array([d["t"] for d in r.decisions])
+            made = sum(d["decision"] is not None for d in r.decisions)
+            curve = []
+            for lag in LAGS:
+                k = np.round((times - lag) * perf_clip.motion.fps).astype(int)
+                ok = (k >= 0) & (k < truth_q.shape[0])
+                err = _pose_dist(lib_q[np.array(frames)[ok]], truth_q[k[ok]]).mean()
+                score = (random_err - err) / max(random_err - float(nearest.mean()), 1e-9)
+                lab = [perf_labels[i] for i in k[ok]]
+                have = [lab_i is not None for lab_i in lab]
+                agree = [
+                    lib_labels[f] == lab_i
+                    for f, lab_i, h in zip(np.array(frames)[ok], lab, have, strict=True)
+                    if h
+                ]
+                curve.append(
+                    {
+                        "lag": lag,
+                        "pose_error": float(err),
+                        "score": float(score),
+                        "label_agreement": float(np.mean(agree)) if agree else None,
+                    }
+                )
+            out["runs"].append(
+                {
+                    "window": window,
+                    "lookahead": lookahead,
+                    "decisions": len(r.decisions),
+                    "decisions_made": made,
+                    "curve": curve,
+                }
+            )
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("root", nargs="?", default=str(default_library_path()))
+    ap.add_argument("--out", default="benchmarks/results/accuracy.json")
+    args = ap.parse_args()
+    root = Path(args.root)
+    result = {
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, "
+        f"Python {platform.python_version()}",
+        "date": time.strftime("%Y-%m-%d"),
+        "folds": [fold(root, "13_29"), fold(root, "13_30")],
+    }
+    with atomic_write(args.out) as fh:
+        json.dump(result, fh, indent=2)
+    print(json.dumps(result, indent=2))
+
+
+if __name__ == "__main__":
+    main()
