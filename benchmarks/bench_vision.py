@@ -34,7 +34,7 @@ from control.graph import GraphOptions, build_graph
 from control.motion import default_library_path, load_library
 from control.motion._text import atomic_write
 from silhouette_bank import BankSettings, ensure_bank, silhouette_features
-from vision._matcher import Matcher
+from vision._matcher import Matcher, MatchSettings
 from vision._perform import PerformSettings, perform
 from vision._record import RecordSettings, record_clip
 from vision._segment import METHODS, Segmenter
@@ -94,7 +94,7 @@ def subtractors() -> dict[str, Any]:
             if m is not None:
                 ious.append(0.0 if mask is None else float((mask & m).sum() / (mask | m).sum()))
         fps = len(frames) / (time.perf_counter() - t)
-        out[method] = {
+        out[f"{method} adapt={adapt:g}"] = {
             "iou_mean": float(np.mean(ious)),
             "iou_p10": float(np.percentile(ious, 10)),
             "fps": fps,
@@ -103,35 +103,39 @@ def subtractors() -> dict[str, Any]:
     return out
 
 
-def matcher_latency(root: Path, patterns: list[str] | None) -> dict[str, Any]:
+def matcher_latency(
+    root: Path, patterns: list[str] | None, lookaheads: tuple[float, ...] = (1.5, 6.0)
+) -> dict[str, Any]:
     lib = load_library(root, clips=patterns)
     g = build_graph(lib.clips, GraphOptions())
     layer = build_higher_layer(g, lib.clips)
     bank, _ = ensure_bank(lib.clips, BankSettings())
-    matcher = Matcher(layer, bank)
     src = VideoSource(RECORDING, silhouette=True)
     feats = []
     while (f := src.read()) is not None:
         if f.index % 2 == 0:
             feats.append(silhouette_features(np.asarray(f.mask, dtype=np.uint8)))
     perf = np.array(feats)
-    rng = np.random.default_rng(0)
-    lat, cands = [], []
-    for f in rng.choice(np.flatnonzero(g.in_scc), 400):
-        s = int(rng.integers(0, perf.shape[0] - matcher.n))
-        matcher.decide(int(f), perf[s : s + matcher.n])  # warm the path cache as a run would
-        d = matcher.decide(int(f), perf[s : s + matcher.n])
-        if d is not None:
-            lat.append(d.latency_ms)
-            cands.append(d.candidates)
-    return {
-        "frames": g.n_frames,
-        "decisions": len(lat),
-        "latency_ms_p50": float(np.percentile(lat, 50)),
-        "latency_ms_p99": float(np.percentile(lat, 99)),
-        "candidates_median": float(np.median(cands)),
-        "candidates_p99": float(np.percentile(cands, 99)),
-    }
+    out: dict[str, Any] = {"frames": g.n_frames, "forest": layer.forest.report}
+    for lookahead in lookaheads:
+        matcher = Matcher(layer, bank, MatchSettings(lookahead=lookahead))
+        rng = np.random.default_rng(0)
+        lat, cands = [], []
+        for f in rng.choice(np.flatnonzero(g.in_scc), 400):
+            s = int(rng.integers(0, perf.shape[0] - matcher.n))
+            matcher.decide(int(f), perf[s : s + matcher.n])  # warm the path cache, as a run does
+            d = matcher.decide(int(f), perf[s : s + matcher.n])
+            if d is not None:
+                lat.append(d.latency_ms)
+                cands.append(d.candidates)
+        out[f"lookahead_{lookahead:g}s"] = {
+            "decisions": len(lat),
+            "latency_ms_p50": float(np.percentile(lat, 50)),
+            "latency_ms_p99": float(np.percentile(lat, 99)),
+            "candidates_median": float(np.median(cands)),
+            "candidates_p99": float(np.percentile(cands, 99)),
+        }
+    return out
 
 
 def replay(root: Path) -> dict[str, Any]:

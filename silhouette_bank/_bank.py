@@ -202,7 +202,12 @@ def build_bank(
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> Bank:
-    """Render every frame of ``clips`` into the bank at ``folder`` (resuming if possible)."""
+    """Render every frame of ``clips`` into the bank at ``folder`` (resuming if possible).
+
+    With ``workers`` > 1 the shards are rendered in *spawned* processes (numba's OpenMP
+    threads make fork unsafe), so a script that calls this must guard its entry point
+    with ``if __name__ == "__main__":``.
+    """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     if shard_frames < 1:
