@@ -149,20 +149,28 @@ class Matcher:
         return np.nan_to_num(out.transpose(1, 0, 2), nan=0.0)
 
     def candidates(self, frame: int) -> list[tuple[int, IntArray, IntArray]]:
-        """``(node, frames, edges)`` of the candidate paths from ``frame``."""
+        """``(node, frames, edges)`` of the candidate paths from ``frame``: nodes reached
+        within the look-ahead, earliest first, at most ``max_candidates`` whose first
+        ``window`` seconds differ (paths that part only later look the same to DTW)."""
         tree = self.layer.forest.tree(frame)
         lead = tree.root_frame - frame
         reach = tree.arrival + lead <= self.bound
         reach[0] = True
         nodes = np.flatnonzero(reach)
-        nodes = nodes[np.argsort(tree.arrival[nodes], kind="stable")][
-            : self.settings.max_candidates
-        ]
+        nodes = nodes[np.argsort(tree.arrival[nodes], kind="stable")]
         out = []
+        seen: set[bytes] = set()
         for node in nodes:
             p = self._path(frame, int(node))
-            if p is not None:
-                out.append((int(node), p[0], p[1]))
+            if p is None:
+                continue
+            key = self._window_frames(p[0]).tobytes()
+            if key in seen:
+                continue
+            seen.add(key)
+            out.append((int(node), p[0], p[1]))
+            if len(out) >= self.settings.max_candidates:
+                break
         return out
 
     def decide(self, frame: int, performer: FloatArray) -> Decision | None:
