@@ -108,12 +108,14 @@ class Matcher:
     def _path(self, frame: int, node: int) -> tuple[IntArray, IntArray] | None:
         tree = self.layer.forest.tree(frame)
         key = (tree.root_frame, node)
-        if key not in self._cache:
-            m = self.layer.motion_to(tree.root_frame, node)
-            self._cache[key] = None if m is None else (m.frames, m.edges)
-            if len(self._cache) > 200_000:
+        if key in self._cache:
+            got = self._cache[key]
+        else:
+            if len(self._cache) > 200_000:  # bound the memory of a long run
                 self._cache.clear()
-        got = self._cache[key]
+            m = self.layer.motion_to(tree.root_frame, node)
+            got = None if m is None else (m.frames, m.edges)
+            self._cache[key] = got
         if got is None:
             return None
         frames, edges = got
