@@ -16,7 +16,7 @@ from .clusters import DEFAULT_KS, HigherLayer, build_higher_layer
 from .graph import FrameData, MotionGraph
 from .motion import Library, write_bvh
 
-__all__ = ["add_choose_command", "parse_ks", "read_script"]
+__all__ = ["add_choose_command", "parse_ks", "read_script", "start_frame"]
 
 
 def parse_ks(text: str) -> list[int]:
@@ -102,12 +102,7 @@ def run_choice_session(
     args: argparse.Namespace, library: Library, graph: MotionGraph, layer: HigherLayer
 ) -> dict[str, Any]:
     data = FrameData(graph, library.clips)
-    start = None
-    if args.start:
-        clip, _, frame = args.start.rpartition(":")
-        if not clip or not frame.isdigit():
-            raise ValueError(f"--start must be CLIP:FRAME, not {args.start!r}")
-        start = graph.frame_of(clip, int(frame))
+    start = start_frame(graph, args.start)
     avatar = Avatar(graph, library.clips, start=start, seed=args.seed, blend=args.blend)
     lookahead = None if args.lookahead <= 0 else (0.0, args.lookahead)
     region = None
@@ -161,6 +156,16 @@ def run_choice_session(
         "clusters": layer.clustering.k,
         "performed": performed,
     }
+
+
+def start_frame(graph: MotionGraph, text: str | None) -> int | None:
+    """The graph frame of a ``--start CLIP:FRAME`` argument (``None`` when not given)."""
+    if not text:
+        return None
+    clip, _, frame = text.rpartition(":")
+    if not clip or not frame.isdigit():
+        raise ValueError(f"--start must be CLIP:FRAME, not {text!r}")
+    return graph.frame_of(clip, int(frame))
 
 
 def add_choose_command(

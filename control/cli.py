@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from .choose_cli import add_choose_command
+from .choose_cli import add_choose_command, start_frame
 from .graph import (
     CONTACT_RULES,
     COORDS,
@@ -25,7 +25,13 @@ from .graph import (
 )
 from .motion import Library, load_library, write_bvh
 
-__all__ = ["add_graph_commands", "add_library_commands", "format_report", "library_summary"]
+__all__ = [
+    "add_graph_commands",
+    "add_library_commands",
+    "format_report",
+    "library_summary",
+    "start_frame",
+]
 
 
 def add_library_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -290,12 +296,7 @@ def _graph_walk(args: argparse.Namespace) -> int:
     if not args.seconds > 0:
         raise ValueError("--seconds must be positive")
     library, graph, path, _ = _graph_for(args)
-    start = None
-    if args.start:
-        clip, _, frame = args.start.rpartition(":")
-        if not clip or not frame.isdigit():
-            raise ValueError(f"--start must be CLIP:FRAME, not {args.start!r}")
-        start = graph.frame_of(clip, int(frame))
+    start = start_frame(graph, args.start)
     n = max(1, round(args.seconds * graph.fps))
     frames, jumps, edges = random_walk(graph, n, seed=args.seed, start=start)
     syn = synthesize(

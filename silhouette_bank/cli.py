@@ -11,6 +11,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from control.cli import _add_library_args
 from control.motion import Library, load_library
 
 from ._bank import BankSettings, ensure_bank, load_bank
@@ -22,10 +23,7 @@ __all__ = ["add_bank_commands", "contact_sheet"]
 
 
 def _add_settings(p: argparse.ArgumentParser) -> None:
-    p.add_argument("dir", nargs="?", default=None, help="motion library (default: ../shared/mocap)")
-    p.add_argument("--clips", action="append", metavar="PATTERN", help="only these clips")
-    p.add_argument("--fps", type=float, default=15.0, help="library frame rate (default 15)")
-    p.add_argument("--mirror", action="store_true", help="add mirrored copies of every clip")
+    _add_library_args(p)
     d = CameraRing()
     p.add_argument("--bank", help="bank folder (default: the cache, by content hash)")
     p.add_argument("--width", type=int, default=d.width, help="image width, pixels")

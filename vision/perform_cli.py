@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from control.cli import _add_graph_args, _add_library_args, _graph_for
+from control.cli import _add_graph_args, _add_library_args, _graph_for, start_frame
 from control.clusters import build_higher_layer
 from control.motion import load_library, write_bvh
 from silhouette_bank import BankSettings, BodyShape, ensure_bank
@@ -145,12 +145,7 @@ def _perform(args: argparse.Namespace) -> int:
     library, graph, _, _ = _graph_for(args)
     layer = build_higher_layer(graph, library.clips, k=args.k)
     bank, built = ensure_bank(library.clips, BankSettings(), progress=None)
-    start = None
-    if args.start:
-        clip, _, frame = args.start.rpartition(":")
-        if not clip or not frame.isdigit():
-            raise ValueError(f"--start must be CLIP:FRAME, not {args.start!r}")
-        start = graph.frame_of(clip, int(frame))
+    start = start_frame(graph, args.start)
     settings = PerformSettings(
         segmentation=args.segmentation,
         learn_frames=args.learn_frames,
