@@ -1,0 +1,80 @@
+"""Peng et al.'s preprocess on the all-shared library: clustering and candidate paths.
+
+Usage: python -m benchmarks.bench_transition [LIBRARY_DIR] [--out FILE]
+
+Two-pass clustering (radius = 5, 10 and 20 times the graph's sigma, relative
+coordinates) and the candidate-path precomputation (5 paths per node pair), timed
+(median of 3). The paper: 0.76 s clustering and 463 s precomputation for 3,648 frames;
+targets (issue 8): precomputation <= 5 s. The run-time phase is not built yet.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import time
+from pathlib import Path
+from typing import Any
+
+from control.graph import GraphOptions, build_graph, frame_features, select_clips
+from control.motion import default_library_path, load_library
+from control.motion._text import atomic_write
+from control.transition import build_transition_graph, candidate_paths, two_pass_clusters
+
+
+def _timed(fn: Any) -> tuple[float, Any]:
+    times, out = [], None
+    for _ in range(3):
+        t = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t)
+    return statistics.median(times), out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("root", nargs="?", default=str(default_library_path()))
+    ap.add_argument("--out", default="benchmarks/results/transition.json")
+    args = ap.parse_args()
+    lib = load_library(Path(args.root))
+    clips, _ = select_clips(lib.clips)
+    feat = frame_features(clips, "relative")
+    sigma = build_graph(clips, GraphOptions(coords="relative")).sigma
+    rows = []
+    for mult in (5, 10, 20):
+        t_cluster, clusters = _timed(lambda mult=mult: two_pass_clusters(feat, mult * sigma))
+        t_graph, graph = _timed(lambda clusters=clusters: build_transition_graph(feat, clusters))
+        t_paths, paths = _timed(lambda graph=graph: candidate_paths(graph))
+        n = clusters.k
+        rows.append(
+            {
+                "radius_sigmas": mult,
+                "clusters": n,
+                "edges": int(graph.edge_nodes.shape[0]),
+                "transition_clips": int(graph.clip_edge.size),
+                "pairs_with_paths": int(paths.pairs.shape[0]),
+                "pairs": n * (n - 1),
+                "paths": int(paths.cost.size),
+                "cluster_seconds": t_cluster,
+                "graph_seconds": t_graph,
+                "paths_seconds": t_paths,
+            }
+        )
+    result = {
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, "
+        f"Python {platform.python_version()}",
+        "date": time.strftime("%Y-%m-%d"),
+        "frames": feat.n,
+        "sigma": sigma,
+        "runs": rows,
+    }
+    with atomic_write(args.out) as fh:
+        json.dump(result, fh, indent=2)
+    print(json.dumps(result, indent=2))
+
+
+if __name__ == "__main__":
+    main()
