@@ -1,8 +1,10 @@
 """Action-to-action transitions (Peng et al.): two-pass clustering, the cluster transition
-graph and its candidate paths. (The run-time phase, clip stitching and the Bezier
-fallback are not built yet.)"""
+graph, its candidate paths, and the run-time pieces (node pair, path choice, greedy
+stitching at optimal transition points). Not built yet: the Bezier fallback, motion
+assembly with root alignment, the action queue and ``mimic chain``."""
 
 from ._cluster import FrameClusters, two_pass_clusters
+from ._runtime import choose_path, clip_frames, nearest_cluster, stitch_path, transition_point
 from ._tgraph import CandidatePaths, TransitionGraph, build_transition_graph, candidate_paths
 
 __all__ = [
@@ -11,5 +13,10 @@ __all__ = [
     "TransitionGraph",
     "build_transition_graph",
     "candidate_paths",
+    "choose_path",
+    "clip_frames",
+    "nearest_cluster",
+    "stitch_path",
+    "transition_point",
     "two_pass_clusters",
 ]
