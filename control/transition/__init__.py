@@ -1,8 +1,10 @@
 """Action-to-action transitions (Peng et al.): two-pass clustering, the cluster transition
 graph, its candidate paths, and the run-time pieces (node pair, path choice, greedy
-stitching at optimal transition points). Not built yet: the Bezier fallback, motion
-assembly with root alignment, the action queue and ``mimic chain``."""
+stitching at optimal transition points, the Bezier fallback's curve, walk and duration).
+Not built yet: motion assembly with root alignment, the action queue and
+``mimic chain``."""
 
+from ._bezier import average_quats, bezier_quats, greedy_walk, interpolation_frames
 from ._cluster import FrameClusters, two_pass_clusters
 from ._runtime import choose_path, clip_frames, nearest_cluster, stitch_path, transition_point
 from ._tgraph import CandidatePaths, TransitionGraph, build_transition_graph, candidate_paths
@@ -11,10 +13,14 @@ __all__ = [
     "CandidatePaths",
     "FrameClusters",
     "TransitionGraph",
+    "average_quats",
+    "bezier_quats",
     "build_transition_graph",
     "candidate_paths",
     "choose_path",
     "clip_frames",
+    "greedy_walk",
+    "interpolation_frames",
     "nearest_cluster",
     "stitch_path",
     "transition_point",
