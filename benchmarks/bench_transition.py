@@ -5,7 +5,8 @@ Usage: python -m benchmarks.bench_transition [LIBRARY_DIR] [--out FILE]
 Two-pass clustering (radius = 5, 10 and 20 times the graph's sigma, relative
 coordinates) and the candidate-path precomputation (5 paths per node pair), timed
 (median of 3). The paper: 0.76 s clustering and 463 s precomputation for 3,648 frames;
-targets (issue 8): precomputation <= 5 s. The run-time phase is not built yet.
+targets (issue 8): precomputation <= 5 s, synthesis <= 0.1 ms per frame (the chain of
+jumping jack, squat, punch, walk and back, 10 times).
 """
 
 from __future__ import annotations
@@ -63,7 +64,23 @@ def main() -> None:
                 "paths_seconds": t_paths,
             }
         )
+    from control.graph import joint_jumps
+    from control.transition._chain import Chainer
+
+    chainer = Chainer(lib.clips)
+    order = ["label:JumpJack", "label:Squat", "02_05", "02_01"]
+    t = time.perf_counter()
+    runs = [chainer.chain(order if i % 2 == 0 else order[::-1]) for i in range(10)]
+    frames = sum(r.motion.n_frames for r in runs)
+    chain = {
+        "actions": order,
+        "frames": frames,
+        "ms_per_frame": (time.perf_counter() - t) / frames * 1e3,
+        "max_joint_jump_deg": float(max(joint_jumps(r.motion).max() for r in runs)),
+        "bezier_transitions": sum(r.bezier for r in runs),
+    }
     result = {
+        "chain": chain,
         "machine": f"{platform.machine()}, {os.cpu_count()} cores, "
         f"Python {platform.python_version()}",
         "date": time.strftime("%Y-%m-%d"),
