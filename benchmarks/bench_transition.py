@@ -20,6 +20,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from control.graph import GraphOptions, build_graph, frame_features, select_clips
 from control.motion import default_library_path, load_library
 from control.motion._text import atomic_write
@@ -79,8 +81,54 @@ def main() -> None:
         "max_joint_jump_deg": float(max(joint_jumps(r.motion).max() for r in runs)),
         "bezier_transitions": sum(r.bezier for r in runs),
     }
+    # Bezier against linear interpolation where no path exists (paths withheld)
+    from control.motion import qconj, qlog, qmul
+    from control.transition._tgraph import CandidatePaths
+
+    empty = CandidatePaths(
+        chainer.paths.n_nodes,
+        np.zeros((0, 2), dtype=np.int64),
+        np.zeros(1, dtype=np.int64),
+        np.zeros(0),
+        np.zeros(1, dtype=np.int64),
+        np.zeros(0, dtype=np.int64),
+        5,
+        0.0,
+    )
+
+    def end_kinks(r: Any) -> list[float]:
+        """Largest per-joint change of angular velocity (deg/frame) at both ends of
+        every interpolated stretch."""
+        q = r.motion.quats
+        out: list[float] = []
+        inter = np.flatnonzero(r.sources < 0)
+        if inter.size == 0:
+            return out
+        cuts = np.flatnonzero(np.diff(inter) != 1)
+        starts = np.concatenate(([inter[0]], inter[cuts + 1]))
+        stops = np.concatenate((inter[cuts], [inter[-1]]))
+        for t in np.concatenate((starts, stops + 1)):
+            if 2 <= t < q.shape[0] - 1:
+                w0 = qlog(qmul(q[t], qconj(q[t - 1])))
+                w1 = qlog(qmul(q[t + 1], qconj(q[t])))
+                out.append(float(np.degrees(np.linalg.norm(w1 - w0, axis=-1)).max()))
+        return out
+
+    compare = {}
+    for kind in ("bezier", "linear"):
+        ch = Chainer(lib.clips, fallback=kind)
+        ch.paths = empty
+        rs = [ch.chain(order), ch.chain(order[::-1])]
+        kinks = [k for r in rs for k in end_kinks(r)]
+        compare[kind] = {
+            "interpolations": sum(r.bezier for r in rs),
+            "end_kink_deg_mean": float(np.mean(kinks)),
+            "end_kink_deg_max": float(np.max(kinks)),
+            "max_joint_jump_deg": float(max(joint_jumps(r.motion).max() for r in rs)),
+        }
     result = {
         "chain": chain,
+        "no_path_interpolation": compare,
         "machine": f"{platform.machine()}, {os.cpu_count()} cores, "
         f"Python {platform.python_version()}",
         "date": time.strftime("%Y-%m-%d"),

@@ -9,7 +9,6 @@ from typing import Any
 
 import numpy as np
 
-from .chain_cli import add_chain_command
 from .choose_cli import add_choose_command, start_frame
 from .graph import (
     CONTACT_RULES,
@@ -231,7 +230,6 @@ def add_graph_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser])
     walk.add_argument("--json", action="store_true", help="print the summary as JSON")
     walk.set_defaults(func=_graph_walk)
     add_choose_command(sub, _add_library_args, _add_graph_args, _graph_for)
-    add_chain_command(sub)
 
 
 def _options(args: argparse.Namespace) -> GraphOptions:

@@ -15,7 +15,13 @@ from ._body import BodyShape, CapsuleBody, capsule_body, capsule_segments
 from ._camera import CameraRing
 from ._features import HU_SCALE, N_FEATURES, hu_log, silhouette_features
 from ._raster import rasterize
-from ._render import gl_features, gl_silhouettes, motion_features, motion_silhouettes
+from ._render import (
+    gl_features,
+    gl_silhouettes,
+    motion_features,
+    motion_silhouettes,
+    render_motion_video,
+)
 
 __all__ = [
     "BANK_VERSION",
@@ -40,5 +46,6 @@ __all__ = [
     "motion_features",
     "motion_silhouettes",
     "rasterize",
+    "render_motion_video",
     "silhouette_features",
 ]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -13,7 +15,13 @@ from ._features import N_FEATURES, silhouette_features
 from ._gl import GLRenderer
 from ._raster import rasterize
 
-__all__ = ["gl_features", "gl_silhouettes", "motion_features", "motion_silhouettes"]
+__all__ = [
+    "gl_features",
+    "gl_silhouettes",
+    "motion_features",
+    "motion_silhouettes",
+    "render_motion_video",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -124,3 +132,38 @@ def gl_features(
     masks = gl_silhouettes(gl, motion, body, ring, frames)
     here, before = _root_pixels(motion, ring, frames, ring.poses(motion.root_pos[frames]))
     return _features_of(masks, here, before, frames == 0)
+
+
+def render_motion_video(
+    motion: Motion,
+    path: str | Path,
+    ring: CameraRing | None = None,
+    view: int = 0,
+    body: CapsuleBody | None = None,
+) -> None:
+    """An MP4 of ``motion``: the shaded capsule body seen by one camera of ``ring``
+    (default: a 320x240 ring), which follows the root. Written to a temporary file, then
+    renamed."""
+    import cv2
+
+    from ._body import capsule_body
+
+    ring = ring or CameraRing(width=320, height_px=240)
+    body = body or capsule_body(motion.skeleton)
+    seg = capsule_segments(motion, body)
+    poses = ring.poses(motion.root_pos)[:, view]
+    path = Path(path)
+    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    writer = cv2.VideoWriter(
+        str(tmp), cv2.VideoWriter.fourcc(*"mp4v"), motion.fps, (ring.width, ring.height_px)
+    )
+    if not writer.isOpened():
+        raise OSError(f"{path}: cannot write an MP4 here")
+    try:
+        with GLRenderer(ring) as gl:
+            for i in range(motion.n_frames):
+                gl.set_body(seg[i], body.radius)
+                writer.write(np.ascontiguousarray(gl.render_shaded(poses[i])[..., ::-1]))
+    finally:
+        writer.release()
+    tmp.replace(path)

@@ -13,6 +13,7 @@ from control.motion import MotionFormatError
 from silhouette_bank._bank import BankFileError
 from silhouette_bank.cli import add_bank_commands
 from vision._sources import SourceError
+from vision.chain_cli import add_chain_command
 from vision.perform_cli import add_perform_commands
 
 __all__ = ["build_parser", "main"]
@@ -29,6 +30,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_graph_commands(sub)
     add_bank_commands(sub)
     add_perform_commands(sub)
+    add_chain_command(sub)
     return parser
 
 

@@ -68,7 +68,11 @@ class Chainer:
         blend: float = 0.5,
         seed: int = 0,
         nu: float = 0.01,
+        fallback: str = "bezier",
     ) -> None:
+        if fallback not in ("bezier", "linear"):
+            raise ValueError("fallback must be 'bezier' or 'linear'")
+        self.fallback = fallback
         chosen, _ = select_clips(list(clips))
         self.clips = chosen
         self.fps = chosen[0].motion.fps
@@ -137,6 +141,8 @@ class Chainer:
             d, _ = pair_distances(self.feat, np.array([last]), np.array([action.start]), self.nu)
             n = interpolation_frames(float(d[0]), self.delta)
             control = np.stack((self.quats[last], c1, c2, self.quats[action.start]))
+            if self.fallback == "linear":  # the baseline: slerp straight to the target
+                control = control[[0, 3]]
             return body, bezier_quats(control, n + 2)[1:-1]
         seq = (
             stitch_path(self.feat, self.graph, [last], path, nu=self.nu)

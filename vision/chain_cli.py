@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import time
 
-from .motion import load_library, write_bvh
-from .transition._chain import Chainer
+from control.motion import load_library, write_bvh
+from control.transition._chain import Chainer
 
 __all__ = ["add_chain_command"]
 
@@ -27,6 +27,7 @@ def add_chain_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--blend", type=float, default=0.5, help="junction blend, seconds")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", required=True, help="BVH file to write")
+    p.add_argument("--video", help="also an MP4 of the avatar (shaded, camera following)")
     p.set_defaults(func=_chain)
 
 
@@ -38,6 +39,10 @@ def _chain(args: argparse.Namespace) -> int:
     result = chainer.chain(args.actions)
     t2 = time.perf_counter()
     write_bvh(result.motion, args.out)
+    if args.video:
+        from silhouette_bank import render_motion_video
+
+        render_motion_video(result.motion, args.video)
     pieces = ", ".join(f"{name}@{start / chainer.fps:.1f}s" for name, start in result.pieces)
     print(
         f"wrote {args.out}: {result.motion.n_frames / chainer.fps:.1f} s ({pieces}); "
