@@ -8,12 +8,14 @@ placed one after another in the world (relative coordinates: each piece's headin
 floor position continue the previous one) and every junction is blended by displacement
 mapping over ``blend`` seconds (as in the motion graph).
 
-Not built yet: the per-frame API for a game loop (queue, interruption).
+``ChainPlayer`` is the per-frame API for a game loop: a request is queued;
+``interrupt=True`` clears the queue and transitions from where the avatar is now.
 """
 
 from __future__ import annotations
 
 import re
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -176,55 +178,127 @@ class Chainer:
     # --- assembly --------------------------------------------------------------------
 
     def _assemble(self, items: list[int | FloatArray]) -> tuple[Motion, IntArray]:
-        n = len(items)
-        root = np.zeros((n, 3))
-        quats = np.zeros((n, self.quats.shape[1], 4))
-        sources = np.full(n, -1, dtype=np.int64)
-        yaw, trans = 0.0, np.zeros(3)
-        junctions: list[int] = []  # output frames where a new piece starts
-        prev_src: int | None = None
-        for t, item in enumerate(items):
-            if isinstance(item, (int, np.integer)):
-                f = int(item)
-                continuing = prev_src is not None and abs(f - prev_src) == 1
-                if not continuing and t > 0:
-                    # place this piece so that its first frame continues the output
-                    y_src = float(yaw_of(self.quats[f, 0]))
-                    y_out = float(yaw_of(quats[t - 1, 0]))
-                    yaw = y_out - y_src
-                    p = rotate_y(self.root[f], yaw)
-                    trans = np.array([root[t - 1, 0] - p[0], 0.0, root[t - 1, 2] - p[2]])
-                    junctions.append(t)
-                root[t] = rotate_y(self.root[f], yaw) + trans
-                quats[t] = self.quats[f]
-                quats[t, 0] = qmul(yaw_q(yaw), self.quats[f, 0])
-                sources[t] = f
-                prev_src = f
-            else:
-                # interpolated pose: joints from the curve; the root keeps its place and
-                # heading, its tilt follows the curve
-                pose = np.asarray(item)
-                quats[t] = pose
-                y_out = float(yaw_of(quats[t - 1, 0]))
-                tilt = qmul(yaw_q(-float(yaw_of(pose[0]))), pose[0])
-                quats[t, 0] = qmul(yaw_q(y_out), tilt)
-                root[t] = root[t - 1]
-                prev_src = None
-        self._blend_junctions(root, quats, junctions)
+        placer = _Placer(self)
+        out = [placer.push(item) for item in items]
+        root = np.array([o[0] for o in out])
+        quats = np.array([o[1] for o in out])
+        sources = np.array([o[2] for o in out], dtype=np.int64)
         motion = Motion(self.skeleton, root, quats, self.fps, name="chain", source="transition")
         return motion, sources
 
-    def _blend_junctions(self, root: FloatArray, quats: FloatArray, junctions: list[int]) -> None:
-        """Displacement-map each junction: the first frame of a piece takes the pose of
-        the frame before it and the difference fades over the blend interval."""
-        b = self.blend
-        ends = [*junctions[1:], root.shape[0]]
-        for t, stop in zip(junctions, ends, strict=True):
-            end = min(t + b, stop)
-            e0 = qlog(qmul(quats[t - 1], qconj(quats[t])))
-            k = np.arange(0, end - t, dtype=np.float64)
-            zero = np.zeros_like(e0)
-            quats[t:end] = qmul(qexp(_hermite(e0, zero, k, b)), quats[t:end])
-            p0 = root[t - 1] - root[t]
-            p0[[0, 2]] = 0.0  # horizontal continuity comes from the placement
-            root[t:end] += _hermite(p0, np.zeros(3), k, b)
+
+class _Placer:
+    """Places frames one at a time: library frames continue their clip; a new piece is
+    turned and moved so that it continues the avatar's heading and floor position, and
+    the pose difference at the junction fades over the blend interval (displacement
+    mapping against what was shown, so a junction inside a blend starts from the
+    blended pose); interpolated poses keep the root where it is."""
+
+    def __init__(self, chainer: Chainer) -> None:
+        self.ch = chainer
+        self.yaw = 0.0
+        self.trans = np.zeros(3)
+        self.prev_src: int | None = None
+        self.root: FloatArray | None = None
+        self.quats: FloatArray | None = None
+        self.e0: FloatArray | None = None
+        self.p0 = 0.0
+        self.k = 0
+
+    def push(self, item: int | FloatArray) -> tuple[FloatArray, FloatArray, int]:
+        ch = self.ch
+        if isinstance(item, (int, np.integer)):
+            f = int(item)
+            continuing = self.prev_src is not None and abs(f - self.prev_src) == 1
+            if not continuing and self.quats is not None and self.root is not None:
+                self.yaw = float(yaw_of(self.quats[0])) - float(yaw_of(ch.quats[f, 0]))
+                p = rotate_y(ch.root[f], self.yaw)
+                self.trans = np.array([self.root[0] - p[0], 0.0, self.root[2] - p[2]])
+                q_new = ch.quats[f].copy()
+                q_new[0] = qmul(yaw_q(self.yaw), ch.quats[f, 0])
+                self.e0 = qlog(qmul(self.quats, qconj(q_new)))
+                self.p0 = float(self.root[1] - (p[1] + self.trans[1]))
+                self.k = 0
+            root = rotate_y(ch.root[f], self.yaw) + self.trans
+            quats = ch.quats[f].copy()
+            quats[0] = qmul(yaw_q(self.yaw), ch.quats[f, 0])
+            if self.e0 is not None:
+                self.k += 1
+                if self.k >= ch.blend:
+                    self.e0 = None
+                else:
+                    kk = np.array([float(self.k)])
+                    quats = qmul(
+                        qexp(_hermite(self.e0, np.zeros_like(self.e0), kk, ch.blend)[0]), quats
+                    )
+                    root = root + np.array(
+                        [
+                            0.0,
+                            float(_hermite(np.array(self.p0), np.array(0.0), kk, ch.blend)[0]),
+                            0.0,
+                        ]
+                    )
+            self.prev_src = f
+            src = f
+        else:
+            pose = np.asarray(item)
+            assert self.quats is not None and self.root is not None
+            quats = pose.copy()
+            tilt = qmul(yaw_q(-float(yaw_of(pose[0]))), pose[0])
+            quats[0] = qmul(yaw_q(float(yaw_of(self.quats[0]))), tilt)
+            root = self.root.copy()
+            self.prev_src = None
+            self.e0 = None
+            src = -1
+        self.root, self.quats = root, quats
+        return root, quats, src
+
+
+class ChainPlayer:
+    """The per-frame API for a game loop.
+
+    ``request(action)`` queues an action; ``request(action, interrupt=True)`` drops the
+    queue and the rest of what is playing, so the avatar turns towards the new action from
+    where it is (the dodge example). ``next()`` returns the next frame's root position
+    ``(3,)``, local rotations ``(J, 4)`` and library frame (-1 for an interpolated pose);
+    with nothing left to do the avatar holds its last pose.
+    """
+
+    def __init__(self, chainer: Chainer) -> None:
+        self.ch = chainer
+        self._placer = _Placer(chainer)
+        self._queue: deque[Action] = deque()
+        self._plan: deque[int | FloatArray] = deque()
+        self._last_src: int | None = None
+        self._last: tuple[FloatArray, FloatArray, int] | None = None
+
+    @property
+    def idle(self) -> bool:
+        return not self._plan and not self._queue
+
+    def request(self, action: str | Action, interrupt: bool = False) -> None:
+        act = action if isinstance(action, Action) else self.ch.action(action)
+        if interrupt:
+            self._queue.clear()
+            self._plan.clear()
+        self._queue.append(act)
+
+    def next(self) -> tuple[FloatArray, FloatArray, int]:
+        if not self._plan and self._queue:
+            act = self._queue.popleft()
+            if self._last_src is None:
+                self._plan.extend(range(act.start, act.stop))
+            else:
+                frames, poses = self.ch._transition(self._last_src, act)
+                if poses is not None:
+                    self._plan.extend(list(poses))
+                self._plan.extend(frames)
+        if not self._plan:
+            if self._last is None:
+                raise ValueError("nothing requested yet")
+            return self._last
+        out = self._placer.push(self._plan.popleft())
+        if out[2] >= 0:
+            self._last_src = out[2]
+        self._last = out
+        return out

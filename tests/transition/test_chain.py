@@ -123,3 +123,45 @@ def test_cli_chain_writes_a_bvh_others_read(mocap: Path, tmp_path: Path, capsys)
         == 2
     )
     assert "unknown action" in capsys.readouterr().err
+
+
+def test_player_frame_by_frame_equals_the_batch_chain(mocap: Path, tmp_path_factory) -> None:
+    from control.transition._chain import ChainPlayer
+
+    lib = load_library(
+        mocap, clips=["13_29", "13_30", "02_0*"], cache_dir=tmp_path_factory.mktemp("c")
+    )
+    order = ["label:JumpJack", "label:Squat", "02_05"]
+    batch = Chainer(lib.clips, seed=4).chain(order)
+    player = ChainPlayer(Chainer(lib.clips, seed=4))
+    for a in order:
+        player.request(a)
+    got = [player.next() for _ in range(batch.motion.n_frames)]
+    assert player.idle
+    np.testing.assert_allclose(np.array([g[0] for g in got]), batch.motion.root_pos, atol=1e-9)
+    np.testing.assert_allclose(np.array([g[1] for g in got]), batch.motion.quats, atol=1e-9)
+    assert [g[2] for g in got] == batch.sources.tolist()
+    assert player.next()[2] == got[-1][2]  # idle: holds the last pose
+
+
+def test_interrupting_turns_towards_the_new_action(chainer: Chainer) -> None:
+    from control.transition._chain import ChainPlayer
+
+    player = ChainPlayer(chainer)
+    player.request("label:JumpJack")
+    player.request("label:Squat")
+    frames = [player.next() for _ in range(10)]
+    dodge = chainer.action("02_05")
+    player.request(dodge, interrupt=True)  # the queued squat is dropped
+    after = [player.next() for _ in range(400)]
+    srcs = [s for _, _, s in after]
+    assert any(dodge.start <= s < dodge.stop for s in srcs)
+    squat = chainer.action("label:Squat")
+    assert not any(squat.start <= s < squat.stop for s in srcs[-50:])
+    q = np.array([f[1] for f in frames + after])
+    from control.motion import qconj, qlog, qmul
+
+    steps = np.degrees(np.linalg.norm(qlog(qmul(qconj(q[:-1]), q[1:])), axis=-1)).max()
+    assert steps < 60.0
+    with pytest.raises(ValueError, match="nothing requested"):
+        ChainPlayer(chainer).next()
