@@ -74,7 +74,20 @@ def main() -> None:
     t = time.perf_counter()
     runs = [chainer.chain(order if i % 2 == 0 else order[::-1]) for i in range(10)]
     frames = sum(r.motion.n_frames for r in runs)
+    from control.graph import foot_slide, quality_summary
+
+    states_all = np.concatenate([c.contacts.states for c in chainer.clips])
+
+    def slide(r: Any) -> float:
+        st = np.where(r.sources[:, None] >= 0, states_all[np.maximum(r.sources, 0)], False)
+        return float(foot_slide(r.motion, st).mean())
+
+    raw = quality_summary(
+        [c.motion for c in chainer.clips], [c.contacts.states for c in chainer.clips]
+    )
     chain = {
+        "foot_slide_mean": float(np.mean([slide(r) for r in runs])),
+        "raw": raw,
         "actions": order,
         "frames": frames,
         "ms_per_frame": (time.perf_counter() - t) / frames * 1e3,
@@ -114,11 +127,21 @@ def main() -> None:
                 out.append(float(np.degrees(np.linalg.norm(w1 - w0, axis=-1)).max()))
         return out
 
+    out_dir = Path("benchmarks/results")
+    from control.motion import write_bvh
+    from silhouette_bank import render_motion_video
+
+    for name, r in (("chain", runs[0]), ("chain_reverse", runs[1])):
+        write_bvh(r.motion, out_dir / f"{name}.bvh")
+        render_motion_video(r.motion, out_dir / f"{name}.mp4")
     compare = {}
     for kind in ("bezier", "linear"):
         ch = Chainer(lib.clips, fallback=kind)
         ch.paths = empty
         rs = [ch.chain(order), ch.chain(order[::-1])]
+        if kind == "bezier":
+            write_bvh(rs[0].motion, out_dir / "chain_bezier.bvh")
+            render_motion_video(rs[0].motion, out_dir / "chain_bezier.mp4")
         kinks = [k for r in rs for k in end_kinks(r)]
         compare[kind] = {
             "interpolations": sum(r.bezier for r in rs),

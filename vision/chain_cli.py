@@ -26,6 +26,13 @@ def add_chain_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("--radius", type=float, default=10.0, help="cluster radius, in sigmas")
     p.add_argument("--blend", type=float, default=0.5, help="junction blend, seconds")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--undirected", action="store_true", help="also play transition clips backwards")
+    p.add_argument(
+        "--fallback",
+        choices=("bezier", "linear"),
+        default="bezier",
+        help="interpolation where no path exists (default bezier)",
+    )
     p.add_argument("--out", required=True, help="BVH file to write")
     p.add_argument("--video", help="also an MP4 of the avatar (shaded, camera following)")
     p.set_defaults(func=_chain)
@@ -34,7 +41,14 @@ def add_chain_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
 def _chain(args: argparse.Namespace) -> int:
     library = load_library(args.library, fps=args.fps, clips=args.clips)
     t0 = time.perf_counter()
-    chainer = Chainer(library.clips, radius=args.radius, blend=args.blend, seed=args.seed)
+    chainer = Chainer(
+        library.clips,
+        radius=args.radius,
+        blend=args.blend,
+        seed=args.seed,
+        fallback=args.fallback,
+        directed=not args.undirected,
+    )
     t1 = time.perf_counter()
     result = chainer.chain(args.actions)
     t2 = time.perf_counter()

@@ -71,6 +71,7 @@ class Chainer:
         seed: int = 0,
         nu: float = 0.01,
         fallback: str = "bezier",
+        directed: bool = True,
     ) -> None:
         if fallback not in ("bezier", "linear"):
             raise ValueError("fallback must be 'bezier' or 'linear'")
@@ -82,7 +83,7 @@ class Chainer:
         self.sigma = _sigma(self.feat, self.fps, GraphOptions(coords="relative"))
         self.nu = nu
         self.clusters = two_pass_clusters(self.feat, radius * self.sigma, nu)
-        self.graph = build_transition_graph(self.feat, self.clusters)
+        self.graph = build_transition_graph(self.feat, self.clusters, directed=directed, nu=nu)
         self.paths = candidate_paths(self.graph, k=k)
         self.delta = delta if delta is not None else self.sigma / 2.0
         self.blend = max(1, round(blend * self.fps))

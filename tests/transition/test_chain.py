@@ -57,6 +57,15 @@ def test_chain_and_reverse_play_every_action_smoothly(chainer: Chainer) -> None:
         assert joint_jumps(r.motion).max() < 60.0
 
 
+def test_undirected_graph_plays_clips_backwards(chainer: Chainer) -> None:
+    both = Chainer(chainer.clips, seed=1, directed=False)
+    assert (
+        both.graph.clip_backward.any() and both.paths.pairs.shape[0] >= chainer.paths.pairs.shape[0]
+    )
+    r = both.chain(["label:Squat", "label:JumpJack", "02_01"])
+    assert joint_jumps(r.motion).max() < 60.0
+
+
 def test_bezier_fallback_when_no_path(chainer: Chainer) -> None:
     empty = CandidatePaths(
         n_nodes=chainer.paths.n_nodes,
