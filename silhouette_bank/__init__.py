@@ -21,6 +21,8 @@ from ._render import (
     motion_features,
     motion_silhouettes,
     render_motion_video,
+    shaded_frames,
+    write_mp4,
 )
 
 __all__ = [
@@ -47,5 +49,7 @@ __all__ = [
     "motion_silhouettes",
     "rasterize",
     "render_motion_video",
+    "shaded_frames",
     "silhouette_features",
+    "write_mp4",
 ]

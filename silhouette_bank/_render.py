@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +22,8 @@ __all__ = [
     "motion_features",
     "motion_silhouettes",
     "render_motion_video",
+    "shaded_frames",
+    "write_mp4",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -134,6 +137,49 @@ def gl_features(
     return _features_of(masks, here, before, frames == 0)
 
 
+def shaded_frames(
+    motion: Motion,
+    ring: CameraRing,
+    views: Sequence[int] | int = 0,
+    body: CapsuleBody | None = None,
+) -> Iterator[NDArray[np.uint8]]:
+    """BGR images ``(H, W, 3)`` of the shaded capsule body, one per frame, each seen by
+    the camera ``views[i]`` (or one view for all) of ``ring``, which follows the root."""
+    from ._body import capsule_body
+
+    body = body or capsule_body(motion.skeleton)
+    seg = capsule_segments(motion, body)
+    poses = ring.poses(motion.root_pos)
+    with GLRenderer(ring) as gl:
+        for i in range(motion.n_frames):
+            v = views if isinstance(views, int) else views[min(i, len(views) - 1)]
+            gl.set_body(seg[i], body.radius)
+            yield np.ascontiguousarray(gl.render_shaded(poses[i, v])[..., ::-1])
+
+
+def write_mp4(path: str | Path, frames: Iterable[NDArray[np.uint8]], fps: float) -> None:
+    """Write BGR frames (all of one size) to an MP4, through a temporary file."""
+    import cv2
+
+    path = Path(path)
+    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    writer = None
+    try:
+        for img in frames:
+            if writer is None:
+                h, w = img.shape[:2]
+                writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter.fourcc(*"mp4v"), fps, (w, h))
+                if not writer.isOpened():
+                    raise OSError(f"{path}: cannot write an MP4 here")
+            writer.write(img)
+    finally:
+        if writer is not None:
+            writer.release()
+    if writer is None:
+        raise ValueError(f"{path}: no frames to write")
+    tmp.replace(path)
+
+
 def render_motion_video(
     motion: Motion,
     path: str | Path,
@@ -141,29 +187,7 @@ def render_motion_video(
     view: int = 0,
     body: CapsuleBody | None = None,
 ) -> None:
-    """An MP4 of ``motion``: the shaded capsule body seen by one camera of ``ring``
-    (default: a 320x240 ring), which follows the root. Written to a temporary file, then
-    renamed."""
-    import cv2
-
-    from ._body import capsule_body
-
+    """An MP4 of ``motion``: the shaded body seen by one camera of ``ring`` (default: a
+    320x240 ring), which follows the root."""
     ring = ring or CameraRing(width=320, height_px=240)
-    body = body or capsule_body(motion.skeleton)
-    seg = capsule_segments(motion, body)
-    poses = ring.poses(motion.root_pos)[:, view]
-    path = Path(path)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    writer = cv2.VideoWriter(
-        str(tmp), cv2.VideoWriter.fourcc(*"mp4v"), motion.fps, (ring.width, ring.height_px)
-    )
-    if not writer.isOpened():
-        raise OSError(f"{path}: cannot write an MP4 here")
-    try:
-        with GLRenderer(ring) as gl:
-            for i in range(motion.n_frames):
-                gl.set_body(seg[i], body.radius)
-                writer.write(np.ascontiguousarray(gl.render_shaded(poses[i])[..., ::-1]))
-    finally:
-        writer.release()
-    tmp.replace(path)
+    write_mp4(path, shaded_frames(motion, ring, view, body), motion.fps)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -149,11 +149,9 @@ def write_video(result: PerformResult, bank: Bank, path: str | Path, height: int
     that matched best, one frame per avatar frame."""
     import cv2
 
-    from silhouette_bank import CameraRing, capsule_body, capsule_segments
-    from silhouette_bank._gl import GLRenderer
+    from silhouette_bank import CameraRing, capsule_body, shaded_frames, write_mp4
 
-    syn = result.avatar.motion()
-    motion = syn.motion
+    motion = result.avatar.motion().motion
     r = bank.settings.ring
     ring = CameraRing(
         n_views=r.n_views,
@@ -165,36 +163,22 @@ def write_video(result: PerformResult, bank: Bank, path: str | Path, height: int
         height_px=height,
         azimuth_offset=r.azimuth_offset,
     )
-    body = capsule_body(motion.skeleton, bank.settings.body)
-    seg = capsule_segments(motion, body)
-    poses = ring.poses(motion.root_pos)
-    path = Path(path)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
     w = ring.width
-    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter.fourcc(*"mp4v"), motion.fps, (2 * w, height))
-    if not writer.isOpened():
-        raise OSError(f"{path}: cannot write an MP4 here")
-    try:
-        with GLRenderer(ring) as gl:
-            for i in range(motion.n_frames):
-                gl.set_body(seg[i], body.radius)
-                right = gl.render_shaded(poses[i, result.views[min(i, len(result.views) - 1)]])[
-                    ..., ::-1
-                ]
-                left = np.zeros((height, w, 3), dtype=np.uint8)
-                m = result.masks[i] if i < len(result.masks) else None
-                if m is not None:
-                    mh, mw = m.shape
-                    scale = height / mh
-                    small = cv2.resize(
-                        m.astype(np.uint8) * 255,
-                        (max(1, round(mw * scale)), height),
-                        interpolation=cv2.INTER_NEAREST,
-                    )
-                    x0 = max(0, (small.shape[1] - w) // 2)
-                    crop = small[:, x0 : x0 + w]
-                    left[:, : crop.shape[1]] = crop[..., None]
-                writer.write(np.ascontiguousarray(np.concatenate((left, right), axis=1)))
-    finally:
-        writer.release()
-    tmp.replace(path)
+    avatar = shaded_frames(
+        motion, ring, result.views, capsule_body(motion.skeleton, bank.settings.body)
+    )
+
+    def frames() -> Iterator[np.ndarray]:
+        for i, right in enumerate(avatar):
+            left = np.zeros((height, w, 3), dtype=np.uint8)
+            m = result.masks[i] if i < len(result.masks) else None
+            if m is not None:
+                mh, mw = m.shape
+                size = (max(1, round(mw * height / mh)), height)
+                small = cv2.resize(m.astype(np.uint8) * 255, size, interpolation=cv2.INTER_NEAREST)
+                x0 = max(0, (small.shape[1] - w) // 2)
+                crop = small[:, x0 : x0 + w]
+                left[:, : crop.shape[1]] = crop[..., None]
+            yield np.ascontiguousarray(np.concatenate((left, right), axis=1))
+
+    write_mp4(path, frames(), motion.fps)
