@@ -26,6 +26,7 @@ import re
 import zipfile
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -412,13 +413,18 @@ def load_library(
             todo.append((src, bvh_units, str(cache_file)))
     n_workers = min(workers or min(os.cpu_count() or 1, 4), len(todo))
     if n_workers > 1:
-        with ProcessPoolExecutor(n_workers) as pool:
-            for (src, _, _), motion in zip(todo, pool.map(_parse_job, todo), strict=True):
-                motions[src.name] = motion
-                if progress:
-                    progress(f"parsed {src.path.name}")
-    else:
-        for job in todo:
+        try:
+            with ProcessPoolExecutor(n_workers) as pool:
+                for (src, _, _), motion in zip(todo, pool.map(_parse_job, todo), strict=True):
+                    motions[src.name] = motion
+                    if progress:
+                        progress(f"parsed {src.path.name}")
+        except BrokenProcessPool:
+            # A forked worker can die at birth, e.g. when numba's OpenMP threads already
+            # run in this process; parse what is left here instead.
+            log.warning("parsing worker processes failed; parsing in this process")
+    for job in todo:
+        if job[0].name not in motions:
             motions[job[0].name] = _parse_job(job)
             if progress:
                 progress(f"parsed {job[0].path.name}")
