@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from ._camera import CameraRing
 
-__all__ = ["GLRenderer", "capsule_mesh", "gl_available"]
+__all__ = ["GLRenderer", "capsule_mesh"]
 
 FloatArray = NDArray[np.float64]
 
@@ -89,16 +89,6 @@ def _normals(vertices: FloatArray, faces: NDArray[np.int64]) -> FloatArray:
     for k in range(3):
         np.add.at(out, faces[:, k], fn)
     return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)
-
-
-def gl_available() -> str | None:
-    """``None`` when a headless context can be made, else why not."""
-    try:
-        r = GLRenderer(CameraRing(width=16, height_px=16))
-        r.close()
-    except Exception as exc:  # any failure to start GL means: not available
-        return f"{type(exc).__name__}: {exc}"
-    return None
 
 
 class GLRenderer:

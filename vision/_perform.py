@@ -10,6 +10,7 @@ moving: along its current path, then on its own.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
@@ -149,20 +150,10 @@ def write_video(result: PerformResult, bank: Bank, path: str | Path, height: int
     that matched best, one frame per avatar frame."""
     import cv2
 
-    from silhouette_bank import CameraRing, capsule_body, shaded_frames, write_mp4
+    from silhouette_bank import capsule_body, shaded_frames, write_mp4
 
     motion = result.avatar.motion().motion
-    r = bank.settings.ring
-    ring = CameraRing(
-        n_views=r.n_views,
-        distance=r.distance,
-        height=r.height,
-        target_height=r.target_height,
-        fov_y=r.fov_y,
-        width=round(height * 4 / 3),
-        height_px=height,
-        azimuth_offset=r.azimuth_offset,
-    )
+    ring = dataclasses.replace(bank.settings.ring, width=round(height * 4 / 3), height_px=height)
     w = ring.width
     avatar = shaded_frames(
         motion, ring, result.views, capsule_body(motion.skeleton, bank.settings.body)
