@@ -24,7 +24,6 @@ import json
 import multiprocessing
 import os
 import time
-import zipfile
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -36,7 +35,7 @@ from numpy.typing import NDArray
 
 from control.graph import clips_digest
 from control.motion import Clip, Motion, default_cache_dir
-from control.motion._text import atomic_write
+from control.motion._text import atomic_write, read_npz
 
 from ._body import BodyShape, capsule_body
 from ._camera import CameraRing
@@ -172,16 +171,7 @@ def _shard_job(
 
 
 def _read_npz(path: Path, keys: Sequence[str]) -> dict[str, np.ndarray]:
-    try:
-        with path.open("rb") as fh, np.load(fh, allow_pickle=False) as z:
-            missing = [k for k in keys if k not in z.files]
-            if missing:
-                raise BankFileError(path, f"not a bank file (missing {', '.join(missing)})")
-            return {k: z[k] for k in keys}
-    except (OSError, zipfile.BadZipFile, EOFError, ValueError) as exc:
-        if isinstance(exc, BankFileError):
-            raise
-        raise BankFileError(path, f"unreadable or truncated ({exc})") from exc
+    return read_npz(path, keys, BankFileError, "bank file")
 
 
 def _shard_ok(path: Path, n: int, views: int) -> bool:

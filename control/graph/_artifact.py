@@ -7,7 +7,6 @@ so a changed library or setting never reuses a stale graph.
 from __future__ import annotations
 
 import json
-import zipfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -15,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..motion import Clip, default_cache_dir
-from ..motion._text import atomic_write
+from ..motion._text import atomic_write, read_npz
 from ._graph import (
     GRAPH_VERSION,
     GraphOptions,
@@ -72,19 +71,11 @@ def load_graph(path: str | Path) -> MotionGraph:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"no graph file {path}")
+    arrays = read_npz(path, ("manifest", *_ARRAYS), GraphFileError, "mimic graph")
     try:
-        with path.open("rb") as fh, np.load(fh, allow_pickle=False) as z:
-            missing = [k for k in ("manifest", *_ARRAYS) if k not in z.files]
-            if missing:
-                raise GraphFileError(path, f"not a mimic graph (missing {', '.join(missing)})")
-            manifest: dict[str, Any] = json.loads(str(z["manifest"]))
-            arrays = {k: z[k] for k in _ARRAYS}
-    except (OSError, zipfile.BadZipFile, EOFError) as exc:
-        raise GraphFileError(path, f"unreadable or truncated ({exc})") from exc
-    except (ValueError, json.JSONDecodeError) as exc:
-        if isinstance(exc, GraphFileError):
-            raise
-        raise GraphFileError(path, f"corrupt ({exc})") from exc
+        manifest: dict[str, Any] = json.loads(str(arrays.pop("manifest")))
+    except json.JSONDecodeError as exc:
+        raise GraphFileError(path, f"corrupt manifest ({exc})") from exc
     if manifest.get("format") != "mimic-graph":
         raise GraphFileError(path, "not a mimic graph file")
     if manifest.get("version") != GRAPH_VERSION:

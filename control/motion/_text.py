@@ -6,7 +6,8 @@ import os
 import re
 import tempfile
 import warnings
-from collections.abc import Iterator
+import zipfile
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
@@ -106,3 +107,22 @@ def atomic_write(path: str | Path, mode: str = "w") -> Iterator[IO[Any]]:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def read_npz(
+    path: Path, keys: Sequence[str], error: Callable[[Path, str], Exception], what: str
+) -> dict[str, np.ndarray]:
+    """The arrays ``keys`` of an ``.npz`` file, read without pickle.
+
+    Raises ``error(path, problem)`` when the file cannot be read (missing, truncated,
+    not a zip of arrays) or lacks one of ``keys`` (``"not a {what} (missing ...)"``).
+    """
+    try:
+        with path.open("rb") as fh, np.load(fh, allow_pickle=False) as z:
+            missing = [k for k in keys if k not in z.files]
+            arrays = {} if missing else {k: z[k] for k in keys}
+    except (OSError, zipfile.BadZipFile, EOFError, ValueError) as exc:
+        raise error(path, f"unreadable or truncated ({exc})") from exc
+    if missing:
+        raise error(path, f"not a {what} (missing {', '.join(missing)})")
+    return arrays
