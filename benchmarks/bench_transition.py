@@ -22,10 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from control.graph import GraphOptions, build_graph, frame_features, select_clips
 from control.motion import default_library_path, load_library
 from control.motion._text import atomic_write
 from control.transition import build_transition_graph, candidate_paths, two_pass_clusters
+from control.transition._chain import Chainer
 
 
 def _timed(fn: Any) -> tuple[float, Any]:
@@ -43,9 +43,8 @@ def main() -> None:
     ap.add_argument("--out", default="benchmarks/results/transition.json")
     args = ap.parse_args()
     lib = load_library(Path(args.root))
-    clips, _ = select_clips(lib.clips)
-    feat = frame_features(clips, "relative")
-    sigma = build_graph(clips, GraphOptions(coords="relative")).sigma
+    chainer = Chainer(lib.clips)  # its features and sigma serve the timings below too
+    feat, sigma = chainer.feat, chainer.sigma
     rows = []
     for mult in (5, 10, 20):
         t_cluster, clusters = _timed(lambda mult=mult: two_pass_clusters(feat, mult * sigma))
@@ -67,9 +66,7 @@ def main() -> None:
             }
         )
     from control.graph import joint_jumps
-    from control.transition._chain import Chainer
 
-    chainer = Chainer(lib.clips)
     order = ["label:JumpJack", "label:Squat", "02_05", "02_01"]
     t = time.perf_counter()
     runs = [chainer.chain(order if i % 2 == 0 else order[::-1]) for i in range(10)]
