@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 import cv2
 import numpy as np
@@ -155,7 +156,7 @@ class CameraSource:
         index: int,
         fps: float = 30.0,
         max_backoff: float = 8.0,
-        opener: object = None,
+        opener: Callable[[], Any] | None = None,
         min_backoff: float = 0.5,
     ) -> None:
         self.index = index
@@ -163,7 +164,7 @@ class CameraSource:
         self.fps = fps
         self.max_backoff = max_backoff
         self._open = opener or (lambda: cv2.VideoCapture(index))
-        self._cap: object | None = None
+        self._cap: Any = None
         self._t0 = time.monotonic()
         self._i = 0
         self.min_backoff = min_backoff
@@ -175,7 +176,7 @@ class CameraSource:
         now = time.monotonic()
         if now < self._retry_at:
             return False
-        cap = self._open()  # type: ignore[operator]
+        cap = self._open()
         if cap is not None and cap.isOpened():
             self._cap = cap
             self._backoff = self.min_backoff
@@ -192,10 +193,10 @@ class CameraSource:
         if self._cap is None and not self._connect():
             time.sleep(1.0 / self.fps)
             return Frame(t, i)
-        ok, img = self._cap.read()  # type: ignore[union-attr]
+        ok, img = self._cap.read()
         if not ok or img is None:
             log.warning("%s lost; reconnecting", self.name)
-            self._cap.release()  # type: ignore[union-attr]
+            self._cap.release()
             self._cap = None
             self.reconnects += 1
             return Frame(t, i)
@@ -203,7 +204,7 @@ class CameraSource:
 
     def close(self) -> None:
         if self._cap is not None:
-            self._cap.release()  # type: ignore[attr-defined]
+            self._cap.release()
 
 
 def open_source(
