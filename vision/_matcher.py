@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from control.clusters import HigherLayer
 from silhouette_bank import Bank
 
-from ._dtw import dtw_batch
+from ._dtw import dtw_batch, dtw_best_window
 
 __all__ = ["Decision", "MatchSettings", "Matcher", "performer_sequence"]
 
@@ -42,6 +42,7 @@ class MatchSettings:
     band: int = 4
     centre_weight: float = 3.0
     max_candidates: int = 64
+    locate: bool = True  # start the avatar where the library looks most like the performer
 
 
 @dataclass(frozen=True, eq=False)
@@ -104,6 +105,41 @@ class Matcher:
         self.mean, self.std = _hu_stats(bank)
         self.plays = self.graph.plays_on()
         self._cache: dict[tuple[int, int], tuple[IntArray, IntArray] | None] = {}
+        self._tables: tuple[FloatArray, FloatArray, IntArray] | None = None
+
+    def _global_tables(self) -> tuple[FloatArray, FloatArray, IntArray]:
+        """Every graph frame's standardised Hu moments and accumulated centre (times the
+        centre weight) in every view, and the frames a window may start at (in the
+        component, with ``n`` frames of playback ahead)."""
+        if self._tables is None:
+            f = self.bank.features[self.to_bank].astype(np.float64)  # (N, V, 9)
+            hu = np.nan_to_num((f[..., :7] - self.mean) / self.std, nan=0.0)
+            move = self.bank.root_motion[self.to_bank].astype(np.float64)
+            centre = np.empty_like(move)
+            for a, b in zip(self.graph.clip_start[:-1], self.graph.clip_start[1:], strict=True):
+                centre[a:b] = np.cumsum(move[a:b], axis=0) - move[a]
+            centre = np.nan_to_num((centre + f[..., 7:]) * self.settings.centre_weight, nan=0.0)
+            ok = self.graph.in_scc.copy()
+            runs = np.cumsum(np.concatenate(([0], ~self.plays)))  # breaks before each frame
+            n = self.graph.n_frames
+            end = np.arange(n) + self.n - 1
+            ok &= end < n
+            ok[ok] &= runs[end[ok]] == runs[np.flatnonzero(ok)]
+            self._tables = (hu, centre, np.flatnonzero(ok).astype(np.int64))
+        return self._tables
+
+    def locate(self, performer: FloatArray) -> tuple[int, int, float] | None:
+        """``(frame, view, cost)``: the library window (any frame of the component, any
+        view) that looks most like the performer's last features; ``frame`` is where the
+        window starts. ``None`` without enough silhouette."""
+        ok = np.isfinite(performer).all(axis=1)
+        if ok.sum() < max(2, self.n // 2):
+            return None
+        query = performer_sequence(performer[ok], self.mean, self.std, self.settings.centre_weight)
+        hu, centre, starts = self._global_tables()
+        if starts.size == 0:
+            return None
+        return dtw_best_window(query, hu, centre, starts, self.n, self.settings.band)
 
     def _path(self, frame: int, node: int) -> tuple[IntArray, IntArray] | None:
         tree = self.layer.forest.tree(frame)
@@ -113,7 +149,8 @@ class Matcher:
         else:
             if len(self._cache) > 200_000:  # bound the memory of a long run
                 self._cache.clear()
-            m = self.layer.motion_to(tree.root_frame, node)
+            # the node is reached within the look-ahead, so no longer motion is needed
+            m = self.layer.motion_to(tree.root_frame, node, self.bound)
             got = None if m is None else (m.frames, m.edges)
             self._cache[key] = got
         if got is None:

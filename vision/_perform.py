@@ -81,6 +81,7 @@ def perform(
     masks: list[NDArray[np.bool_] | None] = [None]
     views: list[int] = [0]
     view = 0
+    located = False
     n_read = 0
     t = 0.0
     while True:
@@ -122,7 +123,18 @@ def perform(
                 "clip": clip,
                 "clip_frame": f,
             }
-            d = matcher.decide(avatar.frame, np.array(buffer)) if len(buffer) == matcher.n else None
+            full = len(buffer) == matcher.n
+            if full and not located and settings.match.locate:
+                # the first full buffer: start the avatar where the library looks most
+                # like the performer (its motion so far is dropped)
+                got = matcher.locate(np.array(buffer))
+                if got is not None:
+                    located = True
+                    avatar = Avatar(graph, clips, start=got[0], seed=seed)
+                    masks, views, view = [latest_mask if keep_masks else None], [got[1]], got[1]
+                    entry.update(frame=avatar.frame, located=round(got[2], 4))
+                    entry["clip"], entry["clip_frame"] = graph.locate(avatar.frame)
+            d = matcher.decide(avatar.frame, np.array(buffer)) if full else None
             if d is None:
                 entry["decision"] = None
                 entry["reason"] = (

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from dtaidistance import dtw_ndim
 
-from vision._dtw import dtw, dtw_batch, dtw_reference
+from vision._dtw import dtw, dtw_batch, dtw_best_window, dtw_reference
 
 
 def test_textbook_case() -> None:
@@ -59,3 +59,23 @@ def test_bad_input() -> None:
         dtw(np.zeros((3, 2)), np.zeros((3, 3)))
     with pytest.raises(ValueError, match="empty"):
         dtw(np.zeros((0, 2)), np.zeros((3, 2)))
+
+
+def test_best_window_is_the_exhaustive_minimum() -> None:
+    rng = np.random.default_rng(11)
+    hu = rng.normal(size=(60, 3, 7))
+    centre = np.cumsum(rng.normal(size=(60, 3, 2)), axis=0)
+    starts = np.array([0, 5, 9, 20, 33, 44], dtype=np.int64)
+    query = rng.normal(size=(12, 9))
+    m = 10
+
+    def window(s: int, v: int) -> np.ndarray:
+        return np.concatenate((hu[s : s + m, v], centre[s : s + m, v] - centre[s, v]), axis=1)
+
+    for band in (0, 3):
+        costs = {(s, v): dtw(query, window(s, v), band) for s in starts for v in range(3)}
+        s, v, c = dtw_best_window(query, hu, centre, starts, m, band)
+        assert c == pytest.approx(min(costs.values()))
+        assert costs[(s, v)] == pytest.approx(c)
+    with pytest.raises(ValueError, match="inside"):
+        dtw_best_window(query, hu, centre, np.array([55]), m)
