@@ -15,6 +15,7 @@ from silhouette_bank.cli import add_bank_commands
 from vision._sources import SourceError
 from vision.chain_cli import add_chain_command
 from vision.perform_cli import add_perform_commands
+from vision.sketch_cli import add_sketch_command
 
 __all__ = ["build_parser", "main"]
 
@@ -31,6 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_bank_commands(sub)
     add_perform_commands(sub)
     add_chain_command(sub)
+    add_sketch_command(sub)
     return parser
 
 

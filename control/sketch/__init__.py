@@ -1,0 +1,17 @@
+"""The sketch interface (Lee et al. §5.2): follow a path drawn on the ground."""
+
+from ._draw import draw_top_down
+from ._files import Environment, SketchFileError, read_environment, read_sketch
+from ._track import SketchSettings, SketchTracker, path_deviation, resample
+
+__all__ = [
+    "Environment",
+    "SketchFileError",
+    "SketchSettings",
+    "SketchTracker",
+    "draw_top_down",
+    "path_deviation",
+    "read_environment",
+    "read_sketch",
+    "resample",
+]

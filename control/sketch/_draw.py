@@ -1,0 +1,72 @@
+"""A top-down picture of a sketch, its environment and the avatar's root paths."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..motion._text import atomic_write
+from ._files import Environment
+
+__all__ = ["draw_top_down"]
+
+FloatArray = NDArray[np.float64]
+
+# BGR colours of the root paths, in order
+_COLOURS = ((40, 40, 220), (200, 120, 0), (0, 150, 0), (160, 0, 160))
+
+
+def draw_top_down(
+    path: str | Path,
+    sketch: FloatArray,
+    env: Environment | None,
+    roots: Mapping[str, FloatArray],
+    size: int = 800,
+) -> None:
+    """A PNG seen from above (x right, z up): obstacles grey, the sketch black with its
+    start marked, each root path in its own colour with a legend, a 1 m scale bar."""
+    import cv2
+
+    pts = [sketch, *roots.values()]
+    if env is not None:
+        pts += list(env.obstacles)
+        if env.bounds is not None:
+            x0, z0, x1, z1 = env.bounds
+            pts.append(np.array([[x0, z0], [x1, z1]]))
+    allp = np.concatenate([p.reshape(-1, 2) for p in pts])
+    lo, hi = allp.min(axis=0) - 0.5, allp.max(axis=0) + 0.5
+    scale = (size - 40) / float(max(hi - lo))
+    h = int((hi[1] - lo[1]) * scale) + 40
+    w = int((hi[0] - lo[0]) * scale) + 40
+
+    def px(p: FloatArray) -> NDArray[np.int32]:
+        q = np.asarray(p, dtype=np.float64).reshape(-1, 2)
+        x = 20 + (q[:, 0] - lo[0]) * scale
+        y = h - 20 - (q[:, 1] - lo[1]) * scale
+        return np.round(np.stack((x, y), axis=1)).astype(np.int32)
+
+    img = np.full((h, w, 3), 255, dtype=np.uint8)
+    if env is not None:
+        for poly in env.obstacles:
+            cv2.fillPoly(img, [px(poly)], (170, 170, 170))
+        if env.bounds is not None:
+            x0, z0, x1, z1 = env.bounds
+            corners = np.array([[x0, z0], [x1, z0], [x1, z1], [x0, z1]])
+            cv2.polylines(img, [px(corners)], True, (90, 90, 90), 2)
+    cv2.polylines(img, [px(sketch)], False, (0, 0, 0), 2, cv2.LINE_AA)
+    cv2.circle(img, tuple(int(v) for v in px(sketch[0])[0]), 6, (0, 0, 0), -1)
+    for i, (name, root) in enumerate(roots.items()):
+        colour = _COLOURS[i % len(_COLOURS)]
+        cv2.polylines(img, [px(root)], False, colour, 2, cv2.LINE_AA)
+        cv2.putText(img, name, (10, 22 + 20 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.55, colour, 1)
+    bar = round(scale)
+    cv2.line(img, (w - 20 - bar, h - 12), (w - 20, h - 12), (0, 0, 0), 2)
+    cv2.putText(img, "1 m", (w - 20 - bar, h - 18), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1)
+    ok, buf = cv2.imencode(".png", img)
+    if not ok:
+        raise OSError(f"{path}: could not encode the picture")
+    with atomic_write(path, "wb") as fh:
+        fh.write(buf.tobytes())
