@@ -1,0 +1,147 @@
+"""The sketch interface (Lee et al. §5.2, issue 7): following a drawn path.
+
+Usage: python -m benchmarks.bench_sketch [LIBRARY_DIR] [--out FILE]
+
+- Maze run: the walking clips (02_01-02_03, 03_*; relative coordinates, as the paper's
+  maze) follow ``benchmarks/sketch/maze_path.json`` through ``maze.json``, with eq. 8
+  (c = 0.5 m) and the same search without the facing term (c = 0): whether the sketch is
+  followed, mean and max deviation of the root from the sketch, nearest obstacle.
+  Writes ``results/sketch_maze.png``.
+- Planning speed on the all-shared library (every 31-joint clip, relative coordinates) in
+  an open field, along a 40 m zig-zag drawn in 2 m segments while the avatar moves:
+  seconds of motion planned per second of compute (target >= 20x), and the time from a
+  newly drawn segment to the first frames planned toward it, p50 / p99 / max (target
+  <= 50 ms).
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import os
+import platform
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from control.graph import GraphOptions, build_graph
+from control.motion import default_library_path, load_library
+from control.motion._text import atomic_write
+from control.sketch import (
+    SketchSettings,
+    SketchTracker,
+    draw_top_down,
+    path_deviation,
+    read_environment,
+    read_sketch,
+)
+
+HERE = Path(__file__).resolve().parent
+WALKS = ["02_01", "02_02", "02_03", "03_01", "03_02", "03_03", "03_04"]
+
+
+def maze(root: Path, png: Path) -> dict[str, Any]:
+    lib = load_library(root, clips=WALKS)
+    g = build_graph(lib.clips, GraphOptions(coords="relative"))
+    sketch = read_sketch(HERE / "sketch" / "maze_path.json")
+    env = read_environment(HERE / "sketch" / "maze.json")
+    out: dict[str, Any] = {"library": WALKS, "frames": g.n_frames, "edges": g.n_edges}
+    roots = {}
+    for name, c in (("eq. 8 (c = 0.5 m)", 0.5), ("no facing term (c = 0)", 0.0)):
+        t = SketchTracker(g, lib.clips, sketch, env, SketchSettings(c=c))
+        t0 = time.perf_counter()
+        t.run(120.0)
+        took = time.perf_counter() - t0
+        r = t.root_path()
+        dev = path_deviation(r, sketch)
+        roots[name] = r
+        out[name] = {
+            "followed": bool(t.goal >= len(t.goals)),
+            "stuck": t.stuck,
+            "backtracks": t.backtracks,
+            "motion_seconds": round((len(t.frames) - 1) / g.fps, 2),
+            "deviation_mean_m": round(float(dev.mean()), 3),
+            "deviation_max_m": round(float(dev.max()), 3),
+            "min_clearance_m": round(float(env.clearance(r).min()), 3),
+            "body_radius_m": t.settings.body_radius,
+            "realtime_factor": round((len(t.frames) - 1) / g.fps / took, 1),
+        }
+    draw_top_down(png, sketch, env, roots)
+    return out
+
+
+def speed(root: Path) -> dict[str, Any]:
+    everything = load_library(root)
+    clips = [c for c in everything.clips if c.motion.skeleton.n_joints == 31]
+    g = build_graph(clips, GraphOptions(coords="relative"))
+    # a zig-zag drawn 2 m at a time
+    corners = np.array([[0.0, 0.0]] + [[4.0 * (i % 2), 4.0 * (i + 1)] for i in range(10)])
+    pts = np.concatenate([np.linspace(a, b, 3)[1:] for a, b in itertools.pairwise(corners)])
+    t = SketchTracker(g, clips, np.vstack((corners[:1], pts[:1])))
+    respond = []
+    compute = 0.0
+    for k in range(1, len(pts)):
+        # the avatar moves on while the next segment is drawn: finish the current goals
+        while not t.done:
+            t0 = time.perf_counter()
+            t.step()
+            compute += time.perf_counter() - t0
+        if t.stuck:
+            break
+        t0 = time.perf_counter()
+        t.extend(pts[k : k + 1])
+        t.step()
+        took = time.perf_counter() - t0
+        respond.append(took)
+        compute += took
+    while not t.done:
+        t0 = time.perf_counter()
+        t.step()
+        compute += time.perf_counter() - t0
+    ms = np.array(respond) * 1e3
+    sketch = np.vstack((corners[:1], pts))
+    dev = path_deviation(t.root_path(), sketch)
+    return {
+        "library_frames": g.n_frames,
+        "edges": g.n_edges,
+        "sketch_m": float(np.linalg.norm(np.diff(sketch, axis=0), axis=1).sum()),
+        "followed": bool(t.goal >= len(t.goals) and not t.stuck),
+        "motion_seconds": round((len(t.frames) - 1) / g.fps, 2),
+        "compute_seconds": round(compute, 3),
+        "realtime_factor": round((len(t.frames) - 1) / g.fps / compute, 1),
+        "respond_ms": {
+            "p50": round(float(np.percentile(ms, 50)), 2),
+            "p99": round(float(np.percentile(ms, 99)), 2),
+            "max": round(float(ms.max()), 2),
+            "segments": int(ms.size),
+        },
+        "deviation_mean_m": round(float(dev.mean()), 3),
+        "deviation_max_m": round(float(dev.max()), 3),
+        "expansions_per_step_mean": round(float(np.mean(t.expansions)), 1),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("root", nargs="?", default=str(default_library_path()))
+    ap.add_argument("--out", default="benchmarks/results/sketch.json")
+    args = ap.parse_args()
+    root = Path(args.root)
+    result = {
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, "
+        f"Python {platform.python_version()}",
+        "date": time.strftime("%Y-%m-%d"),
+        "maze": maze(root, Path(args.out).with_name("sketch_maze.png")),
+        "speed_all_shared": speed(root),
+        "terrain": "not built yet (issue 7 stays open)",
+    }
+    with atomic_write(args.out) as fh:
+        json.dump(result, fh, indent=2)
+    print(json.dumps(result, indent=2))
+
+
+if __name__ == "__main__":
+    main()
