@@ -2,7 +2,14 @@
 
 from ._draw import draw_top_down
 from ._files import Environment, SketchFileError, read_environment, read_sketch
-from ._track import SketchSettings, SketchTracker, path_deviation, resample
+from ._track import (
+    SketchSettings,
+    SketchTracker,
+    ground_path,
+    path_deviation,
+    resample,
+    start_map,
+)
 
 __all__ = [
     "Environment",
@@ -10,8 +17,10 @@ __all__ = [
     "SketchSettings",
     "SketchTracker",
     "draw_top_down",
+    "ground_path",
     "path_deviation",
     "read_environment",
     "read_sketch",
     "resample",
+    "start_map",
 ]

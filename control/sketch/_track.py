@@ -33,7 +33,14 @@ from ..graph._features import yaw_q
 from ..motion import Clip, Motion, qmul
 from ._files import Environment
 
-__all__ = ["SketchSettings", "SketchTracker", "path_deviation", "resample"]
+__all__ = [
+    "SketchSettings",
+    "SketchTracker",
+    "ground_path",
+    "path_deviation",
+    "resample",
+    "start_map",
+]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -74,6 +81,41 @@ def path_deviation(xz: FloatArray, sketch: FloatArray) -> FloatArray:
     return np.asarray(np.linalg.norm(ap - t[..., None] * ab, axis=-1).min(axis=1))
 
 
+def ground_path(
+    root: FloatArray,
+    heading: FloatArray,
+    align: FloatArray,
+    frames: IntArray,
+    edges: IntArray,
+    yaw: float,
+    trans: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """Root on the ground ``(T, 2)`` and facing angles ``(T,)`` of a graph path
+    (``edges[i]`` leads into ``frames[i + 1]``, -1 for playback) placed by the map
+    ``p -> R_y(yaw) p + trans``."""
+    out = np.empty((len(frames), 2))
+    facing = np.empty(len(frames))
+    for t, f in enumerate(frames):
+        if t > 0 and edges[t - 1] >= 0:
+            al = align[edges[t - 1]]
+            yaw, trans = compose(yaw, trans, float(al[0]), al[1:])
+        p = rotate_y(root[f], yaw) + trans
+        out[t] = (p[0], p[2])
+        facing[t] = yaw + heading[f]
+    return out, facing
+
+
+def start_map(
+    root: FloatArray, heading: FloatArray, frame: int, at: FloatArray, toward: FloatArray
+) -> tuple[float, FloatArray]:
+    """The map ``(yaw, trans)`` that puts ``frame``'s root on the ground point ``at``,
+    facing ``toward``."""
+    d = np.asarray(toward, dtype=np.float64) - at
+    yaw = math.atan2(d[0], d[1]) - float(heading[frame])  # facing (sin a, cos a)
+    r = rotate_y(root[frame], yaw)
+    return yaw, np.array([at[0] - r[0], 0.0, at[1] - r[2]])
+
+
 class SketchTracker:
     """An avatar following a sketch; ``step()`` plans and commits ``step_frames`` frames.
 
@@ -112,11 +154,7 @@ class SketchTracker:
             start = self._default_start()
         if not (0 <= start < graph.n_frames and graph.in_scc[start]):
             raise ValueError(f"start frame {start} is not in the graph's component")
-        d = self.sketch[1] - self.sketch[0]
-        want = math.atan2(d[0], d[1])  # facing (sin a, cos a) along the first segment
-        self._yaw = want - float(self._heading[start])
-        r = rotate_y(self._root[start], self._yaw)
-        self._trans = np.array([self.sketch[0, 0] - r[0], 0.0, self.sketch[0, 1] - r[2]])
+        self._yaw, self._trans = start_map(self._root, self._heading, start, *self.sketch[:2])
         self.frames = [int(start)]
         self.jumps: list[int] = []
         self.edges: list[int] = []
@@ -319,23 +357,15 @@ class SketchTracker:
 
     def root_path(self) -> FloatArray:
         """The planned root on the ground ``(T, 2)``, frame by frame."""
-        out = np.empty((len(self.frames), 2))
         yaw, trans = self._start_map()
-        jumps = dict(zip(self.jumps, self.edges, strict=True))
-        for t, f in enumerate(self.frames):
-            if t in jumps:
-                al = self._align[jumps[t]]
-                yaw, trans = compose(yaw, trans, float(al[0]), al[1:])
-            x, z, _ = self._ground(f, yaw, trans)
-            out[t] = (x, z)
-        return out
+        edges = np.full(len(self.frames) - 1, -1, dtype=np.int64)
+        edges[np.array(self.jumps, dtype=np.int64) - 1] = self.edges
+        return ground_path(
+            self._root, self._heading, self._align, np.array(self.frames), edges, yaw, trans
+        )[0]
 
     def _start_map(self) -> tuple[float, FloatArray]:
-        d = self.sketch[1] - self.sketch[0]
-        f = self.frames[0]
-        yaw = math.atan2(d[0], d[1]) - float(self._heading[f])
-        r = rotate_y(self._root[f], yaw)
-        return yaw, np.array([self.sketch[0, 0] - r[0], 0.0, self.sketch[0, 1] - r[2]])
+        return start_map(self._root, self._heading, self.frames[0], *self.sketch[:2])
 
     def motion(self) -> Synthesis:
         """The planned motion, blended, placed on the sketch."""
