@@ -124,9 +124,9 @@ def perform(
                 "clip_frame": f,
             }
             full = len(buffer) == matcher.n
-            if full and not located and settings.match.locate:
+            if full and not located and settings.match.locate and start is None:
                 # the first full buffer: start the avatar where the library looks most
-                # like the performer (its motion so far is dropped)
+                # like the performer (its motion so far is dropped), unless told where
                 got = matcher.locate(np.array(buffer))
                 if got is not None:
                     located = True

@@ -248,7 +248,7 @@ class SketchTracker:
         the end that led into the corner (at most ``max_backtracks`` times in all)."""
         while not self.done:
             n = self._plan()
-            if n:
+            if n or self.done:
                 return n
             if not self._undo or self.backtracks >= self.settings.max_backtracks:
                 self.stuck = True
@@ -282,6 +282,9 @@ class SketchTracker:
         g = self.graph
         x, z, a = self.position()
         first, goal0 = self._score(x, z, a, self.goal)
+        self.goal = goal0  # goals within reach where the avatar stands (a grown sketch)
+        if self.done:
+            return 0
         # nodes: (frame, yaw, trans, depth, parent, edge, goal)
         nodes: list[tuple[int, float, FloatArray, int, int, int, int]] = [
             (self.frame, self._yaw, self._trans, 0, -1, -1, goal0)

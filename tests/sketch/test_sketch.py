@@ -148,6 +148,9 @@ def test_sketch_drawn_while_the_avatar_moves(walks) -> None:
     t.run(60.0)
     assert t.done and not t.stuck and len(t.frames) > n
     assert path_deviation(t.root_path(), full).mean() < 0.3
+    # a sketch already within reach where the avatar stands is followed at once
+    short = SketchTracker(g, lib.clips, np.array([[0.0, 0.0], [0.0, 0.3]]))
+    assert short.step() == 0 and short.done and not short.stuck
 
 
 def test_dead_end_is_backed_out_of_or_reported(walks) -> None:
