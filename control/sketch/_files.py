@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -97,14 +97,14 @@ def read_sketch(path: str | Path) -> FloatArray:
     return arr
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Environment:
     """Obstacles (polygons ``(k, 2)`` in x, z) and optional ``bounds`` walls."""
 
     kind: str = "maze"
     obstacles: tuple[FloatArray, ...] = ()
     bounds: tuple[float, float, float, float] | None = None
-    name: str = field(default="", compare=False)
+    name: str = ""
 
     def __post_init__(self) -> None:
         # every obstacle edge at once, for vectorised distance and inside tests

@@ -252,7 +252,10 @@ class SketchTracker:
                 return n
             if not self._undo or self.backtracks >= self.settings.max_backtracks:
                 self.stuck = True
-                if self._best is not None and self._best[0] > len(self.frames):
+                if self._best is not None and (self._best[6], self._best[0]) > (
+                    self.goal,
+                    len(self.frames),
+                ):
                     # give up where the avatar got furthest, not where backing out ended
                     _, self.frames, self.jumps, self.edges, self._yaw, self._trans, self.goal = (
                         self._best
