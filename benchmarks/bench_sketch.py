@@ -18,18 +18,15 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
-import os
-import platform
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from benchmarks._report import machine, save
 from control.graph import GraphOptions, build_graph
 from control.motion import default_library_path, load_library
-from control.motion._text import atomic_write
 from control.sketch import (
     SketchSettings,
     SketchTracker,
@@ -54,21 +51,8 @@ def maze(root: Path, png: Path) -> dict[str, Any]:
         t = SketchTracker(g, lib.clips, sketch, env, SketchSettings(c=c))
         t0 = time.perf_counter()
         t.run(120.0)
-        took = time.perf_counter() - t0
-        r = t.root_path()
-        dev = path_deviation(r, sketch)
-        roots[name] = r
-        out[name] = {
-            "followed": bool(t.goal >= len(t.goals)),
-            "stuck": t.stuck,
-            "backtracks": t.backtracks,
-            "motion_seconds": round((len(t.frames) - 1) / g.fps, 2),
-            "deviation_mean_m": round(float(dev.mean()), 3),
-            "deviation_max_m": round(float(dev.max()), 3),
-            "min_clearance_m": round(float(env.clearance(r).min()), 3),
-            "body_radius_m": t.settings.body_radius,
-            "realtime_factor": round((len(t.frames) - 1) / g.fps / took, 1),
-        }
+        out[name] = t.summary(time.perf_counter() - t0)
+        roots[name] = t.root_path()
     draw_top_down(png, sketch, env, roots)
     return out
 
@@ -131,16 +115,13 @@ def main() -> None:
     args = ap.parse_args()
     root = Path(args.root)
     result = {
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, "
-        f"Python {platform.python_version()}",
+        "machine": machine(),
         "date": time.strftime("%Y-%m-%d"),
         "maze": maze(root, Path(args.out).with_name("sketch_maze.png")),
         "speed_all_shared": speed(root),
         "terrain": "not built yet (issue 7 stays open)",
     }
-    with atomic_write(args.out) as fh:
-        json.dump(result, fh, indent=2)
-    print(json.dumps(result, indent=2))
+    save(result, args.out)
 
 
 if __name__ == "__main__":

@@ -15,7 +15,6 @@ from control.sketch import (
     SketchSettings,
     SketchTracker,
     draw_top_down,
-    path_deviation,
     read_environment,
     read_sketch,
 )
@@ -51,24 +50,6 @@ def add_sketch_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
     p.set_defaults(func=_sketch)
 
 
-def _summary(tracker: SketchTracker, sketch: np.ndarray, seconds: float) -> dict[str, Any]:
-    root = tracker.root_path()
-    dev = path_deviation(root, sketch)
-    out: dict[str, Any] = {
-        "followed": bool(tracker.goal >= len(tracker.goals)),
-        "stuck": tracker.stuck,
-        "seconds": round((len(tracker.frames) - 1) / tracker.graph.fps, 2),
-        "deviation_mean_m": round(float(dev.mean()), 3),
-        "deviation_max_m": round(float(dev.max()), 3),
-        "realtime_factor": round((len(tracker.frames) - 1) / tracker.graph.fps / seconds, 1)
-        if seconds > 0
-        else None,
-    }
-    if tracker.env is not None:
-        out["min_clearance_m"] = round(float(tracker.env.clearance(root).min()), 3)
-    return out
-
-
 def _sketch(args: argparse.Namespace) -> int:
     sketch = read_sketch(args.path)  # bad input is reported before any work
     env = read_environment(args.env) if args.env else None
@@ -89,7 +70,7 @@ def _sketch(args: argparse.Namespace) -> int:
         tracker = SketchTracker(graph, library.clips, sketch, env, settings, start=start)
         t0 = time.perf_counter()
         tracker.run(seconds)
-        summary[name] = _summary(tracker, sketch, time.perf_counter() - t0)
+        summary[name] = tracker.summary(time.perf_counter() - t0)
         runs[name] = tracker
     main = runs["eq. 8"]
     syn = main.motion()
@@ -107,7 +88,7 @@ def _sketch(args: argparse.Namespace) -> int:
             state = "followed" if s["followed"] else ("stuck" if s["stuck"] else "out of time")
             near = f"; nearest obstacle {s['min_clearance_m']} m" if "min_clearance_m" in s else ""
             print(
-                f"{name}: {state} after {s['seconds']} s; deviation mean "
+                f"{name}: {state} after {s['motion_seconds']} s; deviation mean "
                 f"{s['deviation_mean_m']} m, max {s['deviation_max_m']} m; planned "
                 f"{s['realtime_factor']}x real time{near}"
             )

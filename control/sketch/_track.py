@@ -24,6 +24,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -369,6 +370,28 @@ class SketchTracker:
         return ground_path(
             self._root, self._heading, self._align, np.array(self.frames), edges, yaw, trans
         )[0]
+
+    def summary(self, compute_seconds: float) -> dict[str, Any]:
+        """How the sketch was followed: reached its end or not, stuck, backtracks,
+        seconds of motion, the root's mean and max deviation from the sketch, the
+        nearest obstacle (with an environment), and seconds of motion planned per second
+        of ``compute_seconds``."""
+        root = self.root_path()
+        dev = path_deviation(root, self.sketch)
+        seconds = (len(self.frames) - 1) / self.graph.fps
+        out: dict[str, Any] = {
+            "followed": bool(self.goal >= len(self.goals)),
+            "stuck": self.stuck,
+            "backtracks": self.backtracks,
+            "motion_seconds": round(seconds, 2),
+            "deviation_mean_m": round(float(dev.mean()), 3),
+            "deviation_max_m": round(float(dev.max()), 3),
+            "realtime_factor": round(seconds / compute_seconds, 1) if compute_seconds > 0 else None,
+        }
+        if self.env is not None:
+            out["min_clearance_m"] = round(float(self.env.clearance(root).min()), 3)
+            out["body_radius_m"] = self.settings.body_radius
+        return out
 
     def _start_map(self) -> tuple[float, FloatArray]:
         return start_map(self._root, self._heading, self.frames[0], *self.sketch[:2])
