@@ -20,9 +20,6 @@ Targets (issue 6) at a lag of 1 s or less: score >= 0.7, agreement >= 80%.
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import platform
 import tempfile
 import time
 from pathlib import Path
@@ -30,10 +27,10 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks._report import machine, save
 from control.clusters import build_higher_layer
 from control.graph import GraphOptions, build_graph, random_walk, weighted_joints
 from control.motion import default_library_path, load_library, qconj, qlog, qmul
-from control.motion._text import atomic_write
 from silhouette_bank import BankSettings, ensure_bank
 from vision._matcher import MatchSettings
 from vision._perform import PerformSettings, perform
@@ -169,14 +166,11 @@ def main() -> None:
         (float(w), float(a)) for w, a in (s.split(":") for s in args.settings.split(","))
     )
     result = {
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, "
-        f"Python {platform.python_version()}",
+        "machine": machine(),
         "date": time.strftime("%Y-%m-%d"),
         "folds": [fold(root, t, options, settings) for t in args.folds.split(",")],
     }
-    with atomic_write(args.out) as fh:
-        json.dump(result, fh, indent=2)
-    print(json.dumps(result, indent=2))
+    save(result, args.out)
 
 
 if __name__ == "__main__":

@@ -14,9 +14,6 @@ Targets (issue 5): >= 2,000 silhouettes/s per process at 160x120; the all-shared
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import platform
 import resource
 import tempfile
 import time
@@ -26,8 +23,8 @@ from typing import Any
 import numba
 import numpy as np
 
+from benchmarks._report import machine, save
 from control.motion import default_library_path, load_library
-from control.motion._text import atomic_write
 from silhouette_bank import (
     BankSettings,
     CameraRing,
@@ -111,16 +108,13 @@ def main() -> None:
     args = ap.parse_args()
     root = Path(args.root)
     result: dict[str, Any] = {
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, "
-        f"Python {platform.python_version()}",
+        "machine": machine(),
         "date": time.strftime("%Y-%m-%d"),
         "per_process": per_process(root),
         "library_1_process": whole_library(root, 1),
         "library_2_processes": whole_library(root, 2),
     }
-    with atomic_write(args.out) as fh:
-        json.dump(result, fh, indent=2)
-    print(json.dumps(result, indent=2))
+    save(result, args.out)
 
 
 if __name__ == "__main__":

@@ -16,22 +16,19 @@ all-shared <= 60 s; options <= 1 ms p99; most probable motion <= 5 ms p99.
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import platform
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from benchmarks._report import machine, save
 from benchmarks.plots import bic_curve, pose_sheet
 from control.avatar import Avatar
 from control.choice import offer
 from control.clusters import build_higher_layer, fit_mixture
 from control.graph import FrameData, GraphOptions, build_graph
 from control.motion import default_library_path, load_library, write_bvh
-from control.motion._text import atomic_write
 
 OUT = Path("benchmarks/results")
 
@@ -146,8 +143,7 @@ def main() -> None:
     OUT.mkdir(parents=True, exist_ok=True)
     root = Path(args.root)
     result: dict[str, Any] = {
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, "
-        f"Python {platform.python_version()}",
+        "machine": machine(),
         "date": time.strftime("%Y-%m-%d"),
     }
     play = run_library(root, "playground", ["01_*"])
@@ -155,9 +151,7 @@ def main() -> None:
     result["playground"] = {k: v for k, v in play.items() if not k.startswith("_")}
     every = run_library(root, "all_shared", None)
     result["all_shared"] = {k: v for k, v in every.items() if not k.startswith("_")}
-    with atomic_write(args.out) as fh:
-        json.dump(result, fh, indent=2)
-    print(json.dumps(result, indent=2))
+    save(result, args.out)
 
 
 if __name__ == "__main__":

@@ -21,8 +21,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import resource
 import statistics
 import subprocess
@@ -34,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks._report import machine, save
 from control.graph import (
     GraphOptions,
     build_graph,
@@ -44,7 +43,6 @@ from control.graph import (
     synthesize,
 )
 from control.motion import Clip, Contacts, cut, default_library_path, load_library
-from control.motion._text import atomic_write
 
 TABLE1 = {
     "playground (01)": (["01_*"], GraphOptions(coords="fixed", contact="loose")),
@@ -205,8 +203,7 @@ def main() -> None:
         )
         return
     result: dict[str, Any] = {
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, "
-        f"Python {platform.python_version()}",
+        "machine": machine(),
         "date": time.strftime("%Y-%m-%d"),
         "paper_table1": PAPER,
     }
@@ -219,9 +216,7 @@ def main() -> None:
     result["scaling"] = {"points": scaling, "time_exponent": float(np.polyfit(fr, tm, 1)[0])}
     result["walk"] = walk(root, args.walk_seconds, GraphOptions())
     result["walk_case4_pruned"] = walk(root, args.walk_seconds, GraphOptions(case4="prune"))
-    with atomic_write(args.out) as fh:
-        json.dump(result, fh, indent=2)
-    print(json.dumps(result, indent=2))
+    save(result, args.out)
 
 
 if __name__ == "__main__":

@@ -11,17 +11,15 @@ warm <= 0.5 s on the 2-core development machine.
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import platform
 import statistics
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
+from benchmarks._report import machine, save
 from control.motion import default_library_path, load_library
-from control.motion._text import atomic_write
 
 
 def _timed(**kwargs: Any) -> tuple[float, Any]:
@@ -59,8 +57,7 @@ def run(root: Path, repeat: int) -> dict[str, Any]:
         "frames_parsed_per_s_1_process": round(source_frames / med(cold1)),
         "frames_parsed_per_s": round(source_frames / med(cold)),
         "repeat": repeat,
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, "
-        f"Python {platform.python_version()}",
+        "machine": machine(),
         "targets": {"cold_load_s": 5.0, "warm_load_s": 0.5},
     }
 
@@ -74,10 +71,7 @@ def main() -> None:
     )
     args = ap.parse_args()
     result = run(args.library or default_library_path(), args.repeat)
-    text = json.dumps(result, indent=2)
-    print(text)
-    with atomic_write(args.out) as fh:
-        fh.write(text + "\n")
+    save(result, args.out)
 
 
 if __name__ == "__main__":

@@ -12,9 +12,6 @@ jumping jack, squat, punch, walk and back, 10 times).
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import platform
 import statistics
 import time
 from pathlib import Path
@@ -22,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks._report import machine, save
 from control.motion import default_library_path, load_library
-from control.motion._text import atomic_write
 from control.transition import build_transition_graph, candidate_paths, two_pass_clusters
 from control.transition._chain import Chainer
 
@@ -149,16 +146,13 @@ def main() -> None:
     result = {
         "chain": chain,
         "no_path_interpolation": compare,
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, "
-        f"Python {platform.python_version()}",
+        "machine": machine(),
         "date": time.strftime("%Y-%m-%d"),
         "frames": feat.n,
         "sigma": sigma,
         "runs": rows,
     }
-    with atomic_write(args.out) as fh:
-        json.dump(result, fh, indent=2)
-    print(json.dumps(result, indent=2))
+    save(result, args.out)
 
 
 if __name__ == "__main__":

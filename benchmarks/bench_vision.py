@@ -18,9 +18,6 @@ Usage: python -m benchmarks.bench_vision [LIBRARY_DIR] [--out FILE]
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import platform
 import tempfile
 import time
 from pathlib import Path
@@ -29,10 +26,10 @@ from typing import Any
 import cv2
 import numpy as np
 
+from benchmarks._report import machine, save
 from control.clusters import build_higher_layer
 from control.graph import GraphOptions, build_graph
 from control.motion import default_library_path, load_library
-from control.motion._text import atomic_write
 from silhouette_bank import BankSettings, ensure_bank, silhouette_features
 from vision._matcher import Matcher, MatchSettings
 from vision._perform import PerformSettings, perform
@@ -166,17 +163,14 @@ def main() -> None:
     args = ap.parse_args()
     root = Path(args.root)
     result: dict[str, Any] = {
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, "
-        f"Python {platform.python_version()}",
+        "machine": machine(),
         "date": time.strftime("%Y-%m-%d"),
         "subtractors_640x480": subtractors(),
         "matcher_playground": matcher_latency(root, ["01_*"]),
         "matcher_all_shared": matcher_latency(root, None),
         "replay": replay(root),
     }
-    with atomic_write(args.out) as fh:
-        json.dump(result, fh, indent=2)
-    print(json.dumps(result, indent=2))
+    save(result, args.out)
 
 
 if __name__ == "__main__":
