@@ -7,6 +7,11 @@ Usage: python -m benchmarks.bench_sketch [LIBRARY_DIR] [--out FILE]
   (c = 0.5 m) and the same search without the facing term (c = 0): whether the sketch is
   followed, mean and max deviation of the root from the sketch, nearest obstacle.
   Writes ``results/sketch_maze.png``.
+- Terrain run: the terrain clips (03_*; terrain coordinates on the block grid found
+  under their feet) follow ``terrain_path.json`` over ``terrain.json`` (blocks up to
+  three levels high), with and without the facing term: deviation, and the foot-height
+  error at planted frames of the synthesized motion (toe above the top of the block under
+  the foot). Writes ``results/sketch_terrain.png``.
 - Planning speed on the all-shared library (every 31-joint clip, relative coordinates) in
   an open field, along a 40 m zig-zag drawn in 2 m segments while the avatar moves:
   seconds of motion planned per second of compute (target >= 20x), and the time from a
@@ -25,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks._report import machine, save
-from control.graph import GraphOptions, build_graph
+from control.graph import GraphOptions, build_graph, terrain_options
 from control.motion import default_library_path, load_library
 from control.sketch import (
     SketchSettings,
@@ -52,6 +57,31 @@ def maze(root: Path, png: Path) -> dict[str, Any]:
         t0 = time.perf_counter()
         t.run(120.0)
         out[name] = t.summary(time.perf_counter() - t0)
+        roots[name] = t.root_path()
+    draw_top_down(png, sketch, env, roots)
+    return out
+
+
+def terrain(root: Path, png: Path) -> dict[str, Any]:
+    lib = load_library(root, clips=["03_*"])
+    env = read_environment(HERE / "sketch" / "terrain.json")
+    assert env.terrain is not None
+    sketch = read_sketch(HERE / "sketch" / "terrain_path.json")
+    options, cap = terrain_options(lib.clips, env.terrain.block)
+    g = build_graph(lib.clips, options)
+    out: dict[str, Any] = {
+        "library": "03_*",
+        "frames": g.n_frames,
+        "edges": g.n_edges,
+        "captured_terrain": cap.to_dict(),
+    }
+    roots = {}
+    for name, c in (("eq. 8 (c = 0.5 m)", 0.5), ("no facing term (c = 0)", 0.0)):
+        t = SketchTracker(g, lib.clips, sketch, env, SketchSettings(c=c), captured=cap)
+        t0 = time.perf_counter()
+        t.run(60.0)
+        out[name] = t.summary(time.perf_counter() - t0)
+        out[name]["feet"] = t.terrain_report(t.motion())
         roots[name] = t.root_path()
     draw_top_down(png, sketch, env, roots)
     return out
@@ -119,7 +149,7 @@ def main() -> None:
         "date": time.strftime("%Y-%m-%d"),
         "maze": maze(root, Path(args.out).with_name("sketch_maze.png")),
         "speed_all_shared": speed(root),
-        "terrain": "not built yet (issue 7 stays open)",
+        "terrain": terrain(root, Path(args.out).with_name("sketch_terrain.png")),
     }
     save(result, args.out)
 

@@ -9,8 +9,9 @@ from typing import Any
 
 import numpy as np
 
-from control.cli import _add_graph_args, _add_library_args, _graph_for, start_frame
-from control.motion import write_bvh
+from control.cli import _add_graph_args, _add_library_args, _graph_for, _options, start_frame
+from control.graph import CapturedTerrain, MotionGraph, cached_graph, terrain_options
+from control.motion import Library, load_library, write_bvh
 from control.sketch import (
     SketchSettings,
     SketchTracker,
@@ -25,17 +26,22 @@ __all__ = ["add_sketch_command"]
 def add_sketch_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "sketch",
-        help="follow a sketched ground path (through a maze), write BVH, PNG and MP4",
+        help="follow a sketched ground path (through a maze or over blocks), write BVH, "
+        "PNG and MP4",
         description="The path (JSON {'points': [[x, z], ...]} or CSV x,z lines, metres) is "
         "the centre of mass on the ground. Best-first search in the motion graph with the "
         "objective of Lee et al. eq. 8 commits a fixed number of frames per step; paths that "
-        "come within --radius of an obstacle of --env are rejected.",
+        "come within --radius of an obstacle of --env are rejected. On a terrain --env the "
+        "graph uses terrain coordinates (quarter turns, whole-block shifts and lifts, with the "
+        "block grid found under the clips' feet) and planted feet must land on blocks of the "
+        "level they were captured on: pass the clips captured on blocks (CMU: --clips '03_*').",
     )
     _add_library_args(p)
     _add_graph_args(p)
-    p.set_defaults(coords="relative")  # the maze of the paper used relative coordinates
+    # the maze of the paper used relative coordinates; a terrain env makes them "terrain"
+    p.set_defaults(coords="relative")
     p.add_argument("--path", required=True, help="the sketch: JSON or CSV file")
-    p.add_argument("--env", help="environment JSON (a maze of polygon obstacles)")
+    p.add_argument("--env", help="environment JSON: a maze of polygon obstacles or block terrain")
     p.add_argument("--out", required=True, help="BVH file to write")
     p.add_argument("--png", help="top-down picture of sketch, obstacles and root path")
     p.add_argument("--video", help="MP4 of the avatar (shaded, camera following)")
@@ -61,13 +67,19 @@ def _sketch(args: argparse.Namespace) -> int:
     seconds = args.seconds if args.seconds is not None else 10.0 + length / 0.3
     if not seconds > 0:
         raise ValueError("--seconds must be positive")
-    library, graph, _, _ = _graph_for(args)
+    captured: CapturedTerrain | None = None
+    if env is not None and env.terrain is not None:
+        library, graph, captured = _terrain_graph(args, env.terrain.block)
+    else:
+        library, graph, _, _ = _graph_for(args)
     start = start_frame(graph, args.start)
     runs: dict[str, SketchTracker] = {}
     summary: dict[str, Any] = {}
     for name, c in [("eq. 8", args.c)] + ([("no facing term", 0.0)] if args.baseline else []):
         settings = SketchSettings(c=c, step_frames=args.step_frames, body_radius=args.radius)
-        tracker = SketchTracker(graph, library.clips, sketch, env, settings, start=start)
+        tracker = SketchTracker(
+            graph, library.clips, sketch, env, settings, start=start, captured=captured
+        )
         t0 = time.perf_counter()
         tracker.run(seconds)
         summary[name] = tracker.summary(time.perf_counter() - t0)
@@ -75,6 +87,8 @@ def _sketch(args: argparse.Namespace) -> int:
     main = runs["eq. 8"]
     syn = main.motion()
     write_bvh(syn.motion, args.out)
+    if captured is not None:
+        summary["eq. 8"]["terrain"] = main.terrain_report(syn)
     if args.png:
         draw_top_down(args.png, sketch, env, {k: v.root_path() for k, v in runs.items()})
     if args.video:
@@ -92,5 +106,32 @@ def _sketch(args: argparse.Namespace) -> int:
                 f"{s['deviation_mean_m']} m, max {s['deviation_max_m']} m; planned "
                 f"{s['realtime_factor']}x real time{near}"
             )
+            if "terrain" in s:
+                t = s["terrain"]
+                print(
+                    f"  feet at contacts, height above the block top: mean |error| "
+                    f"{t['foot_height_error_mean_m']} m, 95% {t['foot_height_error_p95_m']} m, "
+                    f"max {t['foot_height_error_max_m']} m; {t['planted_off_block']} of "
+                    f"{t['planted_frames']} planted frames off by more than half a block"
+                )
         print(f"wrote {args.out}" + "".join(f", {p}" for p in (args.png, args.video) if p))
     return 0 if main.goal >= len(main.goals) else 1
+
+
+def _terrain_graph(
+    args: argparse.Namespace, block: float
+) -> tuple[Library, MotionGraph, CapturedTerrain]:
+    """The terrain graph of the chosen clips, on the block grid found under their feet."""
+    if not args.clips:
+        raise ValueError(
+            f"{args.env}: a terrain environment needs the clips captured on blocks: "
+            "pass --clips (for the CMU library: --clips '03_*')"
+        )
+    if args.mirror:
+        raise ValueError("--mirror cannot be used on terrain: mirrored clips leave the block grid")
+    if args.fps is None or args.fps <= 0:
+        raise ValueError("--fps must be positive")
+    library = load_library(args.dir, fps=args.fps, clips=args.clips)
+    options, captured = terrain_options(library.clips, block, _options(args))
+    graph, _, _ = cached_graph(library.clips, options, rebuild=args.rebuild)
+    return library, graph, captured

@@ -24,12 +24,15 @@ from ._ik import knee_hinge, leg_chain, solve_leg, two_bone_ik
 from ._prune import CONTACT_RULES, case4, contact_groups, largest_scc, local_maxima
 from ._quality import foot_slide, jerk, joint_jumps, quality_summary, sole_speed
 from ._synth import FrameData, Synthesis, compose, synthesize
+from ._terrain import CapturedTerrain, FootTrack, captured_terrain, foot_track, terrain_options
 from ._walk import random_step, random_walk
 
 __all__ = [
     "CONTACT_RULES",
     "COORDS",
     "GRAPH_VERSION",
+    "CapturedTerrain",
+    "FootTrack",
     "FrameData",
     "FrameFeatures",
     "GraphFileError",
@@ -38,12 +41,14 @@ __all__ = [
     "Synthesis",
     "build_graph",
     "cached_graph",
+    "captured_terrain",
     "case4",
     "clips_digest",
     "close_pairs",
     "compose",
     "contact_groups",
     "foot_slide",
+    "foot_track",
     "frame_features",
     "graph_cache_dir",
     "jerk",
@@ -65,6 +70,7 @@ __all__ = [
     "sole_speed",
     "solve_leg",
     "synthesize",
+    "terrain_options",
     "two_bone_ik",
     "weighted_joints",
     "yaw_of",

@@ -45,6 +45,9 @@ def _pair_kernel(
     nu: float,
     mode: int,
     block: float,
+    origin_x: float,
+    origin_z: float,
+    rise: float,
     out_d: np.ndarray,
     out_align: np.ndarray,
 ) -> None:
@@ -81,7 +84,12 @@ def _pair_kernel(
                 for x in range(4):
                     out_align[t, x] = 0.0
             continue
-        # terrain: the best of four quarter turns of frame j, shifted by whole blocks
+        # terrain: the best of four quarter turns of frame j about the block centre
+        # ``origin``, shifted by whole blocks
+        pix = world_p[i, 0] - origin_x
+        piz = world_p[i, 2] - origin_z
+        pjx = world_p[j, 0] - origin_x
+        pjz = world_p[j, 2] - origin_z
         best = np.inf
         for r in range(4):
             ang = r * 0.5 * math.pi
@@ -100,8 +108,8 @@ def _pair_kernel(
             )
             h = math.acos(min(cq, 1.0))
             e = h * h
-            rx = world_p[i, 0] - (c * world_p[j, 0] + sn * world_p[j, 2])
-            rz = world_p[i, 2] - (-sn * world_p[j, 0] + c * world_p[j, 2])
+            rx = pix - (c * pjx + sn * pjz)
+            rz = piz - (-sn * pjx + c * pjz)
             kx = round(rx / block)
             kz = round(rz / block)
             ex = rx - kx * block
@@ -117,9 +125,13 @@ def _pair_kernel(
             if e < best:
                 best = e
                 out_align[t, 0] = ang
-                out_align[t, 1] = kx * block
-                out_align[t, 2] = world_p[i, 1] - world_p[j, 1]
-                out_align[t, 3] = kz * block
+                # the same map in library coordinates: p -> R p + t + o - R o
+                out_align[t, 1] = kx * block + origin_x - (c * origin_x + sn * origin_z)
+                dy = world_p[i, 1] - world_p[j, 1]
+                if rise > 0.0:
+                    dy = round(dy / rise) * rise
+                out_align[t, 2] = dy
+                out_align[t, 3] = kz * block + origin_z - (-sn * origin_x + c * origin_z)
         out_d[t] = s + best
 
 
@@ -129,6 +141,8 @@ def pair_distances(
     b: IntArray,
     nu: float,
     block: float = 0.5,
+    origin: tuple[float, float] = (0.0, 0.0),
+    rise: float = 0.0,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Exact ``D(a[t], b[t])`` and the alignment that takes frame ``b`` onto frame ``a``.
 
@@ -138,6 +152,10 @@ def pair_distances(
     a, b : (P,) frame indices.
     nu : weight of the velocity term (s^2).
     block : terrain block size in metres (``coords == "terrain"`` only).
+    origin : terrain only: ``(x, z)`` of a block's centre on the ground; quarter turns
+        are about it, so block centres map onto block centres.
+    rise : terrain only: the block height in metres; the vertical offset of a transition
+        is rounded to whole blocks (feet stay on block tops). 0 keeps it continuous.
 
     Returns
     -------
@@ -151,8 +169,8 @@ def pair_distances(
         raise ValueError("a and b must be 1-D arrays of the same length")
     if a.size and (min(a.min(), b.min()) < 0 or max(a.max(), b.max()) >= feat.n):
         raise IndexError(f"frame index out of range 0..{feat.n - 1}")
-    if block <= 0:
-        raise ValueError("block must be positive")
+    if block <= 0 or rise < 0:
+        raise ValueError("block must be positive and rise not negative")
     out_d = np.empty(a.size)
     out_align = np.empty((a.size, 4))
     _pair_kernel(
@@ -167,6 +185,9 @@ def pair_distances(
         float(nu),
         MODE[feat.coords],
         float(block),
+        float(origin[0]),
+        float(origin[1]),
+        float(rise),
         out_d,
         out_align,
     )

@@ -60,6 +60,11 @@ class GraphOptions:
     sigma_scale : multiplies that median.
     threshold : likelihood threshold (relative to playback, in (0, 1)).
     block : terrain block size in metres.
+    origin_x, origin_z : terrain: a block centre on the ground in library coordinates
+        (``captured_terrain`` estimates it from the foot contacts); quarter turns are
+        about it.
+    rise : terrain: block height in metres; transitions' vertical offsets are rounded to
+        whole blocks. 0 (default) keeps them continuous.
     case4 : ``"slip"`` (default: keep transitions whose blend a foot's contact spans; the
         foot is held, then slides) or ``"prune"`` (drop them before the SCC step, as the
         paper allows).
@@ -74,6 +79,9 @@ class GraphOptions:
     sigma_scale: float = 1.0
     threshold: float = 0.1
     block: float = 0.5
+    origin_x: float = 0.0
+    origin_z: float = 0.0
+    rise: float = 0.0
     case4: str = "slip"
     blend: float = 1.0
 
@@ -90,6 +98,10 @@ class GraphOptions:
             value = getattr(self, name)
             if not (math.isfinite(value) and (value > 0 or (name == "nu" and value == 0))):
                 raise ValueError(f"{name} must be a positive number, not {value!r}")
+        for name in ("origin_x", "origin_z", "rise"):
+            value = getattr(self, name)
+            if not math.isfinite(value) or (name == "rise" and value < 0):
+                raise ValueError(f"{name} must be a finite number (rise >= 0), not {value!r}")
 
     @property
     def use_similarity(self) -> bool:
@@ -97,6 +109,10 @@ class GraphOptions:
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+    def terrain_args(self) -> dict[str, Any]:
+        """``pair_distances``' terrain keywords: block, origin and rise."""
+        return {"block": self.block, "origin": (self.origin_x, self.origin_z), "rise": self.rise}
 
 
 @dataclass(frozen=True, eq=False)
@@ -198,7 +214,7 @@ def _sigma(feat: FrameFeatures, fps: float, options: GraphOptions) -> float:
     f = f[clip[f] == clip[f + step]]
     if f.size == 0:
         raise ValueError("clips too short to measure sigma (need more than one frame)")
-    d, _ = pair_distances(feat, f, f + step, options.nu, options.block)
+    d, _ = pair_distances(feat, f, f + step, options.nu, **options.terrain_args())
     sigma = float(np.median(d)) * options.sigma_scale
     if not sigma > 0:
         raise ValueError("all frames identical: cannot set sigma")
@@ -246,7 +262,7 @@ def build_graph(
     b = np.concatenate(cand_b) if cand_b else np.zeros(0, dtype=np.int64)
     n_candidates = a.size
     t_search = time.perf_counter()
-    d, align = pair_distances(feat, a, b, options.nu, options.block)
+    d, align = pair_distances(feat, a, b, options.nu, **options.terrain_args())
     keep = d <= dmax
     a, b, d, align = a[keep], b[keep], d[keep], align[keep]
     n_likely = a.size

@@ -117,6 +117,7 @@ def synthesize(
     ik: bool = True,
     fade: float = 0.25,
     max_offset: float = 0.2,
+    anchor: str = "output",
 ) -> Synthesis:
     """Turn a path through the graph into motion.
 
@@ -131,6 +132,9 @@ def synthesize(
     fade : seconds over which a foot's correction fades after it lifts.
     max_offset : metres; a planted foot held further than this from where the blended
         motion puts it slides along instead (the paper's "allow the foot to slip").
+    anchor : where a planted foot is held: ``"output"`` (default) where it touched down in
+        the blended motion; ``"source"`` where its source frame puts it under the path's
+        alignment (on terrain, the block top the path was checked against).
     """
     data = FrameData(graph, clips)
     frames = np.asarray(frames, dtype=np.int64)
@@ -140,6 +144,8 @@ def synthesize(
     _check_path(graph, frames, jumps, edges)
     if not blend > 0 or not fade >= 0 or not max_offset >= 0:
         raise ValueError("blend must be positive, fade and max_offset not negative")
+    if anchor not in ("output", "source"):
+        raise ValueError(f"anchor must be 'output' or 'source', not {anchor!r}")
     b = max(1, round(blend * graph.fps))
 
     # segment transforms
@@ -196,6 +202,7 @@ def synthesize(
             states,
             round(fade * graph.fps),
             max_offset,
+            anchor == "source",
         )
     motion = Motion(data.skeleton, out_p, out_q, graph.fps, name="walk", source="graph")
     return Synthesis(motion, frames, jumps, edges, states, blended, unreachable)
@@ -235,11 +242,14 @@ def _foot_targets(
     contact: NDArray[np.bool_],
     fade: int,
     max_offset: float,
+    from_source: bool = False,
 ) -> FloatArray:
     """Where each frame's ankle should be ((T, 3)): planted during contact, fading after.
 
-    The correction is at most ``max_offset`` metres: beyond that the foot slides along
-    with the body rather than stretch or fold the leg.
+    A contact run is anchored where the foot touched down in the output, or with
+    ``from_source`` where the source put it. The correction is at most ``max_offset``
+    metres: beyond that the foot slides along with the body rather than stretch or fold
+    the leg.
     """
     n = out_pts.shape[0]
     target = out_pts.copy()
@@ -251,7 +261,8 @@ def _foot_targets(
     starts = np.flatnonzero(edges == 1)
     ends = np.flatnonzero(edges == -1)  # exclusive
     for s, e in zip(starts, ends, strict=True):
-        r = out_pts[s] + csum[s:e] - csum[s] - out_pts[s:e]
+        anchor = src_pts[s] if from_source else out_pts[s]
+        r = anchor + csum[s:e] - csum[s] - out_pts[s:e]
         size = np.linalg.norm(r, axis=1, keepdims=True)
         r *= np.minimum(1.0, max_offset / np.maximum(size, 1e-12))
         target[s:e] = out_pts[s:e] + r
@@ -277,6 +288,7 @@ def _plant_feet(
     states: NDArray[np.bool_],
     fade: int,
     max_offset: float,
+    from_source: bool = False,
 ) -> tuple[FloatArray, int]:
     pose = forward_kinematics(Motion(skeleton, out_p, out_q, fps))
     src_pose = forward_kinematics(Motion(skeleton, src_p, src_q, fps))
@@ -290,7 +302,9 @@ def _plant_feet(
         pred = np.concatenate((src_pts[:1], src_pts[:-1]))
         pred[jumps] = v_pose.positions[:, ankle]
         out_pts = pose.positions[:, ankle]
-        target = _foot_targets(out_pts, src_pts, pred, states[:, foot], fade, max_offset)
+        target = _foot_targets(
+            out_pts, src_pts, pred, states[:, foot], fade, max_offset, from_source
+        )
         todo = np.flatnonzero(np.linalg.norm(target - out_pts, axis=1) > 1e-5)
         if todo.size == 0:
             continue

@@ -26,8 +26,9 @@ def draw_top_down(
     roots: Mapping[str, FloatArray],
     size: int = 800,
 ) -> None:
-    """A PNG seen from above (x right, z up): obstacles grey, the sketch black with its
-    start marked, each root path in its own colour with a legend, a 1 m scale bar."""
+    """A PNG seen from above (x right, z up): obstacles grey, terrain blocks shaded by
+    level (darker is higher, with the level written on each), the sketch black with
+    its start marked, each root path in its own colour with a legend, a 1 m scale bar."""
     import cv2
 
     pts = [sketch, *roots.values()]
@@ -36,6 +37,11 @@ def draw_top_down(
         if env.bounds is not None:
             x0, z0, x1, z1 = env.bounds
             pts.append(np.array([[x0, z0], [x1, z1]]))
+        if env.terrain is not None:
+            t = env.terrain
+            rows, cols = t.levels.shape
+            x0, z0 = t.corner
+            pts.append(np.array([[x0, z0], [x0 + cols * t.block, z0 + rows * t.block]]))
     allp = np.concatenate([p.reshape(-1, 2) for p in pts])
     lo, hi = allp.min(axis=0) - 0.5, allp.max(axis=0) + 0.5
     scale = (size - 40) / float(max(hi - lo))
@@ -49,6 +55,28 @@ def draw_top_down(
         return np.round(np.stack((x, y), axis=1)).astype(np.int32)
 
     img = np.full((h, w, 3), 255, dtype=np.uint8)
+    if env is not None and env.terrain is not None:
+        t = env.terrain
+        top = max(1, int(t.levels.max()))
+        for (r, c), level in np.ndenumerate(t.levels):
+            x0, z0 = t.corner[0] + c * t.block, t.corner[1] + r * t.block
+            cell = np.array(
+                [[x0, z0], [x0 + t.block, z0], [x0 + t.block, z0 + t.block], [x0, z0 + t.block]]
+            )
+            shade = int(245 - 130 * level / top)
+            cv2.fillPoly(img, [px(cell)], (shade, shade, shade))
+            cv2.polylines(img, [px(cell)], True, (200, 200, 200), 1)
+            if level:
+                at = px(np.array([x0 + 0.4 * t.block, z0 + 0.35 * t.block]))[0]
+                cv2.putText(
+                    img,
+                    str(level),
+                    (int(at[0]), int(at[1])),
+                    cv2.FONT_HERSHEY_SIMPLEX,
+                    0.4,
+                    (60, 60, 60),
+                    1,
+                )
     if env is not None:
         for poly in env.obstacles:
             cv2.fillPoly(img, [px(poly)], (170, 170, 170))

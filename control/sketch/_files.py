@@ -12,6 +12,17 @@ An environment is JSON::
      "bounds": [xmin, zmin, xmax, zmax],             # optional: walls around the maze
      "obstacles": [[[x, z], [x, z], [x, z], ...], ...]}  # polygons, 3+ corners each
 
+or a block terrain (Lee et al. §6: blocks at a few heights on a square grid)::
+
+    {"kind": "terrain",
+     "block": 0.6096,                 # the side of a block (metres; the captured blocks')
+     "corner": [x, z],                # the low corner of the first block of the first row
+     "levels": [[0, 1, 2, ...], ...], # block heights in levels, one row per block along z
+     "obstacles": [...], "bounds": [...]}  # optional, as in a maze
+
+Outside the grid is the ground (level 0). A level is one captured block height, which
+the library tells (``captured_terrain``).
+
 Every reader error names the file (and the line or the item) and what is wrong.
 """
 
@@ -26,11 +37,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Environment", "SketchFileError", "read_environment", "read_sketch"]
+__all__ = ["Environment", "SketchFileError", "TerrainMap", "read_environment", "read_sketch"]
 
 FloatArray = NDArray[np.float64]
 
-ENV_KINDS = ("maze",)
+ENV_KINDS = ("maze", "terrain")
 
 
 class SketchFileError(ValueError):
@@ -98,13 +109,51 @@ def read_sketch(path: str | Path) -> FloatArray:
 
 
 @dataclass(frozen=True, eq=False)
+class TerrainMap:
+    """Blocks on a square grid: ``levels[r, c]`` (whole block heights) covers
+    ``x`` in ``corner_x + [c, c + 1) * block`` and ``z`` in ``corner_z + [r, r + 1) * block``;
+    outside the grid is level 0."""
+
+    block: float
+    corner: tuple[float, float]
+    levels: NDArray[np.int64]
+
+    def level_at(self, xz: FloatArray) -> NDArray[np.int64]:
+        """The level ``(n,)`` under ground points ``(n, 2)``."""
+        xz = np.asarray(xz, dtype=np.float64).reshape(-1, 2)
+        c = np.floor((xz[:, 0] - self.corner[0]) / self.block).astype(np.int64)
+        r = np.floor((xz[:, 1] - self.corner[1]) / self.block).astype(np.int64)
+        rows, cols = self.levels.shape
+        inside = (r >= 0) & (r < rows) & (c >= 0) & (c < cols)
+        out = np.zeros(xz.shape[0], dtype=np.int64)
+        out[inside] = self.levels[r[inside], c[inside]]
+        return out
+
+    def level_at_point(self, x: float, z: float) -> int:
+        """``level_at`` for one point, without arrays (the search's inner loop)."""
+        c = math.floor((x - self.corner[0]) / self.block)
+        r = math.floor((z - self.corner[1]) / self.block)
+        rows, cols = self.levels.shape
+        if 0 <= r < rows and 0 <= c < cols:
+            return int(self.levels[r, c])
+        return 0
+
+    @property
+    def first_centre(self) -> tuple[float, float]:
+        """``(x, z)`` of the first block's centre."""
+        return self.corner[0] + 0.5 * self.block, self.corner[1] + 0.5 * self.block
+
+
+@dataclass(frozen=True, eq=False)
 class Environment:
-    """Obstacles (polygons ``(k, 2)`` in x, z) and optional ``bounds`` walls."""
+    """Obstacles (polygons ``(k, 2)`` in x, z), optional ``bounds`` walls and, for
+    ``kind == "terrain"``, the blocks."""
 
     kind: str = "maze"
     obstacles: tuple[FloatArray, ...] = ()
     bounds: tuple[float, float, float, float] | None = None
     name: str = ""
+    terrain: TerrainMap | None = None
 
     def __post_init__(self) -> None:
         # every obstacle edge at once, for vectorised distance and inside tests
@@ -156,7 +205,10 @@ def read_environment(path: str | Path) -> Environment:
         raise SketchFileError(
             f"{path}: unknown environment kind {kind!r} (supported: {', '.join(ENV_KINDS)})"
         )
-    unknown = set(data) - {"kind", "obstacles", "bounds", "name"}
+    allowed = {"kind", "obstacles", "bounds", "name"}
+    if kind == "terrain":
+        allowed |= {"block", "corner", "levels"}
+    unknown = set(data) - allowed
     if unknown:
         raise SketchFileError(f"{path}: unknown keys {', '.join(sorted(unknown))}")
     polys = []
@@ -180,4 +232,36 @@ def read_environment(path: str | Path) -> Environment:
         if not (x1 > x0 and z1 > z0):
             raise SketchFileError(f"{path}: 'bounds' must have xmax > xmin and zmax > zmin")
         bounds = (x0, z0, x1, z1)
-    return Environment("maze", tuple(polys), bounds, str(data.get("name", path.stem)))
+    terrain = _read_terrain(path, data) if kind == "terrain" else None
+    return Environment(kind, tuple(polys), bounds, str(data.get("name", path.stem)), terrain)
+
+
+def _read_terrain(path: Path, data: dict[str, Any]) -> TerrainMap:
+    for key in ("block", "corner", "levels"):
+        if key not in data:
+            raise SketchFileError(f"{path}: a terrain needs '{key}'")
+    block = data["block"]
+    if isinstance(block, bool) or not isinstance(block, int | float) or not block > 0:
+        raise SketchFileError(f"{path}: 'block' must be a positive number, got {block!r}")
+    if not math.isfinite(block):
+        raise SketchFileError(f"{path}: 'block' must be finite, got {block!r}")
+    corner = _pair(path, "corner", data["corner"])
+    rows = data["levels"]
+    if not isinstance(rows, list) or not rows:
+        raise SketchFileError(f"{path}: 'levels' must be a non-empty list of rows")
+    width = None
+    for r, row in enumerate(rows):
+        if not isinstance(row, list) or not row:
+            raise SketchFileError(f"{path}: levels row {r}: expected a non-empty list")
+        if width is None:
+            width = len(row)
+        elif len(row) != width:
+            raise SketchFileError(
+                f"{path}: levels row {r}: {len(row)} blocks, but row 0 has {width}"
+            )
+        for c, v in enumerate(row):
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                raise SketchFileError(
+                    f"{path}: levels row {r} block {c}: expected a whole number >= 0, got {v!r}"
+                )
+    return TerrainMap(float(block), corner, np.array(rows, dtype=np.int64))

@@ -10,7 +10,11 @@ transitions, each transition moving the avatar by its rigid alignment), best fir
 plus the length of sketch still ahead of the goal ``p_g`` (so that a path that reaches
 a goal and goes on to the next ranks ahead of one that stops at it). ``p`` is the root
 projected on the ground (the centre of mass's proxy), ``u`` the facing direction. A path
-whose root comes closer than ``body_radius`` to an obstacle is rejected. The first
+whose root comes closer than ``body_radius`` to an obstacle is rejected. On block
+terrain (a terrain graph: quarter turns about block centres, whole-block shifts and
+lifts) a path is also rejected where a planted foot would stand on a block of another
+level than the one it was captured on (relative to the avatar's lift), or a foot in the
+air would be inside a block. The first
 complete path popped is committed and the search starts again from its end: a fixed
 number of frames per step, so the avatar moves at a constant rate, and the sketch may
 grow between steps (``extend``) while it is still being drawn.
@@ -29,9 +33,21 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..graph import FrameData, MotionGraph, Synthesis, compose, rotate_y, synthesize, yaw_of
+from ..graph import (
+    CapturedTerrain,
+    FrameData,
+    MotionGraph,
+    Synthesis,
+    captured_terrain,
+    compose,
+    foot_track,
+    rotate_y,
+    synthesize,
+    yaw_of,
+)
 from ..graph._features import yaw_q
 from ..motion import Clip, Motion, qmul
+from ..motion._contacts import foot_points
 from ._files import Environment
 
 __all__ = [
@@ -53,7 +69,8 @@ class SketchSettings:
     ``step_frames`` frames are committed per search; goals lie ``spacing`` metres apart
     and count as reached within ``reach``; ``body_radius`` metres are kept from
     obstacles; a search expands at most ``max_expansions`` partial paths; dead ends are
-    backed out of at most ``max_backtracks`` times."""
+    backed out of at most ``max_backtracks`` times; on terrain a foot in the air may dip
+    ``foot_clearance`` metres below a block's top (marker noise)."""
 
     c: float = 0.5
     step_frames: int = 8
@@ -62,6 +79,10 @@ class SketchSettings:
     body_radius: float = 0.3
     max_expansions: int = 1000
     max_backtracks: int = 40
+    #: terrain: how far (metres) a foot in the air may dip below the top of a block
+    foot_clearance: float = 0.03
+    #: terrain: transitions that move the root further than this (metres) are not taken
+    max_residual: float = 1.0
 
 
 def resample(points: FloatArray, spacing: float) -> FloatArray:
@@ -121,8 +142,10 @@ class SketchTracker:
     """An avatar following a sketch; ``step()`` plans and commits ``step_frames`` frames.
 
     The avatar starts at ``start`` (default: the component frame whose motion heads most
-    nearly straight on, drawn with ``seed`` among the best) placed on the sketch's first
-    point, facing along its first segment.
+    nearly straight on) placed on the sketch's first point, facing along its first
+    segment. On block terrain it is turned by a quarter turn and placed on the blocks'
+    grid instead, as near that as the blocks allow; ``captured`` is the terrain the
+    library was captured on (default: ``captured_terrain`` of the graph's clips).
     """
 
     def __init__(
@@ -133,6 +156,7 @@ class SketchTracker:
         env: Environment | None = None,
         settings: SketchSettings | None = None,
         start: int | None = None,
+        captured: CapturedTerrain | None = None,
     ) -> None:
         self.graph = graph
         self.clips = list(clips)
@@ -151,11 +175,19 @@ class SketchTracker:
         self._ahead = np.zeros(0)
         self._set_goals()
         self.goal = 0
-        if start is None:
-            start = self._default_start()
-        if not (0 <= start < graph.n_frames and graph.in_scc[start]):
+        self.terrain = env.terrain if env is not None else None
+        self.captured: CapturedTerrain | None = None
+        if self.terrain is not None:
+            self._setup_terrain(captured)
+        if start is not None and not (0 <= start < graph.n_frames and graph.in_scc[start]):
             raise ValueError(f"start frame {start} is not in the graph's component")
-        self._yaw, self._trans = start_map(self._root, self._heading, start, *self.sketch[:2])
+        if self.terrain is not None:
+            start, self._start = self._terrain_start(start)
+        else:
+            if start is None:
+                start = self._default_start()
+            self._start = start_map(self._root, self._heading, start, *self.sketch[:2])
+        self._yaw, self._trans = self._start
         self.frames = [int(start)]
         self.jumps: list[int] = []
         self.edges: list[int] = []
@@ -190,23 +222,132 @@ class SketchTracker:
             self.goal = int(np.argmin(np.linalg.norm(self.goals - reached[-1], axis=1))) + 1
 
     def _default_start(self) -> int:
-        """A component frame that walks straight on: over the next second of playback,
-        forward motion nearest a walk's 1.3 m with the least sideways motion and turn."""
+        return int(self._start_ranking()[0])
+
+    def _start_ranking(self) -> IntArray:
+        """Component frames, those that walk straight on first: over the next second of
+        playback, forward motion nearest a walk's 1.3 m with the least sideways motion
+        and turn."""
         g = self.graph
         n = max(1, round(g.fps))
-        idx = np.flatnonzero(g.in_scc)
-        idx = idx[idx + n < g.n_frames]
+        scc = np.flatnonzero(g.in_scc)
+        idx = scc[scc + n < g.n_frames]
         runs = np.cumsum(np.concatenate(([0], ~self._plays)))
         idx = idx[runs[idx + n] == runs[idx]]
         if idx.size == 0:
-            return int(np.flatnonzero(g.in_scc)[0])
+            return scc
         move = self._root[idx + n] - self._root[idx]
         h = self._heading[idx]
         forward = move[:, 0] * np.sin(h) + move[:, 2] * np.cos(h)
         side = move[:, 0] * np.cos(h) - move[:, 2] * np.sin(h)
         turn = np.angle(np.exp(1j * (self._heading[idx + n] - h)))
         cost = np.abs(forward - 1.3) + np.abs(side) + np.abs(turn)
-        return int(idx[np.argmin(cost)])
+        return np.asarray(idx[np.argsort(cost, kind="stable")], dtype=np.int64)
+
+    # --- block terrain ---------------------------------------------------------------------
+
+    def _setup_terrain(self, captured: CapturedTerrain | None) -> None:
+        g = self.graph
+        terrain = self.terrain
+        assert terrain is not None
+        if g.options.coords != "terrain":
+            raise ValueError(
+                f"a terrain environment needs a terrain graph (coords 'terrain'), "
+                f"not {g.options.coords!r}"
+            )
+        if abs(g.options.block - terrain.block) > 1e-6:
+            raise ValueError(
+                f"the environment's blocks are {terrain.block} m but the graph's are "
+                f"{g.options.block} m"
+            )
+        by_name = {c.name: c for c in self.clips}
+        chosen = [by_name[n] for n in g.clip_names]
+        feet = foot_track(chosen)
+        if captured is None:
+            captured = captured_terrain(chosen, terrain.block, feet=feet)
+        self.captured = captured
+        self._rise = g.options.rise if g.options.rise > 0 else captured.rise
+        self._toe = feet.toe
+        self._ankle = feet.ankle
+        self._support = feet.support
+        self._states = feet.states
+        self._level = captured.level_of(feet.toe[..., 1])
+        # how far each transition moves the root from where playing on would have put it
+        # (what the blend must carry, and planted feet must take up)
+        g_align = self._align
+        res = self._root[g.src] - (rotate_y(self._root[g.dst - 1], g_align[:, 0]) + g_align[:, 1:])
+        self._smooth = np.linalg.norm(res, axis=1) <= self.settings.max_residual
+
+    def _on_blocks(self, f: int, yaw: float, trans: FloatArray) -> bool:
+        """Frame ``f`` placed by ``(yaw, trans)`` fits the blocks: each planted foot on a
+        block of the level it was captured on (plus the avatar's lift), and each foot in
+        the air above the block under it."""
+        terrain = self.terrain
+        cap = self.captured
+        assert terrain is not None and cap is not None
+        c, sn = math.cos(yaw), math.sin(yaw)
+        rise = self._rise
+        lift = round(float(trans[1]) / rise)
+        for foot in (0, 1):
+            if self._states[f, foot]:
+                sx, sz = self._support[f, foot]
+                level = terrain.level_at_point(
+                    c * sx + sn * sz + trans[0], -sn * sx + c * sz + trans[2]
+                )
+                if level != self._level[f, foot] + lift:
+                    return False
+                continue
+            for pts, floor in ((self._toe, cap.toe_floor), (self._ankle, cap.ankle_floor)):
+                px, py, pz = pts[f, foot]
+                level = terrain.level_at_point(
+                    c * px + sn * pz + trans[0], -sn * px + c * pz + trans[2]
+                )
+                if py + trans[1] < floor + level * rise - self.settings.foot_clearance:
+                    return False
+        return True
+
+    def _terrain_start(self, start: int | None) -> tuple[int, tuple[float, FloatArray]]:
+        """The first start frame (``start``, else by ``_start_ranking``) with both feet
+        planted that fits the blocks when turned by the quarter turn nearest the sketch's
+        direction and put on the grid (block centres on block centres) as near the
+        sketch's first point as the blocks allow, lifted to the level under it."""
+        terrain, cap = self.terrain, self.captured
+        assert terrain is not None and cap is not None
+        b = terrain.block
+        at, toward = self.sketch[0], self.sketch[1]
+        d = toward - at
+        want = math.atan2(d[0], d[1])
+        centre = np.array(terrain.first_centre)
+        origin = np.array([cap.origin[0], 0.0, cap.origin[1]])
+        candidates = [start] if start is not None else self._start_ranking()[:400]
+        for f in candidates:
+            f = int(f)
+            if start is None and not self._states[f].all():
+                continue
+            yaw = 0.5 * math.pi * round((want - float(self._heading[f])) / (0.5 * math.pi))
+            o = rotate_y(origin, yaw)
+            r = rotate_y(self._root[f], yaw)
+            k = np.round((at - (r[[0, 2]] - o[[0, 2]] + centre)) / b)
+            tries = sorted(
+                (k + np.array([i, j]) for i in (-1, 0, 1) for j in (-1, 0, 1)),
+                key=lambda kk: float(np.linalg.norm(centre + kk * b - o[[0, 2]] + r[[0, 2]] - at)),
+            )
+            for kk in tries:
+                xz = centre + kk * b - o[[0, 2]]
+                trans = np.array([xz[0], 0.0, xz[1]])
+                planted = np.flatnonzero(self._states[f])
+                if planted.size:
+                    foot = int(planted[0])
+                    sx, sz = self._support[f, foot]
+                    p = rotate_y(np.array([sx, 0.0, sz]), yaw) + trans
+                    level = terrain.level_at_point(float(p[0]), float(p[2]))
+                    trans[1] = (level - int(self._level[f, foot])) * self._rise
+                if self._on_blocks(f, yaw, trans):
+                    return f, (yaw, trans)
+        raise ValueError(
+            "no start frame fits the blocks at the sketch's first point "
+            f"({at[0]:.2f}, {at[1]:.2f}); move the start onto a block"
+        )
 
     # --- state -----------------------------------------------------------------------------
 
@@ -311,7 +452,8 @@ class SketchTracker:
             if self._plays[f] and g.in_scc[f + 1]:
                 succ.append((f + 1, -1))
             for e in range(self._indptr[f], self._indptr[f + 1]):
-                succ.append((int(g.dst[e]), e))
+                if self.terrain is None or self._smooth[e]:
+                    succ.append((int(g.dst[e]), e))
             for h, e in succ:
                 if e >= 0:
                     al = self._align[e]
@@ -323,6 +465,8 @@ class SketchTracker:
                     self.env is not None
                     and self.env.clearance(np.array([[x2, z2]]))[0] < s.body_radius
                 ):
+                    continue
+                if self.terrain is not None and not self._on_blocks(h, yaw2, trans2):
                     continue
                 score, goal2 = self._score(x2, z2, a2, goal)
                 nodes.append((h, yaw2, trans2, depth + 1, i, e, goal2))
@@ -374,7 +518,7 @@ class SketchTracker:
     def summary(self, compute_seconds: float) -> dict[str, Any]:
         """How the sketch was followed: reached its end or not, stuck, backtracks,
         seconds of motion, the root's mean and max deviation from the sketch, the
-        nearest obstacle (with an environment), and seconds of motion planned per second
+        nearest obstacle (with obstacles or walls), and seconds of motion planned per second
         of ``compute_seconds``."""
         root = self.root_path()
         dev = path_deviation(root, self.sketch)
@@ -388,22 +532,55 @@ class SketchTracker:
             "deviation_max_m": round(float(dev.max()), 3),
             "realtime_factor": round(seconds / compute_seconds, 1) if compute_seconds > 0 else None,
         }
-        if self.env is not None:
+        if self.env is not None and (self.env.obstacles or self.env.bounds is not None):
             out["min_clearance_m"] = round(float(self.env.clearance(root).min()), 3)
             out["body_radius_m"] = self.settings.body_radius
         return out
 
+    def terrain_report(self, syn: Synthesis) -> dict[str, Any]:
+        """How the synthesized, placed motion ``syn`` stands on the blocks: at planted
+        frames, the toe's height above the top of the block under the foot (error:
+        mean |e|, 95th percentile, max |e|; and the planted frames off by more than half
+        a block), and the deepest a foot in the air goes below a block's top."""
+        terrain, cap = self.terrain, self.captured
+        if terrain is None or cap is None:
+            raise ValueError("not on block terrain")
+        ankle, toe = foot_points(syn.motion)
+        mid = 0.5 * (ankle[..., [0, 2]] + toe[..., [0, 2]])
+        top = terrain.level_at(mid.reshape(-1, 2)).reshape(mid.shape[:2]) * self._rise
+        err = toe[..., 1] - cap.toe_floor - top
+        planted = err[syn.states]
+        tops = terrain.level_at(toe[..., [0, 2]].reshape(-1, 2)).reshape(toe.shape[:2])
+        swing = (toe[..., 1] - cap.toe_floor - tops * self._rise)[~syn.states]
+        a = np.abs(planted)
+        return {
+            "planted_frames": int(a.size),
+            "foot_height_error_mean_m": round(float(a.mean()), 4) if a.size else None,
+            "foot_height_error_p95_m": round(float(np.percentile(a, 95)), 4) if a.size else None,
+            "foot_height_error_max_m": round(float(a.max()), 4) if a.size else None,
+            "planted_off_block": int((a > 0.5 * self._rise).sum()),
+            "swing_deepest_below_top_m": round(float(-min(0.0, swing.min())), 4)
+            if swing.size
+            else 0.0,
+            "rise_m": round(self._rise, 4),
+        }
+
     def _start_map(self) -> tuple[float, FloatArray]:
-        return start_map(self._root, self._heading, self.frames[0], *self.sketch[:2])
+        return self._start
 
     def motion(self) -> Synthesis:
-        """The planned motion, blended, placed on the sketch."""
+        """The planned motion, blended, placed on the sketch. On block terrain the blends
+        are short (0.3 s: transitions come often and each blend moves the body off the
+        blocks' grid) and planted feet are held where the checked path put them."""
         syn = synthesize(
             self.graph,
             self.clips,
             np.array(self.frames),
             np.array(self.jumps, dtype=np.int64),
             np.array(self.edges, dtype=np.int64),
+            anchor="source" if self.terrain is not None else "output",
+            max_offset=0.45 if self.terrain is not None else 0.2,
+            blend=0.3 if self.terrain is not None else 1.0,
         )
         yaw, trans = self._start_map()
         m = syn.motion

@@ -11,6 +11,7 @@ from control.graph import (
     lower_bound_features,
     pair_distances,
     q_embed,
+    rotate_y,
     weighted_joints,
 )
 from control.motion import Clip, Library, Motion, qconj, qlog, qmul
@@ -165,6 +166,31 @@ def test_terrain_allows_quarter_turns_and_whole_blocks(walk_lib: Library) -> Non
     off = _moved(b, 0.0, np.array([0.25, 0.0, 0.0]))
     d2, _ = pair_distances(frame_features([a, off], "terrain"), fa, fb, NU, block=0.5)
     assert np.all(d2 >= d0 - 1e-9) and np.mean(d2 - d0) > 0.01
+
+
+def test_terrain_turns_about_a_block_centre_and_lifts_by_whole_blocks(walk_lib: Library) -> None:
+    a, b = walk_lib.clips[0], walk_lib.clips[3]
+    fa = np.repeat(np.arange(a.motion.n_frames), 5)
+    fb = np.tile(np.arange(5), a.motion.n_frames) + a.motion.n_frames
+    origin = np.array([0.21, 0.0, -0.13])  # a block centre that is not the world origin
+    kw = {"block": 0.5, "origin": (0.21, -0.13), "rise": 0.15}
+    feat0 = frame_features([a, b], "terrain")
+    d0, al0 = pair_distances(feat0, fa, fb, NU, **kw)
+    # b turned a quarter about that centre and shifted by whole blocks: the same distance,
+    # and the alignment puts b's frames where it put them before
+    turned = _moved(b, np.pi / 2, np.array([1.0, 0.3, -1.5]) + origin - origin @ _Ry(np.pi / 2).T)
+    feat1 = frame_features([a, turned], "terrain")
+    d1, al1 = pair_distances(feat1, fa, fb, NU, **kw)
+    np.testing.assert_allclose(d0, d1, rtol=1e-7, atol=1e-9)
+    p0 = rotate_y(feat0.world_p[fb], al0[:, 0]) + al0[:, 1:]
+    p1 = rotate_y(feat1.world_p[fb], al1[:, 0]) + al1[:, 1:]
+    np.testing.assert_allclose(p0[:, [0, 2]], p1[:, [0, 2]], atol=1e-9)
+    # the lift is a whole number of blocks; without a rise it is the root height difference
+    np.testing.assert_allclose(al0[:, 2] / 0.15, np.round(al0[:, 2] / 0.15), atol=1e-9)
+    _, free = pair_distances(feat0, fa, fb, NU, block=0.5, origin=(0.21, -0.13))
+    np.testing.assert_allclose(free[:, 2], feat0.world_p[fa, 1] - feat0.world_p[fb, 1])
+    with pytest.raises(ValueError, match="rise not negative"):
+        pair_distances(feat0, fa, fb, NU, block=0.5, rise=-1.0)
 
 
 def test_embedding_gives_squared_dot(rng: np.random.Generator) -> None:
