@@ -5,8 +5,10 @@ Usage: python -m benchmarks.bench_sketch [LIBRARY_DIR] [--out FILE]
 - Maze run: the walking clips (02_01-02_03, 03_*; relative coordinates, as the paper's
   maze) follow ``benchmarks/sketch/maze_path.json`` through ``maze.json``, with eq. 8
   (c = 0.5 m) and the same search without the facing term (c = 0): whether the sketch is
-  followed, mean and max deviation of the root from the sketch, nearest obstacle.
-  Writes ``results/sketch_maze.png``.
+  followed, mean and max deviation of the root from the sketch, nearest obstacle; and the
+  paper's first approach on the same maze (the cluster-tree action whose root path is
+  nearest the sketch by DTW, default higher layer): the same figures and the time per
+  choice. Writes ``results/sketch_maze.png``.
 - Terrain run: the terrain clips (03_*; terrain coordinates on the block grid found
   under their feet) follow ``terrain_path.json`` over ``terrain.json`` (blocks up to
   three levels high), with and without the facing term: deviation, and the foot-height
@@ -30,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks._report import machine, save
+from control.clusters import build_higher_layer
 from control.graph import GraphOptions, build_graph, terrain_options
 from control.motion import default_library_path, load_library
 from control.sketch import (
@@ -58,6 +61,28 @@ def maze(root: Path, png: Path) -> dict[str, Any]:
         t.run(120.0)
         out[name] = t.summary(time.perf_counter() - t0)
         roots[name] = t.root_path()
+    # the first approach: actions of the cluster trees chosen by DTW
+    t0 = time.perf_counter()
+    layer = build_higher_layer(g, lib.clips)
+    out["higher_layer"] = {
+        "clusters": layer.clustering.k,
+        "build_seconds": round(time.perf_counter() - t0, 1),
+        "tree_nodes_median": layer.forest.report["nodes"]["median"],
+        "tree_horizon_seconds_median": layer.forest.report["horizon_seconds"]["median"],
+    }
+    name = "first approach: actions by DTW"
+    t = SketchTracker(g, lib.clips, sketch, env, SketchSettings(), layer=layer)
+    t0 = time.perf_counter()
+    t.run(120.0)
+    out[name] = t.summary(time.perf_counter() - t0)
+    ms = np.array(t.step_seconds) * 1e3
+    out[name]["choices"] = len(t.step_seconds)
+    out[name]["actions_compared_mean"] = round(float(np.mean(t.expansions)), 1)
+    out[name]["choice_ms"] = {
+        "p50": round(float(np.percentile(ms, 50)), 1),
+        "p99": round(float(np.percentile(ms, 99)), 1),
+    }
+    roots[name] = t.root_path()
     draw_top_down(png, sketch, env, roots)
     return out
 

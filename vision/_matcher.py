@@ -22,9 +22,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from control.clusters import HigherLayer
+from control.dtw import dtw_batch, dtw_best_window
 from silhouette_bank import Bank
-
-from ._dtw import dtw_batch, dtw_best_window
 
 __all__ = ["Decision", "MatchSettings", "Matcher", "performer_sequence"]
 

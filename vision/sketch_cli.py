@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from control.cli import _add_graph_args, _add_library_args, _graph_for, _options, start_frame
+from control.clusters import HigherLayer, build_higher_layer
 from control.graph import CapturedTerrain, MotionGraph, cached_graph, terrain_options
 from control.motion import Library, load_library, write_bvh
 from control.sketch import (
@@ -51,6 +52,19 @@ def add_sketch_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
     p.add_argument("--radius", type=float, default=d.body_radius, help="obstacle clearance, m")
     p.add_argument("--seconds", type=float, help="most motion to plan (default: from length)")
     p.add_argument("--baseline", action="store_true", help="also run without the facing term")
+    p.add_argument(
+        "--approach",
+        choices=("search", "actions"),
+        default="search",
+        help="search: best-first search of eq. 8 (default); actions: the paper's first "
+        "approach, the cluster-tree action whose root path is nearest the sketch by DTW "
+        "(builds the higher layer first: slower)",
+    )
+    p.add_argument("--k", type=int, help="actions: number of clusters (default: by BIC)")
+    p.add_argument("--bound", type=float, default=15.0, help="actions: cluster tree bound, s")
+    p.add_argument(
+        "--tree-nodes", type=int, default=4096, help="actions: most nodes per cluster tree"
+    )
     p.add_argument("--start", help="start at CLIP:FRAME")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=_sketch)
@@ -73,22 +87,44 @@ def _sketch(args: argparse.Namespace) -> int:
     else:
         library, graph, _, _ = _graph_for(args)
     start = start_frame(graph, args.start)
+    layer = None
+    if args.approach == "actions":
+        if captured is not None:
+            raise ValueError("--approach actions does not handle block terrain")
+        layer = build_higher_layer(
+            graph, library.clips, k=args.k, bound_seconds=args.bound, max_nodes=args.tree_nodes
+        )
+    # (name, c, layer): the chosen approach first; --baseline adds its comparison (eq. 8
+    # without the facing term, or for actions the eq. 8 search)
+    plan: list[tuple[str, float, HigherLayer | None]] = [
+        ("actions (DTW)", args.c, layer) if layer is not None else ("eq. 8", args.c, None)
+    ]
+    if args.baseline:
+        plan.append(("eq. 8", args.c, None) if layer is not None else ("no facing term", 0.0, None))
     runs: dict[str, SketchTracker] = {}
     summary: dict[str, Any] = {}
-    for name, c in [("eq. 8", args.c)] + ([("no facing term", 0.0)] if args.baseline else []):
+    for name, c, with_layer in plan:
         settings = SketchSettings(c=c, step_frames=args.step_frames, body_radius=args.radius)
         tracker = SketchTracker(
-            graph, library.clips, sketch, env, settings, start=start, captured=captured
+            graph,
+            library.clips,
+            sketch,
+            env,
+            settings,
+            start=start,
+            captured=captured,
+            layer=with_layer,
         )
         t0 = time.perf_counter()
         tracker.run(seconds)
         summary[name] = tracker.summary(time.perf_counter() - t0)
         runs[name] = tracker
-    main = runs["eq. 8"]
+    first = plan[0][0]
+    main = runs[first]
     syn = main.motion()
     write_bvh(syn.motion, args.out)
     if captured is not None:
-        summary["eq. 8"]["terrain"] = main.terrain_report(syn)
+        summary[first]["terrain"] = main.terrain_report(syn)
     if args.png:
         draw_top_down(args.png, sketch, env, {k: v.root_path() for k, v in runs.items()})
     if args.video:

@@ -1,5 +1,5 @@
-"""Following a sketched path by best-first search in the lower layer (Lee et al. §5.2,
-the second approach, eq. 8).
+"""Following a sketched path (Lee et al. §5.2): by best-first search in the lower layer
+(the second approach, eq. 8), or by choosing among the avatar's actions (the first).
 
 The sketch is resampled into goal points ``spacing`` metres apart. Each step searches
 paths of exactly ``step_frames`` frames from the avatar's frame (playback and
@@ -18,6 +18,12 @@ air would be inside a block. The first
 complete path popped is committed and the search starts again from its end: a fixed
 number of frames per step, so the avatar moves at a constant rate, and the sketch may
 grow between steps (``extend``) while it is still being drawn.
+
+The first approach (given a higher layer) chooses, at each step, the cluster path of
+the avatar's cluster tree whose most probable motion's root path is nearest the sketch
+ahead by DTW (the root path resampled every ``dtw_spacing`` metres against as much of
+the sketch ahead as the path is long), plus the sketch length left beyond that part,
+and performs that motion to its end.
 """
 
 from __future__ import annotations
@@ -33,6 +39,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..clusters import HigherLayer
+from ..dtw import dtw
 from ..graph import (
     CapturedTerrain,
     FrameData,
@@ -81,8 +89,12 @@ class SketchSettings:
     max_backtracks: int = 40
     #: terrain: how far (metres) a foot in the air may dip below the top of a block
     foot_clearance: float = 0.03
-    #: terrain: transitions that move the root further than this (metres) are not taken
-    max_residual: float = 1.0
+    #: first approach: cluster paths reached within ``lookahead`` seconds are candidates
+    lookahead: float = 3.0
+    #: first approach: root path and sketch are compared every ``dtw_spacing`` metres
+    dtw_spacing: float = 0.1
+    #: first approach: at most this many actions (an even spread) are compared per choice
+    max_actions: int = 128
 
 
 def resample(points: FloatArray, spacing: float) -> FloatArray:
@@ -146,6 +158,9 @@ class SketchTracker:
     segment. On block terrain it is turned by a quarter turn and placed on the blocks'
     grid instead, as near that as the blocks allow; ``captured`` is the terrain the
     library was captured on (default: ``captured_terrain`` of the graph's clips).
+
+    With ``layer`` (the graph's higher layer) each step takes the first approach: the
+    best action of the avatar's cluster tree, performed to its end.
     """
 
     def __init__(
@@ -157,6 +172,7 @@ class SketchTracker:
         settings: SketchSettings | None = None,
         start: int | None = None,
         captured: CapturedTerrain | None = None,
+        layer: HigherLayer | None = None,
     ) -> None:
         self.graph = graph
         self.clips = list(clips)
@@ -164,6 +180,11 @@ class SketchTracker:
         if self.settings.step_frames < 1 or not self.settings.spacing > 0:
             raise ValueError("step_frames must be at least 1 and spacing positive")
         self.env = env
+        self.layer = layer
+        if layer is not None and layer.graph is not graph:
+            raise ValueError("the higher layer must be built on the same graph")
+        if layer is not None and env is not None and env.terrain is not None:
+            raise ValueError("the first approach (actions) does not handle block terrain")
         data = FrameData(graph, clips)
         self._root = data.root
         self._heading = yaw_of(data.quats[:, 0])
@@ -192,7 +213,9 @@ class SketchTracker:
         self.jumps: list[int] = []
         self.edges: list[int] = []
         self.expansions: list[int] = []
+        self.step_seconds: list[float] = []  # compute time of each planning step
         self.search_seconds = 0.0
+        self.progress = 0.0  # first approach: metres of the sketch matched so far
         self.stuck = False
         self.backtracks = 0
         # before each committed step: (frames, jumps, yaw, trans, goal) and the step ends
@@ -208,6 +231,11 @@ class SketchTracker:
         self.goals = resample(self.sketch, self.settings.spacing)
         seg = np.linalg.norm(np.diff(np.vstack((self.goals, self.goals[-1:])), axis=0), axis=1)
         self._ahead = np.cumsum(seg[::-1])[::-1]  # sketch length beyond each goal
+        # the sketch every dtw_spacing metres from its start, with arc lengths (first
+        # approach)
+        self._fine = np.vstack((self.sketch[:1], resample(self.sketch, self.settings.dtw_spacing)))
+        steps = np.linalg.norm(np.diff(self._fine, axis=0), axis=1)
+        self._fine_s = np.concatenate(([0.0], np.cumsum(steps)))
 
     def extend(self, points: FloatArray) -> None:
         """Append newly drawn points to the sketch (the goals already reached stay so)."""
@@ -272,11 +300,6 @@ class SketchTracker:
         self._support = feet.support
         self._states = feet.states
         self._level = captured.level_of(feet.toe[..., 1])
-        # how far each transition moves the root from where playing on would have put it
-        # (what the blend must carry, and planted feet must take up)
-        g_align = self._align
-        res = self._root[g.src] - (rotate_y(self._root[g.dst - 1], g_align[:, 0]) + g_align[:, 1:])
-        self._smooth = np.linalg.norm(res, axis=1) <= self.settings.max_residual
 
     def _on_blocks(self, f: int, yaw: float, trans: FloatArray) -> bool:
         """Frame ``f`` placed by ``(yaw, trans)`` fits the blocks: each planted foot on a
@@ -388,6 +411,12 @@ class SketchTracker:
 
         When every way on collides, the last steps are undone and planned again without
         the end that led into the corner (at most ``max_backtracks`` times in all)."""
+        if self.layer is not None:
+            if self.done:
+                return 0
+            n = self._plan_action()
+            self.stuck = n == 0
+            return n
         while not self.done:
             n = self._plan()
             if n or self.done:
@@ -452,8 +481,7 @@ class SketchTracker:
             if self._plays[f] and g.in_scc[f + 1]:
                 succ.append((f + 1, -1))
             for e in range(self._indptr[f], self._indptr[f + 1]):
-                if self.terrain is None or self._smooth[e]:
-                    succ.append((int(g.dst[e]), e))
+                succ.append((int(g.dst[e]), e))
             for h, e in succ:
                 if e >= 0:
                     al = self._align[e]
@@ -472,7 +500,8 @@ class SketchTracker:
                 nodes.append((h, yaw2, trans2, depth + 1, i, e, goal2))
                 heapq.heappush(heap, (score, len(nodes) - 1))
         self.expansions.append(expanded)
-        self.search_seconds += time.perf_counter() - t0
+        self.step_seconds.append(time.perf_counter() - t0)
+        self.search_seconds += self.step_seconds[-1]
         if found < 0 and heap:
             found = deepest[2]  # out of expansions: the best of the longest partial paths
         if found <= 0:  # every way on collides (a local minimum of eq. 8)
@@ -495,6 +524,96 @@ class SketchTracker:
         last = nodes[found]
         self._yaw, self._trans, self.goal = last[1], last[2], last[6]
         return len(chain)
+
+    def _actions(self) -> list[int]:
+        """The first approach's candidates: nodes of the avatar's cluster tree first
+        reached within the look-ahead that have no child within it (cluster paths)."""
+        assert self.layer is not None
+        tree = self.layer.forest.tree(self.frame)
+        t = (tree.arrival + tree.root_frame - self.frame) / self.graph.fps
+        ok = t <= self.settings.lookahead
+        ok[0] = True
+        for node in range(1, tree.size):  # parents come before children
+            ok[node] &= ok[tree.parent[node]]
+        inner = np.zeros(tree.size, dtype=bool)
+        kids = np.flatnonzero(ok & (tree.parent >= 0))
+        inner[tree.parent[kids]] = True
+        leaves = np.flatnonzero(ok & ~inner)
+        return [int(x) for x in leaves if x != 0] or [int(x) for x in np.flatnonzero(ok)[1:]]
+
+    def _plan_action(self) -> int:
+        """The first approach: choose the action whose root path is nearest the sketch
+        ahead by DTW (against the part of the sketch ahead as long as the root path),
+        plus the sketch left beyond that part; commit it."""
+        assert self.layer is not None
+        t0 = time.perf_counter()
+        s = self.settings
+        g = self.graph
+        bound = math.floor(s.lookahead * g.fps + 1e-9)
+        total = float(self._fine_s[-1])
+        best: tuple[float, Any, float] | None = None
+        actions = self._actions()
+        if len(actions) > s.max_actions:  # an even spread of them
+            pick = np.linspace(0, len(actions) - 1, s.max_actions).round().astype(int)
+            actions = [actions[i] for i in np.unique(pick)]
+        tried = 0
+        for node in actions:
+            pm = self.layer.motion_to(self.frame, node, bound)
+            if pm is None or pm.frames.size < 2:
+                continue
+            tried += 1
+            ground, _ = ground_path(
+                self._root, self._heading, self._align, pm.frames, pm.edges, self._yaw, self._trans
+            )
+            if self.env is not None and self.env.clearance(ground).min() < s.body_radius:
+                continue
+            q = np.vstack((ground[:1], resample(ground, s.dtw_spacing)))
+            length = float(np.linalg.norm(np.diff(ground, axis=0), axis=1).sum())
+            # the part of the sketch it covers: up to the point nearest its end (no
+            # further on than its own length and a metre)
+            end = self._nearest_along(ground[-1], self.progress, self.progress + length + 1.0)
+            ahead = self._sketch_between(self.progress, end, q.shape[0])
+            cost = dtw(q, ahead) / math.sqrt(q.shape[0]) + (total - end)
+            if best is None or cost < best[0]:
+                best = (cost, pm, end)
+        self.expansions.append(tried)
+        self.step_seconds.append(time.perf_counter() - t0)
+        self.search_seconds += self.step_seconds[-1]
+        if best is None:
+            return 0
+        _, pm, end = best
+        n0 = len(self.frames)
+        for i, e in enumerate(pm.edges):
+            if e >= 0:
+                al = self._align[e]
+                self._yaw, self._trans = compose(self._yaw, self._trans, float(al[0]), al[1:])
+                self.jumps.append(n0 + i)
+                self.edges.append(int(e))
+        self.frames.extend(int(f) for f in pm.frames[1:])
+        # progress: that part; its goals are reached when the avatar ends within twice
+        # ``reach`` of the sketch
+        self.progress = max(self.progress, end)
+        x, z, a = self.position()
+        if np.hypot(*(self._sketch_between(end, end, 1)[0] - (x, z))) <= 2.0 * s.reach:
+            goal_s = total - self._ahead  # arc length of each goal
+            reached = int(np.searchsorted(goal_s, self.progress + s.reach, side="right"))
+            self.goal = max(self.goal, reached)
+        self.goal = max(self.goal, self._score(x, z, a, self.goal)[1])
+        return pm.frames.size - 1
+
+    def _nearest_along(self, p: FloatArray, s0: float, s1: float) -> float:
+        """Arc length of the sketch point nearest ``p`` between arc lengths ``s0``, ``s1``
+        (every ``dtw_spacing`` metres)."""
+        lo, hi = np.searchsorted(self._fine_s, (s0, s1), side="right")
+        lo = max(int(lo) - 1, 0)
+        pts = self._fine[lo : max(int(hi), lo + 1)]
+        k = int(np.argmin(np.hypot(pts[:, 0] - p[0], pts[:, 1] - p[1])))
+        return max(s0, float(self._fine_s[lo + k]))
+
+    def _sketch_between(self, s0: float, s1: float, n: int) -> FloatArray:
+        """``n`` points evenly spaced along the sketch from arc length ``s0`` to ``s1``."""
+        at = np.linspace(s0, s1, max(n, 2))
+        return np.stack([np.interp(at, self._fine_s, self._fine[:, k]) for k in range(2)], axis=1)
 
     def run(self, max_seconds: float) -> None:
         """Step until the sketch is followed, the avatar is stuck, or ``max_seconds`` of

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from matplotlib.path import Path as MplPath
 
+from control.clusters import build_higher_layer
 from control.graph import GraphOptions, build_graph
 from control.motion import Library, load_library, read_bvh
 from control.sketch import (
@@ -166,6 +167,43 @@ def test_dead_end_is_backed_out_of_or_reported(walks) -> None:
     assert env.clearance(t.root_path()).min() >= t.settings.body_radius
 
 
+# --- the first approach: actions chosen by DTW ------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def actions(walks):
+    lib, g = walks
+    return build_higher_layer(g, lib.clips, k=10, bound_seconds=3.0, max_nodes=512)
+
+
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_first_approach_turns_the_way_the_sketch_does(walks, actions, side: float) -> None:
+    lib, g = walks
+    sketch = np.array([[0.0, 0.0], [0.0, 1.5], [2.5 * side, 3.0], [4.0 * side, 3.0]])
+    t = SketchTracker(g, lib.clips, sketch, None, SketchSettings(), layer=actions)
+    t.run(20.0)
+    assert t.goal >= len(t.goals) and not t.stuck and len(t.expansions) > 1
+    root = t.root_path()
+    assert np.sign(root[-1, 0]) == side and abs(root[-1, 0]) > 2.0
+    assert path_deviation(root, sketch).mean() < 0.6
+    # each step performed one whole most probable motion: the frames play on or follow
+    # the graph's transitions (synthesis checks every step)
+    assert t.motion().motion.n_frames == len(t.frames)
+
+
+def test_first_approach_avoids_obstacles_and_checks_its_inputs(walks, actions) -> None:
+    lib, g = walks
+    env = read_environment(MAZE)
+    sketch = read_sketch(MAZE_PATH)[:3]
+    t = SketchTracker(g, lib.clips, sketch, env, SketchSettings(), layer=actions)
+    t.run(15.0)
+    assert len(t.frames) > 1
+    assert env.clearance(t.root_path()).min() >= t.settings.body_radius
+    other = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.2))
+    with pytest.raises(ValueError, match="same graph"):
+        SketchTracker(other, lib.clips, sketch, None, layer=actions)
+
+
 # --- the command --------------------------------------------------------------------------
 
 
@@ -181,6 +219,12 @@ def test_cli_sketch_writes_bvh_png(mocap: Path, tmp_path: Path, capsys) -> None:
     if check.is_file():  # the independent reader beside the data
         r = subprocess.run([sys.executable, str(check), str(out)], capture_output=True)
         assert r.returncode == 0, r.stdout + r.stderr
+    # the first approach, compared with the search
+    actions = ["--approach", "actions", "--k", "10", "--bound", "3", "--tree-nodes", "512"]
+    assert main([*argv, "--out", str(out), *actions, "--baseline", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert set(summary) == {"out", "actions (DTW)", "eq. 8"}
+    assert summary["actions (DTW)"]["motion_seconds"] > 5
     bad = tmp_path / "bad.csv"
     bad.write_text("0,0\n1\n")
     assert main(["sketch", str(mocap), "--path", str(bad), "--out", str(out)]) == 2
