@@ -110,6 +110,7 @@ class GLRenderer:
             pyrender.DirectionalLight(color=np.ones(3), intensity=3.0), pose=np.eye(4)
         )
         self._body: Any = None
+        self._scenery: Any = None
         self._material = pyrender.MetallicRoughnessMaterial(
             baseColorFactor=(0.75, 0.72, 0.68, 1.0), metallicFactor=0.0, roughnessFactor=0.8
         )
@@ -151,10 +152,34 @@ class GLRenderer:
             self._scene.remove_node(self._body)
         self._body = self._scene.add(pyrender.Mesh([prim]))
 
+    def set_scenery(self, vertices: FloatArray, faces: NDArray[np.int64]) -> None:
+        """Show a static mesh (world coordinates) beside the body, grey; shaded renders
+        only (silhouettes stay the body's alone)."""
+        pyrender = self._pyrender
+        material = pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=(0.45, 0.47, 0.5, 1.0), metallicFactor=0.0, roughnessFactor=0.9
+        )
+        v = np.asarray(vertices, dtype=np.float64)
+        f = np.asarray(faces, dtype=np.int64)
+        prim = pyrender.Primitive(
+            material=material,
+            positions=v.astype(np.float32),
+            normals=_normals(v, f).astype(np.float32),
+            indices=f.astype(np.uint32),
+            mode=4,
+        )
+        if self._scenery is not None:
+            self._scene.remove_node(self._scenery)
+        self._scenery = self._scene.add(pyrender.Mesh([prim]))
+
     def render(self, camera_pose: FloatArray) -> NDArray[np.uint8]:
         """The silhouette ``(H, W)`` (1 inside) seen from the camera-to-world ``camera_pose``."""
         self._scene.set_pose(self._camera, np.asarray(camera_pose, dtype=np.float64))
+        if self._scenery is not None:
+            self._scenery.mesh.is_visible = False
         depth = self._r.render(self._scene, flags=self._pyrender.RenderFlags.DEPTH_ONLY)
+        if self._scenery is not None:
+            self._scenery.mesh.is_visible = True
         self.renders += 1
         return (np.asarray(depth) > 0).astype(np.uint8)
 

@@ -142,15 +142,19 @@ def shaded_frames(
     ring: CameraRing,
     views: Sequence[int] | int = 0,
     body: CapsuleBody | None = None,
+    scenery: tuple[NDArray[np.float64], NDArray[np.int64]] | None = None,
 ) -> Iterator[NDArray[np.uint8]]:
     """BGR images ``(H, W, 3)`` of the shaded capsule body, one per frame, each seen by
-    the camera ``views[i]`` (or one view for all) of ``ring``, which follows the root."""
+    the camera ``views[i]`` (or one view for all) of ``ring``, which follows the root;
+    ``scenery`` ``(vertices, faces)`` is a static mesh shown with it (obstacles, blocks)."""
     from ._body import capsule_body
 
     body = body or capsule_body(motion.skeleton)
     seg = capsule_segments(motion, body)
     poses = ring.poses(motion.root_pos)
     with GLRenderer(ring) as gl:
+        if scenery is not None:
+            gl.set_scenery(*scenery)
         for i in range(motion.n_frames):
             v = views if isinstance(views, int) else views[min(i, len(views) - 1)]
             gl.set_body(seg[i], body.radius)
@@ -186,8 +190,9 @@ def render_motion_video(
     ring: CameraRing | None = None,
     view: int = 0,
     body: CapsuleBody | None = None,
+    scenery: tuple[NDArray[np.float64], NDArray[np.int64]] | None = None,
 ) -> None:
-    """An MP4 of ``motion``: the shaded body seen by one camera of ``ring`` (default: a
-    320x240 ring), which follows the root."""
+    """An MP4 of ``motion``: the shaded body (and ``scenery``, a static mesh) seen by one
+    camera of ``ring`` (default: a 320x240 ring), which follows the root."""
     ring = ring or CameraRing(width=320, height_px=240)
-    write_mp4(path, shaded_frames(motion, ring, view, body), motion.fps)
+    write_mp4(path, shaded_frames(motion, ring, view, body, scenery), motion.fps)

@@ -17,6 +17,7 @@ from control.sketch import (
     SketchSettings,
     SketchTracker,
     draw_top_down,
+    environment_mesh,
     read_environment,
     read_sketch,
 )
@@ -130,7 +131,9 @@ def _sketch(args: argparse.Namespace) -> int:
     if args.video:
         from silhouette_bank import render_motion_video
 
-        render_motion_video(syn.motion, args.video)
+        rise = main.captured.rise if main.captured is not None else 0.0
+        scenery = environment_mesh(env, rise) if env is not None else None
+        render_motion_video(syn.motion, args.video, scenery=scenery)
     if args.json:
         print(json.dumps({"out": str(args.out), **summary}, indent=2))
     else:

@@ -1,6 +1,6 @@
 """The sketch interface (Lee et al. §5.2): follow a path drawn on the ground."""
 
-from ._draw import draw_top_down
+from ._draw import draw_top_down, environment_mesh
 from ._files import Environment, SketchFileError, read_environment, read_sketch
 from ._track import (
     SketchSettings,
@@ -17,6 +17,7 @@ __all__ = [
     "SketchSettings",
     "SketchTracker",
     "draw_top_down",
+    "environment_mesh",
     "ground_path",
     "path_deviation",
     "read_environment",

@@ -1,4 +1,5 @@
-"""A top-down picture of a sketch, its environment and the avatar's root paths."""
+"""A top-down picture of a sketch, its environment and the avatar's root paths; the
+environment as a mesh for rendered videos."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from numpy.typing import NDArray
 from ..motion._text import atomic_write
 from ._files import Environment
 
-__all__ = ["draw_top_down"]
+__all__ = ["draw_top_down", "environment_mesh"]
 
 FloatArray = NDArray[np.float64]
 
@@ -98,3 +99,48 @@ def draw_top_down(
         raise OSError(f"{path}: could not encode the picture")
     with atomic_write(path, "wb") as fh:
         fh.write(buf.tobytes())
+
+
+def _prism(poly: FloatArray, y0: float, y1: float) -> tuple[FloatArray, NDArray[np.int64]]:
+    """A polygon ``(k, 2)`` (x, z) extruded from height ``y0`` to ``y1``: side walls and a
+    top (the Delaunay triangles of its corners that lie inside it)."""
+    from scipy.spatial import Delaunay
+
+    k = len(poly)
+    bottom = np.column_stack((poly[:, 0], np.full(k, y0), poly[:, 1]))
+    top = np.column_stack((poly[:, 0], np.full(k, y1), poly[:, 1]))
+    verts = np.vstack((bottom, top))
+    faces = []
+    for i in range(k):
+        j = (i + 1) % k
+        faces += [(i, j, k + j), (i, k + j, k + i)]
+    cap = Delaunay(poly).simplices
+    inside = Environment(obstacles=(poly,)).clearance(poly[cap].mean(axis=1)) < 0
+    faces += [tuple(k + t) for t in cap[inside]]
+    return verts, np.array(faces, dtype=np.int64)
+
+
+def environment_mesh(
+    env: Environment, rise: float = 0.0, height: float = 0.6
+) -> tuple[FloatArray, NDArray[np.int64]] | None:
+    """The environment as one mesh ``(vertices, faces)`` in metres (y up) for a rendered
+    video: obstacles as walls ``height`` high, terrain blocks ``level * rise`` high.
+    ``None`` when there is nothing to show."""
+    parts = [_prism(p, 0.0, height) for p in env.obstacles]
+    if env.terrain is not None and rise > 0:
+        t = env.terrain
+        for (r, c), level in np.ndenumerate(t.levels):
+            if level > 0:
+                x0, z0 = t.corner[0] + c * t.block, t.corner[1] + r * t.block
+                sq = np.array(
+                    [[x0, z0], [x0 + t.block, z0], [x0 + t.block, z0 + t.block], [x0, z0 + t.block]]
+                )
+                parts.append(_prism(sq, 0.0, level * rise))
+    if not parts:
+        return None
+    verts, faces, base = [], [], 0
+    for v, f in parts:
+        verts.append(v)
+        faces.append(f + base)
+        base += len(v)
+    return np.vstack(verts), np.vstack(faces)

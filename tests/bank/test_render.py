@@ -119,3 +119,29 @@ def test_two_thousand_renders_with_flat_memory(exercise) -> None:
         assert gl.renders == 2000
     grown_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss) / 1024
     assert grown_mb < 20, f"memory grew {grown_mb:.1f} MB over 1,800 renders"
+
+
+@pytest.mark.gl
+def test_scenery_shows_in_shaded_renders_but_not_in_silhouettes(exercise) -> None:
+    from control.sketch import Environment, environment_mesh
+    from silhouette_bank._gl import GLRenderer
+
+    ring = CameraRing(width=160, height_px=120)
+    body = capsule_body(exercise.skeleton)
+    seg = capsule_segments(exercise, body)
+    pose = ring.poses(exercise.root_pos)[0, 0]
+    # a wall between the camera (view 0) and the avatar, and one behind it
+    root = exercise.root_pos[0]
+    cam = pose[:3, 3]
+    mid = 0.5 * (root + cam)
+    wall = np.array([[-0.3, -0.3], [0.3, -0.3], [0.3, 0.3], [-0.3, 0.3]]) + mid[[0, 2]]
+    mesh = environment_mesh(Environment(obstacles=(wall,)))
+    assert mesh is not None and environment_mesh(Environment()) is None
+    with GLRenderer(ring) as gl:
+        gl.set_body(seg[0], body.radius)
+        alone, shaded_alone = gl.render(pose), gl.render_shaded(pose)
+        gl.set_scenery(*mesh)
+        with_wall, shaded_wall = gl.render(pose), gl.render_shaded(pose)
+    assert np.array_equal(alone, with_wall)  # silhouettes are the body's alone
+    lit = (shaded_wall.sum(axis=2) > 0) & (shaded_alone.sum(axis=2) == 0)
+    assert lit.sum() > 100  # the wall is drawn

@@ -25,6 +25,7 @@ from control.sketch import (
     SketchFileError,
     SketchSettings,
     SketchTracker,
+    environment_mesh,
     read_environment,
     read_sketch,
 )
@@ -77,6 +78,11 @@ def test_terrain_environment_file_and_levels(tmp_path: Path) -> None:
     assert t.level_at(np.array([[-100.0, 0.0]]))[0] == 0  # outside the grid: the ground
     x0, z0 = t.corner
     assert t.level_at(np.array([[x0 + 3.5 * t.block, z0 + 3.5 * t.block]]))[0] == t.levels[3, 3]
+    # the blocks as a mesh for videos: one box per raised block, as high as its level
+    verts, faces = environment_mesh(env, rise=0.15)
+    heights = np.unique(np.round(verts[:, 1], 6))
+    assert heights.tolist() == [0.0, 0.15, 0.3, 0.45]
+    assert len(verts) == 8 * int((t.levels > 0).sum()) and faces.max() < len(verts)
 
 
 @pytest.mark.parametrize(
