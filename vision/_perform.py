@@ -27,8 +27,9 @@ from control.motion import Clip
 from silhouette_bank import Bank, silhouette_features
 
 from ._matcher import Matcher, MatchSettings
-from ._segment import Segmenter, clean_mask
-from ._sources import Source
+from ._person import make_segmenter, resolve_segmentation
+from ._segment import clean_mask
+from ._sources import CameraSource, Source
 
 __all__ = ["PerformResult", "PerformSettings", "perform"]
 
@@ -36,7 +37,8 @@ __all__ = ["PerformResult", "PerformSettings", "perform"]
 @dataclass(frozen=True)
 class PerformSettings:
     decide_every: float = 0.1
-    segmentation: str = "mog2"
+    #: "auto": a camera learns a plate (mog2), footage uses a person segmenter (selfie)
+    segmentation: str = "auto"
     learn_frames: int = 30
     match: MatchSettings = field(default_factory=MatchSettings)
     seconds: float | None = None  # stop after this much media time (cameras never end)
@@ -69,7 +71,7 @@ def perform(
     graph = layer.graph
     matcher = Matcher(layer, bank, settings.match)
     avatar = Avatar(graph, clips, start=start, seed=seed)
-    segmenter: Segmenter | None = None
+    segmenter: Any = None
     period = 1.0 / graph.fps
     buffer: deque[NDArray[np.float64]] = deque(maxlen=matcher.n)
     latest = np.full(9, np.nan)
@@ -97,7 +99,10 @@ def perform(
             mask = clean_mask(frame.mask)
         elif frame.image is not None:
             if segmenter is None:
-                segmenter = Segmenter(settings.segmentation, settings.learn_frames)
+                method = resolve_segmentation(
+                    settings.segmentation, isinstance(source, CameraSource)
+                )
+                segmenter = make_segmenter(method, settings.learn_frames)
             mask = segmenter.apply(frame.image)
         else:
             mask = None

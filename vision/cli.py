@@ -54,6 +54,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         KeyError,
         ValueError,
         OSError,
+        ImportError,  # an optional dependency that is not installed (the message says how)
     ) as exc:
         print(f"mimic: error: {exc}", file=sys.stderr)
         return 2

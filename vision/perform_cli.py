@@ -17,6 +17,7 @@ from silhouette_bank import BankSettings, BodyShape, ensure_bank
 from ._live import LiveView
 from ._matcher import MatchSettings
 from ._perform import PerformSettings, perform, write_video
+from ._person import PERSON_METHODS
 from ._record import RecordSettings, record_clip
 from ._segment import METHODS
 from ._sources import open_source
@@ -41,7 +42,14 @@ def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
     p.add_argument("--seconds", type=float, help="stop after this much media time")
     p.add_argument("--window", type=float, default=1.0, help="seconds of performer matched")
     p.add_argument("--lookahead", type=float, default=1.5, help="candidate actions within, s")
-    p.add_argument("--segmentation", choices=METHODS, default="mog2")
+    p.add_argument(
+        "--segmentation",
+        choices=("auto", *PERSON_METHODS, *METHODS),
+        default="auto",
+        help="auto (default): a camera learns the empty scene first (mog2); a video file has "
+        "no such plate, so a person segmenter (selfie, needs MediaPipe) is used; pose: "
+        "MediaPipe's pose model; the rest are OpenCV background subtractors",
+    )
     p.add_argument("--learn-frames", type=int, default=30, help="frames to learn the background")
     p.add_argument("--k", type=int, help="number of clusters (default: BIC)")
     p.add_argument("--start", help="avatar starts at CLIP:FRAME")
@@ -137,7 +145,7 @@ def _perform(args: argparse.Namespace) -> int:
     source = open_source(args.camera, args.video, args.masks, realtime=args.realtime)
     if args.camera is not None and args.seconds is None:
         print("a camera never ends: stop with Ctrl-C (or give --seconds)", file=sys.stderr)
-    if args.video is None and args.masks is None:
+    if args.camera is not None and args.segmentation in ("auto", *METHODS):
         print(
             "step out of view for two seconds so that the background can be learned",
             file=sys.stderr,

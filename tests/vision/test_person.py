@@ -1,0 +1,96 @@
+"""Person segmentation (MediaPipe) for footage without a background plate."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from vision._person import (
+    PersonSegmenter,
+    make_segmenter,
+    person_segmentation_available,
+    resolve_segmentation,
+)
+from vision._segment import Segmenter
+
+
+def _frames(path: Path, every: int = 10) -> list[np.ndarray]:
+    cap = cv2.VideoCapture(str(path))
+    out = []
+    i = 0
+    while True:
+        ok, img = cap.read()
+        if not ok:
+            break
+        if i % every == 0:
+            out.append(img)
+        i += 1
+    cap.release()
+    assert out, f"cannot read {path}"
+    return out
+
+
+@pytest.fixture(scope="module")
+def squats(mocap: Path) -> list[np.ndarray]:
+    return _frames(mocap.parent / "video" / "pose_squats.mp4", every=10)
+
+
+@pytest.fixture(autouse=True)
+def _needs_mediapipe() -> None:
+    """MediaPipe is optional: without it these tests skip, except in CI (``CI`` set, as
+    ``.ci/run`` does after installing it), where a skip would hide a broken install."""
+    if not person_segmentation_available():
+        if os.environ.get("CI"):
+            pytest.fail("MediaPipe is not installed in CI (see .ci/run)")
+        pytest.skip("MediaPipe (optional) is not installed")
+
+
+def test_selfie_and_pose_find_one_whole_person(squats: list[np.ndarray]) -> None:
+    selfie, pose = PersonSegmenter("selfie"), PersonSegmenter("pose")
+    ious = []
+    for img in squats:
+        a, b = selfie.apply(img), pose.apply(img)
+        assert a is not None and b is not None and a.shape == img.shape[:2]
+        # a standing or squatting woman in a portrait frame: a tenth to a third of it
+        assert 0.05 < a.mean() < 0.35
+        n, _ = cv2.connectedComponents(a.astype(np.uint8))
+        assert n == 2  # one blob (and the background)
+        ious.append((a & b).sum() / (a | b).sum())
+    assert np.median(ious) > 0.7  # the two models agree on the silhouette
+    # nobody in view: no silhouette
+    assert selfie.apply(np.full((480, 640, 3), 128, dtype=np.uint8)) is None
+    selfie.close()
+    pose.close()
+
+
+def test_a_plate_subtractor_loses_a_person_who_is_there_from_the_start(mocap: Path) -> None:
+    """The measured fact behind the person segmenter: with no empty frames to learn from,
+    MOG2 (learning over the first 30 frames, as by default) learns the person into the
+    background; its masks hardly overlap the person segmenter's."""
+    frames = _frames(mocap.parent / "video" / "pose_1.mp4", every=1)
+    mog = Segmenter("mog2", learn_frames=30)
+    person = PersonSegmenter("selfie")
+    ious = []
+    for img in frames:
+        m, p = mog.apply(img), person.apply(img)
+        if mog.learning or p is None:
+            continue
+        m = np.zeros_like(p) if m is None else m
+        ious.append((m & p).sum() / (m | p).sum())
+    assert len(ious) > 60 and np.median(ious) < 0.4
+
+
+def test_choosing_a_segmenter() -> None:
+    assert resolve_segmentation("auto", live=True) == "mog2"  # a camera learns its plate
+    assert resolve_segmentation("auto", live=False) == "selfie"  # footage has none
+    assert resolve_segmentation("knn", live=False) == "knn"
+    assert isinstance(make_segmenter("pose"), PersonSegmenter)
+    assert isinstance(make_segmenter("mog2", 5), Segmenter)
+    with pytest.raises(ValueError, match="method must be one of selfie, pose"):
+        PersonSegmenter("body")
+    with pytest.raises(ValueError, match=r"expected a BGR image \(H, W, 3\)"):
+        PersonSegmenter().apply(np.zeros((10, 10), dtype=np.uint8))

@@ -1,0 +1,138 @@
+"""Person segmentation for footage without a background plate (issue 9).
+
+A background subtractor needs a few frames of the empty scene; prerecorded footage
+rarely has them (the person is in view from the first frame and gets absorbed into the
+background). MediaPipe's legacy person segmenters ship their models inside the wheel,
+so nothing is downloaded at run time:
+
+- ``selfie``: the selfie segmentation model (general variant), a few milliseconds per
+  640x480 frame on one core;
+- ``pose``: the pose landmarker with segmentation, slower, sometimes tighter on limbs.
+
+MediaPipe is optional (``pip install --no-deps mediapipe==0.10.14`` and its small
+dependencies: see the README): its own wheel asks for the non-headless OpenCV and an
+older protobuf, so it is installed without its dependency list, and the headless OpenCV
+the project needs stays the one installed.
+
+The probability map is thresholded and cleaned like a subtractor's mask
+(``clean_mask``: the largest blob, holes filled).
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from ._segment import clean_mask
+
+__all__ = [
+    "PERSON_METHODS",
+    "PersonSegmenter",
+    "make_segmenter",
+    "person_segmentation_available",
+    "resolve_segmentation",
+]
+
+PERSON_METHODS = ("selfie", "pose")
+
+INSTALL = (
+    "pip install --no-deps mediapipe==0.10.14 && "
+    "pip install absl-py attrs flatbuffers 'protobuf>=4.25.3,<5' matplotlib"
+)
+
+
+def _mediapipe() -> Any:
+    try:
+        import mediapipe as mp
+    except ImportError as exc:
+        raise ImportError(
+            f"person segmentation needs MediaPipe 0.10.14 ({exc}); install it with: {INSTALL}"
+        ) from None
+    return mp
+
+
+def person_segmentation_available() -> bool:
+    """Whether MediaPipe can be imported here."""
+    try:
+        _mediapipe()
+    except ImportError:
+        return False
+    return True
+
+
+class PersonSegmenter:
+    """A learned person segmenter with the ``Segmenter`` interface: ``apply(image)``
+    gives the cleaned mask, or ``None`` when nobody (big enough) is in view. Nothing is
+    learned first (``learning`` is always False)."""
+
+    learning = False
+
+    def __init__(self, method: str = "selfie", threshold: float = 0.5, min_area: float = 0.003):
+        if method not in PERSON_METHODS:
+            raise ValueError(f"method must be one of {', '.join(PERSON_METHODS)}, not {method!r}")
+        if not 0.0 < threshold < 1.0:
+            raise ValueError("threshold must lie in (0, 1)")
+        mp = _mediapipe()
+        self.method = method
+        self.threshold = threshold
+        self.min_area = min_area
+        if method == "selfie":
+            self._model = mp.solutions.selfie_segmentation.SelfieSegmentation(model_selection=0)
+        else:
+            self._model = mp.solutions.pose.Pose(
+                static_image_mode=False, model_complexity=1, enable_segmentation=True
+            )
+
+    def probability(self, image: NDArray[np.uint8]) -> NDArray[np.float32] | None:
+        """The model's person probability per pixel ``(H, W)``, or ``None`` (the pose
+        model finds no person)."""
+        if image.ndim != 3 or image.shape[2] != 3:
+            raise ValueError(f"expected a BGR image (H, W, 3), got shape {image.shape}")
+        with warnings.catch_warnings():  # MediaPipe 0.10.14 on a newer protobuf
+            warnings.filterwarnings("ignore", "SymbolDatabase.GetPrototype", UserWarning)
+            result = self._model.process(cv2.cvtColor(image, cv2.COLOR_BGR2RGB))
+        prob = result.segmentation_mask
+        return None if prob is None else np.asarray(prob, dtype=np.float32)
+
+    def apply(self, image: NDArray[np.uint8]) -> NDArray[np.bool_] | None:
+        prob = self.probability(image)
+        if prob is None:
+            return None
+        return clean_mask(prob > self.threshold, self.min_area)
+
+    def close(self) -> None:
+        self._model.close()
+
+
+def resolve_segmentation(method: str, live: bool) -> str:
+    """``"auto"`` made concrete: a camera learns a plate (``mog2``: the performer steps
+    out of view first); footage has no plate, so a person segmenter (``selfie``) when
+    MediaPipe is installed, else ``mog2`` with a warning on stderr."""
+    if method != "auto":
+        return method
+    if live:
+        return "mog2"
+    if person_segmentation_available():
+        return "selfie"
+    print(
+        "warning: no person segmentation here (MediaPipe is not installed), so a "
+        "background subtractor learns from the first frames; a person already in view "
+        f"fades into the background. Install it with: {INSTALL}",
+        file=sys.stderr,
+    )
+    return "mog2"
+
+
+def make_segmenter(method: str, learn_frames: int = 30) -> Any:
+    """A segmenter by name: a person segmenter (``PERSON_METHODS``) or a background
+    subtractor (``METHODS``)."""
+    from ._segment import Segmenter
+
+    if method in PERSON_METHODS:
+        return PersonSegmenter(method)
+    return Segmenter(method, learn_frames)
