@@ -1,11 +1,14 @@
 """Vision accuracy on performers the library has never seen (Lee et al. §5.3, issue 6).
 
-Usage: python -m benchmarks.bench_accuracy [LIBRARY_DIR] [--out FILE]
+Usage: python -m benchmarks.bench_accuracy [LIBRARY_DIR] [--out FILE] [--clips PATTERN]...
+       [--coords relative|fixed] [--sigma-scale S] [--threshold T] [--contact RULE]
+       [--folds 13_29,13_30] [--settings W:A,...]
 
 Two folds on the labelled exercise clips: the performer is a recording of 13_29 (or
 13_30) made by ``mimic record`` (another body, a camera off the ring, mask noise); the
-library is every other clip. For each match setting (window, look-ahead) and each lag
-(the avatar is compared with what the performer did ``lag`` seconds earlier):
+library is every other clip (or every other clip of ``--clips``). For each match
+setting (window, look-ahead) and each lag (the avatar is compared with what the
+performer did ``lag`` seconds earlier):
 
 - pose score: joint-angle error (weighted joints, squared half-angles as in the graph's
   distance) between the avatar's frame and the performer's true frame, normalised so
@@ -51,8 +54,9 @@ def fold(
     test: str,
     options: GraphOptions,
     settings: tuple[tuple[float, float], ...] = SETTINGS,
+    clips: list[str] | None = None,
 ) -> dict[str, Any]:
-    everything = load_library(root)
+    everything = load_library(root, clips=list(clips) if clips else None)
     train = [c for c in everything.clips if c.name != test and c.motion.skeleton.n_joints == 31]
     g = build_graph(train, options)
     # trees need reach no further than the longest look-ahead (dense graphs make 15 s
@@ -83,7 +87,9 @@ def fold(
         "test": test,
         "train_frames": g.n_frames,
         "graph": {
+            "coords": options.coords,
             "threshold": options.threshold,
+            "sigma_scale": options.sigma_scale,
             "contact": options.contact,
             "edges": g.n_edges,
             "scc_frames": int(g.in_scc.sum()),
@@ -153,6 +159,13 @@ def main() -> None:
         "--threshold", type=float, default=GraphOptions.threshold, help="graph likelihood threshold"
     )
     ap.add_argument("--contact", default="loose", choices=("loose", "strict", "none"))
+    ap.add_argument(
+        "--sigma-scale", type=float, default=GraphOptions.sigma_scale, help="graph sigma scale"
+    )
+    ap.add_argument("--coords", default="relative", choices=("fixed", "relative"))
+    ap.add_argument(
+        "--clips", action="append", help="library clips (patterns; default: every clip)"
+    )
     ap.add_argument("--folds", default="13_29,13_30")
     ap.add_argument(
         "--settings",
@@ -161,14 +174,20 @@ def main() -> None:
     )
     args = ap.parse_args()
     root = Path(args.root)
-    options = GraphOptions(coords="relative", threshold=args.threshold, contact=args.contact)
+    options = GraphOptions(
+        coords=args.coords,
+        threshold=args.threshold,
+        contact=args.contact,
+        sigma_scale=args.sigma_scale,
+    )
     settings = tuple(
         (float(w), float(a)) for w, a in (s.split(":") for s in args.settings.split(","))
     )
     result = {
         "machine": machine(),
         "date": time.strftime("%Y-%m-%d"),
-        "folds": [fold(root, t, options, settings) for t in args.folds.split(",")],
+        "library_clips": args.clips or "all",
+        "folds": [fold(root, t, options, settings, args.clips) for t in args.folds.split(",")],
     }
     save(result, args.out)
 

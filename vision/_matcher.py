@@ -42,6 +42,12 @@ class MatchSettings:
     centre_weight: float = 3.0
     max_candidates: int = 64
     locate: bool = True  # start the avatar where the library looks most like the performer
+    #: every ``relocate`` seconds (0: never) the whole component is searched too; when its
+    #: best window costs less than ``relocate_ratio`` times the best candidate's, the
+    #: avatar takes the shortest way there through the graph (at most ``route`` seconds)
+    relocate: float = 1.0
+    relocate_ratio: float = 0.8
+    route: float = 4.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -139,6 +145,36 @@ class Matcher:
         if starts.size == 0:
             return None
         return dtw_best_window(query, hu, centre, starts, self.n, self.settings.band)
+
+    def route(self, frame: int, target: int) -> tuple[IntArray, IntArray] | None:
+        """The shortest way ``(frames, edges)`` from ``frame`` to ``target`` through the
+        graph's component (playing on and transitions, one frame per step; breadth
+        first), at most ``settings.route`` seconds long, or ``None``."""
+        g = self.graph
+        bound = max(1, round(self.settings.route * g.fps))
+        prev: dict[int, tuple[int, int]] = {frame: (-1, -1)}
+        layer = [frame]
+        depth = 0
+        indptr = g.indptr
+        while target not in prev and layer and depth < bound:
+            depth += 1
+            nxt = []
+            for u in layer:
+                steps = [(u + 1, -1)] if self.plays[u] else []
+                steps += [(int(g.dst[e]), e) for e in range(indptr[u], indptr[u + 1])]
+                for v, e in steps:
+                    if v not in prev and g.in_scc[v]:
+                        prev[v] = (u, e)
+                        nxt.append(v)
+            layer = nxt
+        if target not in prev:
+            return None
+        frames, edges = [target], []
+        while prev[frames[-1]][0] >= 0:
+            u, e = prev[frames[-1]]
+            edges.append(e)
+            frames.append(u)
+        return np.array(frames[::-1], dtype=np.int64), np.array(edges[::-1], dtype=np.int64)
 
     def _path(self, frame: int, node: int) -> tuple[IntArray, IntArray] | None:
         tree = self.layer.forest.tree(frame)

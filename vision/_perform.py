@@ -84,6 +84,7 @@ def perform(
     views: list[int] = [0]
     view = 0
     located = False
+    last_relocate = 0.0
     n_read = 0
     t = 0.0
     while True:
@@ -140,6 +141,27 @@ def perform(
                     entry.update(frame=avatar.frame, located=round(got[2], 4))
                     entry["clip"], entry["clip_frame"] = graph.locate(avatar.frame)
             d = matcher.decide(avatar.frame, np.array(buffer)) if full else None
+            every = settings.match.relocate
+            if d is not None and every > 0 and t - last_relocate >= every - 1e-9:
+                last_relocate = t
+                got = matcher.locate(np.array(buffer))
+                if got is not None and got[2] < settings.match.relocate_ratio * d.cost:
+                    way = matcher.route(avatar.frame, got[0])
+                    entry["relocate_found"] = way is not None
+                    if way is not None:
+                        # the way there, then the window that matched
+                        tail = np.arange(got[0] + 1, got[0] + matcher.n, dtype=np.int64)
+                        frames = np.concatenate((way[0], tail))
+                        edges = np.concatenate((way[1], np.full(tail.size, -1, np.int64)))
+                        d = dataclasses.replace(
+                            d,
+                            frames=frames,
+                            edges=edges,
+                            cost=got[2],
+                            view=got[1],
+                            cluster_path=np.zeros(0, dtype=np.int64),
+                        )
+                        entry["relocated"] = int(got[0])
             if d is None:
                 entry["decision"] = None
                 entry["reason"] = (

@@ -80,6 +80,42 @@ def test_locate_finds_the_window_the_performer_replays(setup) -> None:
     assert matcher.locate(np.full((matcher.n, 9), np.nan)) is None
 
 
+def test_route_is_a_shortest_way_through_the_graph(setup) -> None:
+    """Breadth-first routes against scipy's shortest paths on the same graph."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import shortest_path
+
+    _, layer, bank = setup
+    g = layer.graph
+    matcher = Matcher(layer, bank, MatchSettings(route=2.0))
+    scc = g.in_scc
+    src = list(g.src[scc[g.src] & scc[g.dst]])
+    dst = list(g.dst[scc[g.src] & scc[g.dst]])
+    plays = np.flatnonzero(matcher.plays & scc & np.roll(scc, -1))
+    src += list(plays)
+    dst += list(plays + 1)
+    adj = csr_matrix((np.ones(len(src)), (src, dst)), shape=(g.n_frames, g.n_frames))
+    rng = np.random.default_rng(7)
+    frames = rng.choice(np.flatnonzero(scc), 12, replace=False)
+    dist = shortest_path(adj, unweighted=True, indices=frames)
+    bound = round(2.0 * g.fps)
+    found = 0
+    for i, f in enumerate(frames):
+        for t in rng.choice(np.flatnonzero(scc), 15, replace=False):
+            way = matcher.route(int(f), int(t))
+            if dist[i, t] > bound:
+                assert way is None
+                continue
+            found += 1
+            assert way is not None and way[0].size - 1 == dist[i, t]
+            assert way[0][0] == f and way[0][-1] == t
+            for a, b, e in zip(way[0][:-1], way[0][1:], way[1], strict=True):
+                assert (e < 0 and b == a + 1 and matcher.plays[a]) or (
+                    g.src[e] == a and g.dst[e] == b
+                )
+    assert found >= 10
+
+
 def _run(setup, source, **kw):
     lib, layer, bank = setup
     return perform(source, layer, bank, lib.clips, PerformSettings(**kw), seed=3)

@@ -1,0 +1,250 @@
+"""Real people on real video (issue 9): segmentation without a plate, and label agreement
+on labelled footage.
+
+Usage: python -m benchmarks.bench_real_video [--videos DIR] [--labels CSV]
+       [--library DIR] [--clips PATTERN]... [--out FILE]
+
+- Segmentation, for every video in ``--videos`` (default ``../shared/video``), with a
+  plate subtractor (MOG2 learning the first 30 frames, as a camera would: here the
+  person is already in view) and both person segmenters (MediaPipe selfie and pose):
+  time per frame at 640x480 on one core, the share of the frame each calls the person,
+  and the overlap (IoU) of each with the selfie model's masks. Contact sheets of the
+  masks (no picture pixels: the footage is not ours to copy) go to
+  ``results/real_video_<name>.png``.
+- Label agreement, for every row of ``--labels`` (a CSV ``file,start,end,label`` with
+  times in seconds; ``file`` relative to ``--videos``; default
+  ``benchmarks/videos/shared_labels.csv``, our own labels of the shared clips): each
+  video is replayed through ``mimic perform``'s loop (person segmentation) against the
+  library (default: the clips that carry action labels, 13_29 and 13_30), and at every
+  decision the avatar's current frame's label is compared with the video's label
+  ``lag`` seconds earlier. Agreement per video and overall, for lags 0-3 s, and the
+  loop's frames per second with person segmentation. Label names must be the library's
+  (JumpJack, Squat, KneeRaise, ...; case does not matter).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from benchmarks._report import machine, save
+from control.clusters import build_higher_layer
+from control.graph import GraphOptions, build_graph
+from control.motion import default_library_path, load_library
+from silhouette_bank import BankSettings, ensure_bank
+from vision._perform import PerformSettings, perform
+from vision._person import PersonSegmenter
+from vision._segment import Segmenter
+from vision._sources import VideoSource
+
+HERE = Path(__file__).resolve().parent
+LAGS = tuple(np.round(np.arange(0.0, 3.01, 0.25), 2))
+
+
+class LabelFileError(ValueError):
+    """A labels CSV that cannot be used; the message names the file and line."""
+
+
+def read_labels(path: Path) -> list[tuple[str, float, float, str]]:
+    """Rows ``(file, start, end, label)`` of a labels CSV (a ``file,start,end,label``
+    header line and ``#`` comments allowed)."""
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise LabelFileError(f"{path}: no such file") from None
+    rows = []
+    for no, raw in enumerate(text.splitlines(), 1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        parts = next(csv.reader([line]))
+        if [p.strip().lower() for p in parts] == ["file", "start", "end", "label"]:
+            continue
+        if len(parts) != 4:
+            raise LabelFileError(f"{path}:{no}: expected file,start,end,label, got {raw!r}")
+        name, a, b, label = (p.strip() for p in parts)
+        try:
+            start, end = float(a), float(b)
+        except ValueError:
+            raise LabelFileError(f"{path}:{no}: start and end must be seconds") from None
+        if not (math.isfinite(start) and math.isfinite(end) and 0 <= start < end):
+            raise LabelFileError(f"{path}:{no}: need 0 <= start < end, got {a}, {b}")
+        if not label:
+            raise LabelFileError(f"{path}:{no}: empty label")
+        rows.append((name, start, end, label))
+    if not rows:
+        raise LabelFileError(f"{path}: no labelled spans")
+    return rows
+
+
+def _frames(path: Path, size: tuple[int, int] | None = None) -> list[np.ndarray]:
+    cap = cv2.VideoCapture(str(path))
+    out = []
+    while True:
+        ok, img = cap.read()
+        if not ok:
+            break
+        out.append(cv2.resize(img, size) if size else img)
+    cap.release()
+    return out
+
+
+def _sheet(rows: Sequence[Sequence[np.ndarray | None]], names: Sequence[str]) -> np.ndarray:
+    """Masks as a grid: one row per backend, white on black, 160 px high, named."""
+    out = []
+    for name, masks in zip(names, rows, strict=True):
+        tiles = []
+        for m in masks:
+            h, w = (160, 160) if m is None else (160, round(160 * m.shape[1] / m.shape[0]))
+            tile = (
+                np.zeros((h, w), np.uint8)
+                if m is None
+                else cv2.resize(m.astype(np.uint8) * 255, (w, h))
+            )
+            tiles.append(np.pad(tile, 2, constant_values=90))
+        row = cv2.cvtColor(np.hstack(tiles), cv2.COLOR_GRAY2BGR)
+        cv2.putText(row, name, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 255), 1)
+        out.append(row)
+    width = max(r.shape[1] for r in out)
+    return np.vstack([np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0))) for r in out])
+
+
+def _segmenters() -> list[Any]:
+    """A plate subtractor (learning the first 30 frames) and both person segmenters."""
+    return [Segmenter("mog2", learn_frames=30), PersonSegmenter("selfie"), PersonSegmenter("pose")]
+
+
+def segmentation(videos: Path, results: Path) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    backends = ("mog2 (plate: first 30 frames)", "selfie", "pose")
+    for path in sorted(videos.glob("*.mp4")):
+        full = _frames(path)
+        small = _frames(path, (640, 480))
+        models = _segmenters()
+        masks: list[list[np.ndarray | None]] = [[], [], []]
+        ms: list[list[float]] = [[], [], []]
+        for k, seg in enumerate(models):
+            for img in small:  # timing at the camera size
+                t0 = time.perf_counter()
+                seg.apply(img)
+                ms[k].append((time.perf_counter() - t0) * 1e3)
+        models = _segmenters()
+        for k, seg in enumerate(models):
+            masks[k] = [seg.apply(img) for img in full]
+        ref = masks[1]
+        entry: dict[str, Any] = {
+            "frames": len(full),
+            "size": f"{full[0].shape[1]}x{full[0].shape[0]}",
+        }
+        for k, name in enumerate(backends):
+            start = 30 if k == 0 else 0
+            cover = [float(m.mean()) if m is not None else 0.0 for m in masks[k][start:]]
+            ious = [
+                float((m & r).sum() / (m | r).sum()) if m is not None else 0.0
+                for m, r in zip(masks[k][start:], ref[start:], strict=True)
+                if r is not None
+            ]
+            entry[name] = {
+                "ms_per_frame_640x480_p50": round(float(np.median(ms[k])), 2),
+                "frames_per_s": round(1e3 / float(np.median(ms[k])), 1),
+                "person_share_mean": round(float(np.mean(cover)), 3),
+                "empty_frames": int(sum(m is None for m in masks[k][start:])),
+                "iou_with_selfie_median": round(float(np.median(ious)), 3) if ious else None,
+            }
+        pick = np.linspace(30, len(full) - 1, 6).round().astype(int)
+        sheet = _sheet([[masks[k][i] for i in pick] for k in range(3)], backends)
+        png = results / f"real_video_{path.stem}.png"
+        cv2.imwrite(str(png), sheet)
+        entry["contact_sheet"] = str(png)
+        out[path.name] = entry
+        print(path.name, {k: v for k, v in entry.items() if isinstance(v, dict)})
+    return out
+
+
+def agreement(
+    videos: Path, labels: Path, root: Path, clips: Sequence[str] | None
+) -> dict[str, Any]:
+    rows = read_labels(labels)
+    lib = load_library(root, clips=list(clips) if clips else None)
+    if clips is None:  # the clips that carry action labels
+        keep = [c.name for c in lib.clips if (c.labels >= 0).any()]
+        lib = load_library(root, clips=keep)
+    graph = build_graph(lib.clips, GraphOptions())
+    layer = build_higher_layer(graph, lib.clips)
+    bank, _ = ensure_bank(lib.clips, BankSettings())
+    by_name = {c.name: c for c in lib.clips}
+    names = sorted({r[0] for r in rows})
+    per_video: dict[str, Any] = {}
+    pooled: dict[float, list[bool]] = {lag: [] for lag in LAGS}
+    for name in names:
+        path = videos / name
+        if not path.is_file():
+            raise LabelFileError(f"{labels}: no video {path}")
+        spans = [(a, b, lab.lower()) for f, a, b, lab in rows if f == name]
+        source = VideoSource(path)
+        t0 = time.perf_counter()
+        result = perform(source, layer, bank, lib.clips, PerformSettings(segmentation="selfie"))
+        wall = time.perf_counter() - t0
+        source.close()
+        hits: dict[float, list[bool]] = {lag: [] for lag in LAGS}
+        for d in result.decisions:
+            clip = by_name[d["clip"]]
+            k = int(clip.labels[d["clip_frame"]])
+            avatar = clip.label_names[k].lower() if k >= 0 else ""
+            for lag in LAGS:
+                t = d["t"] - lag
+                truth = [lab for a, b, lab in spans if a <= t < b]
+                if truth:
+                    hits[lag].append(avatar == truth[0])
+        curve = {str(lag): round(float(np.mean(h)), 3) if h else None for lag, h in hits.items()}
+        best = max((v for k, v in curve.items() if float(k) <= 1.0 and v is not None), default=None)
+        per_video[name] = {
+            "agreement_by_lag_s": curve,
+            "best_at_lag_le_1s": best,
+            "decisions": len(result.decisions),
+            "loop_frames_per_s": round(result.frames_read / wall, 1),
+        }
+        for lag in LAGS:
+            pooled[lag] += hits[lag]
+        print(name, per_video[name])
+    overall = {str(lag): round(float(np.mean(h)), 3) if h else None for lag, h in pooled.items()}
+    return {
+        "labels": str(labels),
+        "library": [c.name for c in lib.clips],
+        "frames": graph.n_frames,
+        "per_video": per_video,
+        "overall_by_lag_s": overall,
+        "overall_best_at_lag_le_1s": max(
+            (v for k, v in overall.items() if float(k) <= 1.0 and v is not None), default=None
+        ),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    default_videos = default_library_path().parent / "video"
+    ap.add_argument("--videos", default=str(default_videos), help="folder of videos")
+    ap.add_argument("--labels", default=str(HERE / "videos" / "shared_labels.csv"))
+    ap.add_argument("--library", default=str(default_library_path()))
+    ap.add_argument("--clips", action="append", help="library clips to match against")
+    ap.add_argument("--no-segmentation", action="store_true", help="skip the mask sheets")
+    ap.add_argument("--out", default="benchmarks/results/real_video.json")
+    args = ap.parse_args()
+    videos = Path(args.videos)
+    result: dict[str, Any] = {"machine": machine(), "date": time.strftime("%Y-%m-%d")}
+    if not args.no_segmentation:
+        result["segmentation"] = segmentation(videos, Path(args.out).parent)
+    result["agreement"] = agreement(videos, Path(args.labels), Path(args.library), args.clips)
+    save(result, args.out)
+
+
+if __name__ == "__main__":
+    main()
