@@ -2,7 +2,7 @@
 
 Usage: python -m benchmarks.bench_accuracy [LIBRARY_DIR] [--out FILE] [--clips PATTERN]...
        [--coords relative|fixed] [--sigma-scale S] [--threshold T] [--contact RULE]
-       [--folds 13_29,13_30] [--settings W:A,...]
+       [--folds 13_29,13_30] [--settings W:A,...] [--variants]
 
 Two folds on the labelled exercise clips: the performer is a recording of 13_29 (or
 13_30) made by ``mimic record`` (another body, a camera off the ring, mask noise); the
@@ -34,7 +34,7 @@ from benchmarks._report import machine, save
 from control.clusters import build_higher_layer
 from control.graph import GraphOptions, build_graph, random_walk, weighted_joints
 from control.motion import default_library_path, load_library, qconj, qlog, qmul
-from silhouette_bank import BankSettings, ensure_bank
+from silhouette_bank import BankSettings, ensure_bank, robust_settings
 from vision._matcher import MatchSettings
 from vision._perform import PerformSettings, perform
 from vision._record import RecordSettings, record_clip
@@ -55,6 +55,7 @@ def fold(
     options: GraphOptions,
     settings: tuple[tuple[float, float], ...] = SETTINGS,
     clips: list[str] | None = None,
+    variants: bool = False,
 ) -> dict[str, Any]:
     everything = load_library(root, clips=list(clips) if clips else None)
     train = [c for c in everything.clips if c.name != test and c.motion.skeleton.n_joints == 31]
@@ -65,7 +66,7 @@ def fold(
     layer = build_higher_layer(g, train, bound_seconds=max(a for _, a in settings))
     took = time.perf_counter() - t0
     print(f"{test}: graph {g.n_edges} edges, layer built in {took:.0f} s", flush=True)
-    bank, _ = ensure_bank(train, BankSettings())
+    bank, _ = ensure_bank(train, robust_settings() if variants else BankSettings())
     joints = weighted_joints(train[0].motion.skeleton)
     lib_q = np.concatenate([c.motion.quats for c in train])[:, joints]
     lib_labels = np.concatenate(
@@ -95,6 +96,7 @@ def fold(
             "scc_frames": int(g.in_scc.sum()),
         },
         "clusters": layer.clustering.k,
+        "bank_views": bank.features.shape[1],
         "nearest_error": float(nearest.mean()),
         "random_error": random_err,
         "runs": [],
@@ -168,6 +170,9 @@ def main() -> None:
     )
     ap.add_argument("--folds", default="13_29,13_30")
     ap.add_argument(
+        "--variants", action="store_true", help="bank with other bodies and shadows too"
+    )
+    ap.add_argument(
         "--settings",
         default=",".join(f"{w}:{a}" for w, a in SETTINGS),
         help="window:lookahead pairs in seconds, comma separated",
@@ -187,7 +192,11 @@ def main() -> None:
         "machine": machine(),
         "date": time.strftime("%Y-%m-%d"),
         "library_clips": args.clips or "all",
-        "folds": [fold(root, t, options, settings, args.clips) for t in args.folds.split(",")],
+        "variants": args.variants,
+        "folds": [
+            fold(root, t, options, settings, args.clips, args.variants)
+            for t in args.folds.split(",")
+        ],
     }
     save(result, args.out)
 

@@ -10,12 +10,14 @@ from ._bank import (
     build_bank,
     ensure_bank,
     load_bank,
+    robust_settings,
 )
 from ._body import BodyShape, CapsuleBody, capsule_body, capsule_segments
 from ._camera import CameraRing
 from ._features import HU_SCALE, N_FEATURES, hu_log, silhouette_features
 from ._raster import rasterize
 from ._render import (
+    draw_ground_shadow,
     gl_features,
     gl_silhouettes,
     motion_features,
@@ -40,6 +42,7 @@ __all__ = [
     "build_bank",
     "capsule_body",
     "capsule_segments",
+    "draw_ground_shadow",
     "ensure_bank",
     "gl_features",
     "gl_silhouettes",
@@ -49,6 +52,7 @@ __all__ = [
     "motion_silhouettes",
     "rasterize",
     "render_motion_video",
+    "robust_settings",
     "shaded_frames",
     "silhouette_features",
     "write_mp4",

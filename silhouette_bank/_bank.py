@@ -18,6 +18,7 @@ is rebuilt, never used. Files are read without pickle; a corrupt or truncated fi
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import itertools
 import json
@@ -52,6 +53,7 @@ __all__ = [
     "build_bank",
     "ensure_bank",
     "load_bank",
+    "robust_settings",
 ]
 
 #: Bump when features or rendering change for the same settings.
@@ -73,31 +75,77 @@ class StaleBankError(BankFileError):
 
 @dataclass(frozen=True)
 class BankSettings:
-    """Everything that changes the bank's numbers: the ring, the body, the renderer."""
+    """Everything that changes the bank's numbers: the ring, the body, the renderer, and
+    the variants rendered beside the main body.
+
+    ``bodies``: further body shapes; ``shadow``: every body also with a shadow blob at
+    its feet. The bank then holds ``ring.n_views`` views per variant, variant after
+    variant (``variants``): view ``j`` of the bank is ring view ``j % ring.n_views`` of
+    variant ``j // ring.n_views``. Matching takes the best view, so the variants make the
+    match robust to performers of other builds and to shadows, at the cost of a bank and
+    a matcher that many times larger."""
 
     ring: CameraRing = field(default_factory=CameraRing)
     body: BodyShape = field(default_factory=BodyShape)
     renderer: str = "raster"
+    bodies: tuple[BodyShape, ...] = ()
+    shadow: bool = False
 
     def __post_init__(self) -> None:
         if self.renderer not in ("raster", "gl"):
             raise ValueError(f"renderer must be 'raster' or 'gl', not {self.renderer!r}")
+        if self.renderer == "gl" and (self.bodies or self.shadow):
+            raise ValueError("body variants and shadows are rendered by the raster renderer only")
+
+    @property
+    def variants(self) -> list[tuple[BodyShape, bool]]:
+        """``(body, shadow)`` of each block of ``ring.n_views`` views, in bank order."""
+        shapes = [self.body, *self.bodies]
+        return [(b, False) for b in shapes] + ([(b, True) for b in shapes] if self.shadow else [])
+
+    @property
+    def n_views(self) -> int:
+        """Views per frame in the bank: ring views times variants."""
+        return self.ring.n_views * len(self.variants)
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out: dict[str, Any] = {
             "ring": self.ring.to_dict(),
             "body": self.body.to_dict(),
             "renderer": self.renderer,
             "hu_scale": [float(x) for x in HU_SCALE],
             "version": BANK_VERSION,
         }
+        if self.bodies or self.shadow:  # only then: older banks keep their keys
+            out["bodies"] = [b.to_dict() for b in self.bodies]
+            out["shadow"] = self.shadow
+        return out
 
     def digest(self) -> str:
         return hashlib.sha256(json.dumps(self.to_dict(), sort_keys=True).encode()).hexdigest()
 
     @staticmethod
     def from_dict(d: dict[str, Any]) -> BankSettings:
-        return BankSettings(CameraRing(**d["ring"]), BodyShape(**d["body"]), d["renderer"])
+        return BankSettings(
+            CameraRing(**d["ring"]),
+            BodyShape(**d["body"]),
+            d["renderer"],
+            tuple(BodyShape(**b) for b in d.get("bodies", [])),
+            bool(d.get("shadow", False)),
+        )
+
+
+def robust_settings(base: BankSettings | None = None) -> BankSettings:
+    """``base`` (default ``BankSettings()``) with the variants measured to help matching
+    performers who are not the avatar (``benchmarks/bench_accuracy.py --variants``):
+    bodies 0.9, 1.1 and 1.25 times as wide, each with and without a shadow at the feet
+    (8 variants in all)."""
+    base = base or BankSettings()
+    return dataclasses.replace(
+        base,
+        bodies=tuple(BodyShape(width=w, height=base.body.height) for w in (0.9, 1.1, 1.25)),
+        shadow=True,
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,15 +199,22 @@ def _shard_job(
     feats, moves = [], []
     gl = None
     for motion, a, b in pieces:
-        body = capsule_body(motion.skeleton, settings.body)
         frames = np.arange(a, b)
         if settings.renderer == "raster":
-            f, m = motion_features(motion, body, settings.ring, frames)
+            parts = [
+                motion_features(
+                    motion, capsule_body(motion.skeleton, shape), settings.ring, frames, shadow=sh
+                )
+                for shape, sh in settings.variants
+            ]
+            f = np.concatenate([p[0] for p in parts], axis=1)
+            m = np.concatenate([p[1] for p in parts], axis=1)
         else:
             from ._gl import GLRenderer
             from ._render import gl_features
 
             gl = gl or GLRenderer(settings.ring)
+            body = capsule_body(motion.skeleton, settings.body)
             f, m = gl_features(gl, motion, body, settings.ring, frames)
         feats.append(f)
         moves.append(m)
@@ -221,7 +276,7 @@ def build_bank(
         "settings_digest": settings.digest(),
         "clip_names": [c.name for c in clips],
         "clip_start": starts.tolist(),
-        "views": settings.ring.n_views,
+        "views": settings.n_views,
         "shards": shards,
         "complete": False,
         "built": None,
@@ -238,7 +293,7 @@ def build_bank(
             (folder / "bank.npz").unlink(missing_ok=True)
     with atomic_write(old) as fh:
         json.dump(manifest, fh, indent=1)
-    views = settings.ring.n_views
+    views = settings.n_views
     todo = []
     for s in shards:
         path = folder / str(s["file"])

@@ -53,6 +53,25 @@ def motion_silhouettes(
     return masks.reshape(f, v, ring.height_px, ring.width)
 
 
+#: radius (metres) of the shadow blob drawn on the ground below the root
+SHADOW_RADIUS = 0.35
+
+
+def draw_ground_shadow(
+    mask: NDArray[np.uint8], ring: CameraRing, ground_cam: FloatArray, radius: float = SHADOW_RADIUS
+) -> None:
+    """Draw (in place, value 1) a flat ellipse on ``mask`` where the ground point below
+    the root, ``ground_cam`` (3,) in camera coordinates, is seen: ``radius`` metres wide,
+    a quarter as high (a shadow at the feet, as segmenters often leave one)."""
+    import cv2
+
+    x, y = ring.project(np.asarray(ground_cam, dtype=np.float64)[None])[0]
+    w = ring.focal * radius / max(-float(ground_cam[2]), 0.1)
+    cv2.ellipse(
+        mask, (round(x), round(y)), (max(2, round(w)), max(1, round(w / 4))), 0, 0, 360, 1, -1
+    )
+
+
 def _features_of(
     masks: NDArray[np.uint8],
     here: FloatArray,
@@ -92,8 +111,10 @@ def motion_features(
     ring: CameraRing,
     frames: NDArray[np.int64] | None = None,
     chunk: int = 64,
+    shadow: bool = False,
 ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-    """Features ``(F, V, 9)`` and root image motion ``(F, V, 2)`` of ``frames``, rasterized.
+    """Features ``(F, V, 9)`` and root image motion ``(F, V, 2)`` of ``frames``, rasterized
+    (``shadow``: with a shadow blob at the feet, ``draw_ground_shadow``).
 
     The centre features are relative to the projection of the root; the root motion is
     the root's displacement since the previous frame as the current frame's camera sees
@@ -109,6 +130,13 @@ def motion_features(
         masks = rasterize(cam.reshape(n * v, *cam.shape[2:]), body.radius, ring).reshape(
             n, v, ring.height_px, ring.width
         )
+        if shadow:
+            ground = motion.root_pos[fr].copy()
+            ground[:, 1] = 0.0
+            g_cam = ring.to_camera(ground[:, None, None, :], poses)[..., 0, :]  # (n, V, 3)
+            for i in range(n):
+                for j in range(v):
+                    draw_ground_shadow(masks[i, j], ring, g_cam[i, j])
         here, before = _root_pixels(motion, ring, fr, poses)
         feats[s : s + n], moves[s : s + n] = _features_of(masks, here, before, fr == 0)
     return feats, moves

@@ -108,6 +108,8 @@ class Matcher:
         if self.to_bank.size != self.graph.n_frames:
             raise ValueError("the bank and the graph disagree on clip lengths (rebuild the bank)")
         self.mean, self.std = _hu_stats(bank)
+        # the bank may hold several variants (bodies, shadows) of the ring's views
+        self.ring_views = bank.settings.ring.n_views
         self.plays = self.graph.plays_on()
         self._cache: dict[tuple[int, int], tuple[IntArray, IntArray] | None] = {}
         self._tables: tuple[FloatArray, FloatArray, IntArray] | None = None
@@ -135,8 +137,9 @@ class Matcher:
 
     def locate(self, performer: FloatArray) -> tuple[int, int, float] | None:
         """``(frame, view, cost)``: the library window (any frame of the component, any
-        view) that looks most like the performer's last features; ``frame`` is where the
-        window starts. ``None`` without enough silhouette."""
+        view and variant) that looks most like the performer's last features; ``frame`` is
+        where the window starts, ``view`` the ring's view. ``None`` without enough
+        silhouette."""
         ok = np.isfinite(performer).all(axis=1)
         if ok.sum() < max(2, self.n // 2):
             return None
@@ -144,7 +147,8 @@ class Matcher:
         hu, centre, starts = self._global_tables()
         if starts.size == 0:
             return None
-        return dtw_best_window(query, hu, centre, starts, self.n, self.settings.band)
+        start, view, cost = dtw_best_window(query, hu, centre, starts, self.n, self.settings.band)
+        return start, view % self.ring_views, cost
 
     def route(self, frame: int, target: int) -> tuple[IntArray, IntArray] | None:
         """The shortest way ``(frames, edges)`` from ``frame`` to ``target`` through the
@@ -273,7 +277,7 @@ class Matcher:
             cluster_path=tree.clusters_to(node),
             cost=float(per_path[best]),
             runner_up=float(per_path[order[1]]) if len(order) > 1 else float("inf"),
-            view=int(np.argmin(costs[best])),
+            view=int(np.argmin(costs[best])) % self.ring_views,
             candidates=len(cands),
             latency_ms=(time.perf_counter() - t0) * 1e3,
         )

@@ -12,7 +12,7 @@ import numpy as np
 from control.cli import _add_graph_args, _add_library_args, _graph_for, start_frame
 from control.clusters import build_higher_layer
 from control.motion import load_library, write_bvh
-from silhouette_bank import BankSettings, BodyShape, ensure_bank
+from silhouette_bank import BankSettings, BodyShape, ensure_bank, robust_settings
 
 from ._live import LiveView
 from ._matcher import MatchSettings
@@ -51,6 +51,12 @@ def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
         "MediaPipe's pose model; the rest are OpenCV background subtractors",
     )
     p.add_argument("--learn-frames", type=int, default=30, help="frames to learn the background")
+    p.add_argument(
+        "--variants",
+        action="store_true",
+        help="match against a bank with other bodies (0.9-1.25 wide) and shadows at the "
+        "feet too: more robust to performers who are not the avatar, 8x the bank",
+    )
     p.add_argument("--k", type=int, help="number of clusters (default: BIC)")
     p.add_argument("--start", help="avatar starts at CLIP:FRAME")
     p.add_argument("--seed", type=int, default=0)
@@ -152,7 +158,8 @@ def _perform(args: argparse.Namespace) -> int:
         )
     library, graph, _, _ = _graph_for(args)
     layer = build_higher_layer(graph, library.clips, k=args.k)
-    bank, built = ensure_bank(library.clips, BankSettings(), progress=None)
+    bank_settings = robust_settings() if args.variants else BankSettings()
+    bank, built = ensure_bank(library.clips, bank_settings, progress=None)
     start = start_frame(graph, args.start)
     settings = PerformSettings(
         segmentation=args.segmentation,

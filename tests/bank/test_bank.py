@@ -21,6 +21,7 @@ from silhouette_bank import (
     ensure_bank,
     load_bank,
     motion_features,
+    robust_settings,
 )
 from vision.cli import main
 
@@ -119,3 +120,28 @@ def test_cli_build_info_show(
     assert main(["bank", "show", "02_03:99", *common, "--out", str(out)]) == 2
     assert "no frame 99" in capsys.readouterr().err
     assert main(["bank", "info", str(tmp_path / "none")]) == 2
+
+
+def test_variants_are_more_views_of_other_bodies_and_shadows(lib: Library, tmp_path: Path) -> None:
+    settings = BankSettings(SMALL.ring, bodies=(BodyShape(width=1.25),), shadow=True)
+    assert [(b.width, s) for b, s in settings.variants] == [
+        (1.0, False),
+        (1.25, False),
+        (1.0, True),
+        (1.25, True),
+    ]
+    bank = build_bank(lib.clips, settings, tmp_path / "v", shard_frames=60, workers=1)
+    assert bank.features.shape == (103, 24, 9) and settings.n_views == 24
+    plain = build_bank(lib.clips, SMALL, tmp_path / "p", shard_frames=60, workers=1)
+    # the first block of views is the plain bank; the wider body is another silhouette
+    np.testing.assert_array_equal(bank.features[:, :6], plain.features)
+    assert not np.allclose(bank.features[:, 6:12, :7], plain.features[..., :7])
+    # a shadow at the feet lowers the silhouette's centroid (y up) in every view
+    drop = bank.features[:, 12:18, 8] - plain.features[..., 8]
+    assert np.all(drop < 0)
+    # the settings survive the manifest, and a plain bank's key is unchanged by them
+    assert BankSettings.from_dict(settings.to_dict()) == settings
+    assert "shadow" not in SMALL.to_dict()
+    assert robust_settings().n_views == 18 * 8
+    with pytest.raises(ValueError, match="raster renderer only"):
+        BankSettings(renderer="gl", shadow=True)

@@ -212,3 +212,22 @@ def test_cli_perform_writes_bvh_log_and_video(mocap: Path, tmp_path: Path, capsy
         == 2
     )
     assert "no such video file" in capsys.readouterr().err
+
+
+def test_a_bank_with_variants_reports_ring_views(setup, tmp_path: Path) -> None:
+    lib, layer, _ = setup
+    settings = BankSettings(shadow=True)
+    bank = build_bank(lib.clips, settings, tmp_path / "bank", workers=1)
+    assert bank.features.shape[1] == 36
+    matcher = Matcher(layer, bank, MatchSettings(window=1.0))
+    _, _, starts = matcher._global_tables()
+    s = int(starts[len(starts) // 2])
+    b = matcher.to_bank[np.arange(s, s + matcher.n)]
+    view = 18 + 5  # the shadowed variant of ring view 5
+    feats = bank.features[b, view].astype(float)
+    move = bank.root_motion[b, view].astype(float)
+    centre = np.cumsum(move, axis=0) - move[0] + feats[:, 7:]
+    got = matcher.locate(np.concatenate((feats[:, :7], centre), axis=1))
+    assert got is not None and got[1] == 5 and got[2] < 1e-5
+    d = matcher.decide(s, np.concatenate((feats[:, :7], centre), axis=1))
+    assert d is not None and 0 <= d.view < 18
