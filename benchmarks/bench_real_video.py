@@ -2,7 +2,8 @@
 on labelled footage.
 
 Usage: python -m benchmarks.bench_real_video [--videos DIR] [--labels CSV]
-       [--library DIR] [--clips PATTERN]... [--out FILE]
+       [--library DIR] [--clips PATTERN]... [--coords C] [--sigma-scale S] [--variants]
+       [--no-segmentation] [--out FILE]
 
 - Segmentation, for every video in ``--videos`` (default ``../shared/video``), with a
   plate subtractor (MOG2 learning the first 30 frames, as a camera would: here the
@@ -39,7 +40,8 @@ from benchmarks._report import machine, save
 from control.clusters import build_higher_layer
 from control.graph import GraphOptions, build_graph
 from control.motion import default_library_path, load_library
-from silhouette_bank import BankSettings, ensure_bank
+from silhouette_bank import BankSettings, ensure_bank, robust_settings
+from vision._matcher import MatchSettings
 from vision._perform import PerformSettings, perform
 from vision._person import PersonSegmenter
 from vision._segment import Segmenter
@@ -170,16 +172,22 @@ def segmentation(videos: Path, results: Path) -> dict[str, Any]:
 
 
 def agreement(
-    videos: Path, labels: Path, root: Path, clips: Sequence[str] | None
+    videos: Path,
+    labels: Path,
+    root: Path,
+    clips: Sequence[str] | None,
+    options: GraphOptions,
+    variants: bool,
 ) -> dict[str, Any]:
     rows = read_labels(labels)
     lib = load_library(root, clips=list(clips) if clips else None)
     if clips is None:  # the clips that carry action labels
         keep = [c.name for c in lib.clips if (c.labels >= 0).any()]
         lib = load_library(root, clips=keep)
-    graph = build_graph(lib.clips, GraphOptions())
-    layer = build_higher_layer(graph, lib.clips)
-    bank, _ = ensure_bank(lib.clips, BankSettings())
+    graph = build_graph(lib.clips, options)
+    # trees need reach no further than the matcher's look-ahead
+    layer = build_higher_layer(graph, lib.clips, bound_seconds=MatchSettings().lookahead)
+    bank, _ = ensure_bank(lib.clips, robust_settings() if variants else BankSettings())
     by_name = {c.name: c for c in lib.clips}
     names = sorted({r[0] for r in rows})
     per_video: dict[str, Any] = {}
@@ -220,6 +228,13 @@ def agreement(
         "labels": str(labels),
         "library": [c.name for c in lib.clips],
         "frames": graph.n_frames,
+        "graph": {
+            "coords": options.coords,
+            "sigma_scale": options.sigma_scale,
+            "edges": graph.n_edges,
+            "scc_frames": int(graph.in_scc.sum()),
+        },
+        "bank_views": bank.features.shape[1],
         "per_video": per_video,
         "overall_by_lag_s": overall,
         "overall_best_at_lag_le_1s": max(
@@ -236,13 +251,25 @@ def main() -> None:
     ap.add_argument("--library", default=str(default_library_path()))
     ap.add_argument("--clips", action="append", help="library clips to match against")
     ap.add_argument("--no-segmentation", action="store_true", help="skip the mask sheets")
+    ap.add_argument("--coords", default="relative", choices=("fixed", "relative"))
+    ap.add_argument(
+        "--sigma-scale",
+        type=float,
+        default=6.0,
+        help="graph sigma scale (default 6: two exercise clips need loose transitions to "
+        "form one component; the default graph's holds only knee raises)",
+    )
+    ap.add_argument("--variants", action="store_true", help="bank with other bodies, shadows")
     ap.add_argument("--out", default="benchmarks/results/real_video.json")
     args = ap.parse_args()
     videos = Path(args.videos)
     result: dict[str, Any] = {"machine": machine(), "date": time.strftime("%Y-%m-%d")}
     if not args.no_segmentation:
         result["segmentation"] = segmentation(videos, Path(args.out).parent)
-    result["agreement"] = agreement(videos, Path(args.labels), Path(args.library), args.clips)
+    options = GraphOptions(coords=args.coords, sigma_scale=args.sigma_scale)
+    result["agreement"] = agreement(
+        videos, Path(args.labels), Path(args.library), args.clips, options, args.variants
+    )
     save(result, args.out)
 
 
