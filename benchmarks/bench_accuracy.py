@@ -15,7 +15,9 @@ performer did ``lag`` seconds earlier):
   that a random walk on the same graph scores 0 and the nearest library pose of every
   performer frame scores 1;
 - label agreement: the fraction of decisions at which the avatar's frame carries the
-  performer's action label (frames of unlabelled clips count as disagreement).
+  performer's action label (frames of unlabelled clips count as disagreement);
+- recognition: the matcher's global window search alone (no avatar), the fraction of
+  windows whose best library window has the performer's label.
 
 Targets (issue 6) at a lag of 1 s or less: score >= 0.7, agreement >= 80%.
 """
@@ -34,10 +36,11 @@ from benchmarks._report import machine, save
 from control.clusters import build_higher_layer
 from control.graph import GraphOptions, build_graph, random_walk, weighted_joints
 from control.motion import default_library_path, load_library, qconj, qlog, qmul
-from silhouette_bank import BankSettings, ensure_bank, robust_settings
-from vision._matcher import MatchSettings
+from silhouette_bank import BankSettings, ensure_bank, robust_settings, silhouette_features
+from vision._matcher import Matcher, MatchSettings
 from vision._perform import PerformSettings, perform
 from vision._record import RecordSettings, record_clip
+from vision._segment import clean_mask
 from vision._sources import VideoSource
 
 LAGS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0)
@@ -47,6 +50,52 @@ SETTINGS = ((1.0, 1.5), (1.0, 3.0), (2.0, 3.0), (2.0, 5.0))
 def _pose_dist(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
     """Sum over weighted joints of squared half-angles, rows of ``(N, K, 4)``."""
     return np.sum((np.linalg.norm(qlog(qmul(qconj(qb), qa)), axis=-1) / 2.0) ** 2, axis=-1)
+
+
+def _recognition(
+    layer: Any,
+    bank: Any,
+    video: Path,
+    perf_labels: list[str | None],
+    lib_labels: np.ndarray,
+    known: set[str],
+) -> dict[str, Any]:
+    """The matcher's global search alone (no graph, no avatar): for windows of 1, 2 and
+    3 s ending every 0.5 s, the label of the library window most like the performer's
+    (every window of the component, every view) against the performer's label at the
+    window's end; over all labelled windows and over those whose action the library
+    has."""
+    fps = layer.graph.fps
+    src = VideoSource(video, silhouette=True)
+    feats: list[np.ndarray] = []
+    labels: list[str | None] = []
+    step = src.fps / fps
+    i = 0
+    while (frame := src.read()) is not None:
+        if i == round(len(feats) * step):
+            mask = clean_mask(frame.mask) if frame.mask is not None else None
+            feats.append(silhouette_features(mask) if mask is not None else np.full(9, np.nan))
+            labels.append(perf_labels[i] if i < len(perf_labels) else None)
+        i += 1
+    src.close()
+    x = np.array(feats)
+    out: dict[str, Any] = {}
+    for seconds in (1.0, 2.0, 3.0):
+        m = Matcher(layer, bank, MatchSettings(window=seconds))
+        hits: list[tuple[bool, bool]] = []
+        for end in range(m.n, len(x) + 1, max(1, round(0.5 * fps))):
+            truth = labels[end - 1]
+            got = m.locate(x[end - m.n : end])
+            if truth is None or got is None:
+                continue
+            hits.append((lib_labels[got[0] + m.n - 1] == truth, truth in known))
+        h = np.array(hits, dtype=bool).reshape(-1, 2)
+        out[f"{seconds:g}s"] = {
+            "windows": int(h.shape[0]),
+            "right": round(float(h[:, 0].mean()), 3) if h.size else None,
+            "right_known_actions": round(float(h[h[:, 1], 0].mean()), 3) if h[:, 1].any() else None,
+        }
+    return out
 
 
 def fold(
@@ -109,6 +158,7 @@ def fold(
         labelled = [lab_i for lab_i in perf_labels if lab_i is not None]
         # actions the library lacks can never agree: the best any avatar could do
         out["label_ceiling"] = float(np.mean([lab_i in known for lab_i in labelled]))
+        out["recognition"] = _recognition(layer, bank, video, perf_labels, lib_labels, known)
         for window, lookahead in settings:
             r = perform(
                 VideoSource(video, silhouette=True),
