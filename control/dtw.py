@@ -20,7 +20,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["dtw", "dtw_batch", "dtw_best_window", "dtw_open_end", "dtw_reference"]
+__all__ = ["dtw", "dtw_batch", "dtw_best_window", "dtw_reference"]
 
 FloatArray = NDArray[np.float64]
 
@@ -168,21 +168,6 @@ def dtw(a: FloatArray, b: FloatArray, window: int = 0) -> float:
     m = b.shape[0]
     c = _dtw_sq(a, b, int(window), np.inf, np.empty(m + 1), np.empty(m + 1))
     return math.sqrt(c)
-
-
-def dtw_open_end(a: FloatArray, b: FloatArray) -> FloatArray:
-    """DTW costs ``(m,)`` of the whole of ``a (n, d)`` against every prefix ``b[:j + 1]``
-    of ``b (m, d)`` (open-end DTW: ``a`` may stop anywhere along ``b``)."""
-    a = np.ascontiguousarray(a, dtype=np.float64)
-    b = np.ascontiguousarray(b, dtype=np.float64)
-    if a.ndim != 2 or b.ndim != 2 or a.shape[1] != b.shape[1]:
-        raise ValueError("sequences must be (n, d) and (m, d) with the same d")
-    if a.shape[0] == 0 or b.shape[0] == 0:
-        raise ValueError("sequences must not be empty")
-    m = b.shape[0]
-    prev = np.empty(m + 1)
-    _dtw_sq(a, b, 0, np.inf, np.empty(m + 1), prev)  # leaves the last row in ``prev``
-    return np.sqrt(prev[1:])
 
 
 def dtw_batch(

@@ -137,28 +137,11 @@ class GLRenderer:
 
         offscreen._renderer.__class__ = _SingleSample
 
-    def set_body(self, segments: FloatArray, radius: FloatArray) -> None:
-        """Show the capsules ``(B, 2, 3)`` (world coordinates) as one mesh."""
+    def _mesh(
+        self, node: Any, vertices: FloatArray, faces: NDArray[np.int64], material: Any
+    ) -> Any:
+        """Replace ``node`` (or nothing) by a node of one triangle mesh; returns it."""
         pyrender = self._pyrender
-        vertices, faces = capsule_mesh(np.asarray(segments, dtype=np.float64), np.asarray(radius))
-        prim = pyrender.Primitive(
-            material=self._material,
-            positions=vertices.astype(np.float32),
-            normals=_normals(vertices, faces).astype(np.float32),
-            indices=faces.astype(np.uint32),
-            mode=4,
-        )
-        if self._body is not None:
-            self._scene.remove_node(self._body)
-        self._body = self._scene.add(pyrender.Mesh([prim]))
-
-    def set_scenery(self, vertices: FloatArray, faces: NDArray[np.int64]) -> None:
-        """Show a static mesh (world coordinates) beside the body, grey; shaded renders
-        only (silhouettes stay the body's alone)."""
-        pyrender = self._pyrender
-        material = pyrender.MetallicRoughnessMaterial(
-            baseColorFactor=(0.45, 0.47, 0.5, 1.0), metallicFactor=0.0, roughnessFactor=0.9
-        )
         v = np.asarray(vertices, dtype=np.float64)
         f = np.asarray(faces, dtype=np.int64)
         prim = pyrender.Primitive(
@@ -168,9 +151,22 @@ class GLRenderer:
             indices=f.astype(np.uint32),
             mode=4,
         )
-        if self._scenery is not None:
-            self._scene.remove_node(self._scenery)
-        self._scenery = self._scene.add(pyrender.Mesh([prim]))
+        if node is not None:
+            self._scene.remove_node(node)
+        return self._scene.add(pyrender.Mesh([prim]))
+
+    def set_body(self, segments: FloatArray, radius: FloatArray) -> None:
+        """Show the capsules ``(B, 2, 3)`` (world coordinates) as one mesh."""
+        vertices, faces = capsule_mesh(np.asarray(segments, dtype=np.float64), np.asarray(radius))
+        self._body = self._mesh(self._body, vertices, faces, self._material)
+
+    def set_scenery(self, vertices: FloatArray, faces: NDArray[np.int64]) -> None:
+        """Show a static mesh (world coordinates) beside the body, grey; shaded renders
+        only (silhouettes stay the body's alone)."""
+        material = self._pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=(0.45, 0.47, 0.5, 1.0), metallicFactor=0.0, roughnessFactor=0.9
+        )
+        self._scenery = self._mesh(self._scenery, vertices, faces, material)
 
     def render(self, camera_pose: FloatArray) -> NDArray[np.uint8]:
         """The silhouette ``(H, W)`` (1 inside) seen from the camera-to-world ``camera_pose``."""

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from dtaidistance import dtw_ndim
 
-from control.dtw import dtw, dtw_batch, dtw_best_window, dtw_open_end, dtw_reference
+from control.dtw import dtw, dtw_batch, dtw_best_window, dtw_reference
 
 
 def test_textbook_case() -> None:
@@ -80,13 +80,3 @@ def test_best_window_is_the_exhaustive_minimum() -> None:
         assert costs[(s, v)] == pytest.approx(c)
     with pytest.raises(ValueError, match="inside"):
         dtw_best_window(query, hu, centre, np.array([55]), m)
-
-
-def test_open_end_is_dtw_against_every_prefix(rng: np.random.Generator) -> None:
-    a = rng.normal(size=(7, 2))
-    b = rng.normal(size=(12, 2))
-    got = dtw_open_end(a, b)
-    want = [dtw_reference(a, b[: j + 1]) for j in range(len(b))]
-    np.testing.assert_allclose(got, want, rtol=1e-12)
-    with pytest.raises(ValueError, match="same d"):
-        dtw_open_end(a, b[:, :1])
