@@ -136,6 +136,7 @@ def perform(
                 got = matcher.locate(np.array(buffer))
                 if got is not None:
                     located = True
+                    last_relocate = t  # that was this second's global search
                     avatar = Avatar(graph, clips, start=got[0], seed=seed)
                     masks, views, view = [latest_mask if keep_masks else None], [got[1]], got[1]
                     entry.update(frame=avatar.frame, located=round(got[2], 4))
@@ -147,8 +148,9 @@ def perform(
                 got = matcher.locate(np.array(buffer))
                 if got is not None and got[2] < settings.match.relocate_ratio * d.cost:
                     way = matcher.route(avatar.frame, got[0])
-                    entry["relocate_found"] = way is not None
-                    if way is not None:
+                    if way is None:  # better elsewhere, but too far away through the graph
+                        entry["relocation_unreachable"] = int(got[0])
+                    else:
                         # the way there, then the window that matched
                         tail = np.arange(got[0] + 1, got[0] + matcher.n, dtype=np.int64)
                         frames = np.concatenate((way[0], tail))
