@@ -11,6 +11,8 @@ Usage: python -m benchmarks.bench_vision [LIBRARY_DIR] [--out FILE]
 - Matcher latency per decision (p50, p99) and candidate counts, on the playground and the
   all-shared libraries (default graph, 1 s window, 1.5 s look-ahead). Target p99 <= 5 ms
   on all-shared.
+- The global window search (the avatar's start and relocation, once a second): time
+  per search. ``--variants``: the matcher again on all-shared with the bank variants.
 - A 60 s silhouette recording (13_29, made here) replayed offline through `perform`:
   wall time and real-time factor.
 """
@@ -30,7 +32,7 @@ from benchmarks._report import machine, save
 from control.clusters import build_higher_layer
 from control.graph import GraphOptions, build_graph
 from control.motion import default_library_path, load_library
-from silhouette_bank import BankSettings, ensure_bank, silhouette_features
+from silhouette_bank import BankSettings, ensure_bank, robust_settings, silhouette_features
 from vision._matcher import Matcher, MatchSettings
 from vision._perform import PerformSettings, perform
 from vision._record import RecordSettings, record_clip
@@ -101,19 +103,26 @@ def subtractors() -> dict[str, Any]:
 
 
 def matcher_latency(
-    root: Path, patterns: list[str] | None, lookaheads: tuple[float, ...] = (1.5, 6.0)
+    root: Path,
+    patterns: list[str] | None,
+    lookaheads: tuple[float, ...] = (1.5, 6.0),
+    bank_settings: BankSettings | None = None,
 ) -> dict[str, Any]:
     lib = load_library(root, clips=patterns)
     g = build_graph(lib.clips, GraphOptions())
     layer = build_higher_layer(g, lib.clips)
-    bank, _ = ensure_bank(lib.clips, BankSettings())
+    bank, _ = ensure_bank(lib.clips, bank_settings or BankSettings())
     src = VideoSource(RECORDING, silhouette=True)
     feats = []
     while (f := src.read()) is not None:
         if f.index % 2 == 0:
             feats.append(silhouette_features(np.asarray(f.mask, dtype=np.uint8)))
     perf = np.array(feats)
-    out: dict[str, Any] = {"frames": g.n_frames, "forest": layer.forest.report}
+    out: dict[str, Any] = {
+        "frames": g.n_frames,
+        "bank_views": bank.features.shape[1],
+        "forest": layer.forest.report,
+    }
     for lookahead in lookaheads:
         matcher = Matcher(layer, bank, MatchSettings(lookahead=lookahead))
         rng = np.random.default_rng(0)
@@ -132,6 +141,15 @@ def matcher_latency(
             "candidates_median": float(np.median(cands)),
             "candidates_p99": float(np.percentile(cands, 99)),
         }
+    # the global search (start and relocation, once a second)
+    matcher = Matcher(layer, bank, MatchSettings())
+    ms = []
+    for s in range(0, perf.shape[0] - matcher.n, 15):
+        t0 = time.perf_counter()
+        matcher.locate(perf[s : s + matcher.n])
+        ms.append((time.perf_counter() - t0) * 1e3)
+    out["global_search_ms_p50"] = float(np.median(ms))
+    out["global_search_ms_max"] = float(np.max(ms))
     return out
 
 
@@ -160,6 +178,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("root", nargs="?", default=str(default_library_path()))
     ap.add_argument("--out", default="benchmarks/results/vision.json")
+    ap.add_argument(
+        "--variants",
+        action="store_true",
+        help="also time the matcher on all-shared with the bank variants (builds that bank)",
+    )
     args = ap.parse_args()
     root = Path(args.root)
     result: dict[str, Any] = {
@@ -170,6 +193,10 @@ def main() -> None:
         "matcher_all_shared": matcher_latency(root, None),
         "replay": replay(root),
     }
+    if args.variants:
+        result["matcher_all_shared_variants"] = matcher_latency(
+            root, None, bank_settings=robust_settings()
+        )
     save(result, args.out)
 
 
