@@ -23,7 +23,14 @@ from numpy.typing import NDArray
 
 from control.motion import Clip
 from control.motion._text import atomic_write
-from silhouette_bank import BodyShape, CameraRing, capsule_body, capsule_segments, rasterize
+from silhouette_bank import (
+    BodyShape,
+    CameraRing,
+    capsule_body,
+    capsule_segments,
+    draw_ground_shadow,
+    rasterize,
+)
 
 __all__ = ["RecordSettings", "add_mask_noise", "record_clip"]
 
@@ -64,19 +71,10 @@ class RecordSettings:
 
 
 def add_mask_noise(
-    mask: NDArray[np.uint8],
-    rng: np.random.Generator,
-    edge: float,
-    holes: int,
-    shadow_at: tuple[float, float, float] | None,
+    mask: NDArray[np.uint8], rng: np.random.Generator, edge: float, holes: int
 ) -> NDArray[np.uint8]:
-    """A clean mask made real: ragged edges, holes, a shadow ellipse ``(x, y, half-width)``."""
+    """A clean mask made real: ragged edges and holes (the shadow is drawn before)."""
     m = mask.copy()
-    if shadow_at is not None:
-        x, y, w = shadow_at
-        cv2.ellipse(
-            m, (round(x), round(y)), (max(2, round(w)), max(1, round(w / 4))), 0, 0, 360, 1, -1
-        )
     if edge > 0:
         k = max(1, round(edge))
         kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1, 2 * k + 1))
@@ -116,19 +114,7 @@ def record_clip(
     masks = rasterize(cam.reshape(frames.size, b, 2, 3), body.radius, ring)
     ground = m.root_pos[frames].copy()
     ground[:, 1] = 0.0
-    gpix = ring.project(
-        ring.to_camera(ground[:, None, :], np.broadcast_to(pose, (frames.size, 4, 4)))[:, 0]
-    )
-    scale = (
-        ring.focal
-        * 0.35
-        / np.maximum(
-            -ring.to_camera(ground[:, None, :], np.broadcast_to(pose, (frames.size, 4, 4)))[
-                :, 0, 2
-            ],
-            0.1,
-        )
-    )
+    ground_cam = ring.to_camera(ground[:, None, :], np.broadcast_to(pose, (frames.size, 4, 4)))
     rng = np.random.default_rng(settings.seed)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.stem}.tmp{out.suffix or '.mkv'}")
@@ -139,10 +125,9 @@ def record_clip(
         raise OSError(f"{out}: cannot write an FFV1 video here")
     try:
         for i in range(frames.size):
-            shadow = (
-                (float(gpix[i, 0]), float(gpix[i, 1]), float(scale[i])) if settings.shadow else None
-            )
-            noisy = add_mask_noise(masks[i], rng, settings.edge_noise, settings.holes, shadow)
+            if settings.shadow:  # the same blob the bank's shadow variants draw
+                draw_ground_shadow(masks[i], ring, ground_cam[i, 0])
+            noisy = add_mask_noise(masks[i], rng, settings.edge_noise, settings.holes)
             writer.write(noisy * 255)
     finally:
         writer.release()
