@@ -93,21 +93,14 @@ def offer(
     if lookahead is not None:
         t_min, t_max = lookahead
         selected = (t >= t_min) & (t <= t_max)
-        selected[0] = True
         bound = int(np.floor(t_max * fps + 1e-9))
-    has_selected_child = np.zeros(tree.size, dtype=bool)
-    kids = np.flatnonzero(selected & (tree.parent >= 0))
-    has_selected_child[tree.parent[kids]] = True
     # the leaves of the selected subtree; ancestors must be selected for a node to count
-    reachable = selected.copy()
-    for node in range(1, tree.size):  # parents come before children
-        reachable[node] &= reachable[tree.parent[node]]
-    leaves = np.flatnonzero(reachable & ~has_selected_child)
+    reachable, leaves = tree.subtree(selected)
     if leaves.size > 1:
         leaves = leaves[leaves != 0]
     # leaves first; when there are fewer than n, other selected nodes (earliest first) too:
     # reaching an intermediate cluster is an action as well
-    inner = np.flatnonzero(reachable & has_selected_child)
+    inner = np.setdiff1d(np.flatnonzero(reachable), leaves)
     inner = inner[inner != 0]
     order = np.concatenate(
         (leaves[np.argsort(t[leaves], kind="stable")], inner[np.argsort(t[inner], kind="stable")])

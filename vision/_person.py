@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from ._segment import clean_mask
+from ._segment import Segmenter, clean_mask
 
 __all__ = [
     "PERSON_METHODS",
@@ -131,8 +131,6 @@ def resolve_segmentation(method: str, live: bool) -> str:
 def make_segmenter(method: str, learn_frames: int = 30) -> Any:
     """A segmenter by name: a person segmenter (``PERSON_METHODS``) or a background
     subtractor (``METHODS``)."""
-    from ._segment import Segmenter
-
     if method in PERSON_METHODS:
         return PersonSegmenter(method)
     return Segmenter(method, learn_frames)

@@ -70,6 +70,19 @@ class ClusterTree:
         has_child[self.parent[self.parent >= 0]] = True
         return np.flatnonzero(~has_child).astype(np.int64)
 
+    def subtree(self, selected: NDArray[np.bool_]) -> tuple[NDArray[np.bool_], IntArray]:
+        """The subtree of ``selected`` nodes hanging from the root: ``(inside, leaves)``,
+        where ``inside`` (N,) marks the root and every selected node whose ancestors are
+        all selected, and ``leaves`` are the nodes inside with no selected child."""
+        inside = np.asarray(selected, dtype=bool).copy()
+        inside[0] = True
+        for node in range(1, self.size):  # parents come before children
+            inside[node] &= inside[self.parent[node]]
+        has_child = np.zeros(self.size, dtype=bool)
+        kids = np.flatnonzero(inside & (self.parent >= 0))
+        has_child[self.parent[kids]] = True
+        return inside, np.flatnonzero(inside & ~has_child).astype(np.int64)
+
     def path_to(self, node: int) -> IntArray:
         """Nodes from the root to ``node`` (a cluster path when ``node`` is a leaf)."""
         out = [node]

@@ -531,15 +531,8 @@ class SketchTracker:
         assert self.layer is not None
         tree = self.layer.forest.tree(self.frame)
         t = (tree.arrival + tree.root_frame - self.frame) / self.graph.fps
-        ok = t <= self.settings.lookahead
-        ok[0] = True
-        for node in range(1, tree.size):  # parents come before children
-            ok[node] &= ok[tree.parent[node]]
-        inner = np.zeros(tree.size, dtype=bool)
-        kids = np.flatnonzero(ok & (tree.parent >= 0))
-        inner[tree.parent[kids]] = True
-        leaves = np.flatnonzero(ok & ~inner)
-        return [int(x) for x in leaves if x != 0] or [int(x) for x in np.flatnonzero(ok)[1:]]
+        _, leaves = tree.subtree(t <= self.settings.lookahead)
+        return [int(x) for x in leaves if x != 0]
 
     def _plan_action(self) -> int:
         """The first approach: choose the action whose root path is nearest the sketch
