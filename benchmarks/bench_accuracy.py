@@ -2,7 +2,8 @@
 
 Usage: python -m benchmarks.bench_accuracy [LIBRARY_DIR] [--out FILE] [--clips PATTERN]...
        [--coords relative|fixed] [--sigma-scale S] [--threshold T] [--contact RULE]
-       [--folds 13_29,13_30] [--settings W:A,...] [--variants]
+       [--folds 13_29,13_30] [--settings W:A,...] [--variants] [--descriptor hu|grid]
+       [--stay S]
 
 Two folds on the labelled exercise clips: the performer is a recording of 13_29 (or
 13_30) made by ``mimic record`` (another body, a camera off the ring, mask noise); the
@@ -36,7 +37,13 @@ from benchmarks._report import machine, save
 from control.clusters import build_higher_layer
 from control.graph import GraphOptions, build_graph, random_walk, weighted_joints
 from control.motion import default_library_path, load_library, qconj, qlog, qmul
-from silhouette_bank import BankSettings, ensure_bank, robust_settings, silhouette_features
+from silhouette_bank import (
+    DESCRIPTORS,
+    BankSettings,
+    ensure_bank,
+    robust_settings,
+    silhouette_features,
+)
 from vision._matcher import Matcher, MatchSettings
 from vision._perform import PerformSettings, perform
 from vision._record import RecordSettings, record_clip
@@ -74,7 +81,11 @@ def _recognition(
     while (frame := src.read()) is not None:
         if i == round(len(feats) * step):
             mask = clean_mask(frame.mask) if frame.mask is not None else None
-            feats.append(silhouette_features(mask) if mask is not None else np.full(9, np.nan))
+            feats.append(
+                silhouette_features(mask, descriptor=bank.settings.descriptor)
+                if mask is not None
+                else np.full(bank.features.shape[-1], np.nan)
+            )
             labels.append(perf_labels[i] if i < len(perf_labels) else None)
         i += 1
     src.close()
@@ -105,6 +116,8 @@ def fold(
     settings: tuple[tuple[float, float], ...] = SETTINGS,
     clips: list[str] | None = None,
     variants: bool = False,
+    descriptor: str = "hu",
+    stay: float = 0.0,
 ) -> dict[str, Any]:
     everything = load_library(root, clips=list(clips) if clips else None)
     train = [c for c in everything.clips if c.name != test and c.motion.skeleton.n_joints == 31]
@@ -115,7 +128,8 @@ def fold(
     layer = build_higher_layer(g, train, bound_seconds=max(a for _, a in settings))
     took = time.perf_counter() - t0
     print(f"{test}: graph {g.n_edges} edges, layer built in {took:.0f} s", flush=True)
-    bank, _ = ensure_bank(train, robust_settings() if variants else BankSettings())
+    base = BankSettings(descriptor=descriptor)
+    bank, _ = ensure_bank(train, robust_settings(base) if variants else base)
     joints = weighted_joints(train[0].motion.skeleton)
     lib_q = np.concatenate([c.motion.quats for c in train])[:, joints]
     lib_labels = np.concatenate(
@@ -165,7 +179,7 @@ def fold(
                 layer,
                 bank,
                 train,
-                PerformSettings(match=MatchSettings(window=window, lookahead=lookahead)),
+                PerformSettings(match=MatchSettings(window=window, lookahead=lookahead, stay=stay)),
             )
             frames = [d["frame"] for d in r.decisions]
             times = np.array([d["t"] for d in r.decisions])
@@ -223,6 +237,10 @@ def main() -> None:
         "--variants", action="store_true", help="bank with other bodies and shadows too"
     )
     ap.add_argument(
+        "--descriptor", default="hu", choices=DESCRIPTORS, help="silhouette shape features"
+    )
+    ap.add_argument("--stay", type=float, default=0.0, help="temporal prior (MatchSettings.stay)")
+    ap.add_argument(
         "--settings",
         default=",".join(f"{w}:{a}" for w, a in SETTINGS),
         help="window:lookahead pairs in seconds, comma separated",
@@ -243,8 +261,10 @@ def main() -> None:
         "date": time.strftime("%Y-%m-%d"),
         "library_clips": args.clips or "all",
         "variants": args.variants,
+        "descriptor": args.descriptor,
+        "stay": args.stay,
         "folds": [
-            fold(root, t, options, settings, args.clips, args.variants)
+            fold(root, t, options, settings, args.clips, args.variants, args.descriptor, args.stay)
             for t in args.folds.split(",")
         ],
     }

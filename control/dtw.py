@@ -101,13 +101,14 @@ def _batch_kernel(
 @numba.njit(cache=True, nogil=True)
 def _best_window_kernel(
     query: np.ndarray,
-    hu: np.ndarray,
+    shape: np.ndarray,
     centre: np.ndarray,
     starts: np.ndarray,
     m: int,
     window: int,
 ) -> tuple[int, int, float]:
-    n_views = hu.shape[1]
+    n_views = shape.shape[1]
+    n_shape = shape.shape[2]
     d = query.shape[1]
     row = np.empty(m + 1)
     prev = np.empty(m + 1)
@@ -118,10 +119,10 @@ def _best_window_kernel(
     for s in starts:
         for v in range(n_views):
             for i in range(m):
-                for k in range(7):
-                    b[i, k] = hu[s + i, v, k]
-                for k in range(d - 7):
-                    b[i, 7 + k] = centre[s + i, v, k] - centre[s, v, k]
+                for k in range(n_shape):
+                    b[i, k] = shape[s + i, v, k]
+                for k in range(d - n_shape):
+                    b[i, n_shape + k] = centre[s + i, v, k] - centre[s, v, k]
             c = _dtw_sq(query, b, window, best, row, prev)
             if c < best:
                 best = c
@@ -132,25 +133,33 @@ def _best_window_kernel(
 
 def dtw_best_window(
     query: FloatArray,
-    hu: FloatArray,
+    shape: FloatArray,
     centre: FloatArray,
     starts: NDArray[np.int64],
     length: int,
     window: int = 0,
 ) -> tuple[int, int, float]:
-    """The window of a long multi-view sequence nearest ``query (n, 9)`` by DTW:
+    """The window of a long multi-view sequence nearest ``query (n, S + 2)`` by DTW:
     ``(start, view, cost)`` over ``starts``, every view, windows of ``length`` frames.
 
-    A window's features are ``hu[s:s+length, v]`` (7 columns) beside
-    ``centre[s:s+length, v] - centre[s, v]`` (2 columns). References that cannot beat the
-    best so far are abandoned early, so the result is exact.
+    A window's features are ``shape[s:s+length, v]`` (``S`` columns: the silhouette's
+    shape numbers) beside ``centre[s:s+length, v] - centre[s, v]`` (2 columns).
+    References that cannot beat the best so far are abandoned early, so the result is
+    exact.
     """
     q = np.ascontiguousarray(query, dtype=np.float64)
-    h = np.ascontiguousarray(hu, dtype=np.float64)
+    h = np.ascontiguousarray(shape, dtype=np.float64)
     c = np.ascontiguousarray(centre, dtype=np.float64)
     st = np.ascontiguousarray(starts, dtype=np.int64)
-    if q.ndim != 2 or q.shape[1] != 9 or h.shape[2] != 7 or c.shape[2] != 2:
-        raise ValueError("query must be (n, 9), hu (N, V, 7) and centre (N, V, 2)")
+    if (
+        q.ndim != 2
+        or h.ndim != 3
+        or c.ndim != 3
+        or c.shape[2] != 2
+        or q.shape[1] != h.shape[2] + 2
+        or h.shape[:2] != c.shape[:2]
+    ):
+        raise ValueError("query must be (n, S + 2), shape (N, V, S) and centre (N, V, 2)")
     if st.size and (st.min() < 0 or st.max() + length > h.shape[0]):
         raise ValueError("every window must lie inside the sequence")
     s, v, cost = _best_window_kernel(q, h, c, st, int(length), int(window))

@@ -14,7 +14,14 @@ from ._bank import (
 )
 from ._body import BodyShape, CapsuleBody, capsule_body, capsule_segments
 from ._camera import CameraRing
-from ._features import HU_SCALE, N_FEATURES, hu_log, silhouette_features
+from ._features import (
+    DESCRIPTORS,
+    HU_SCALE,
+    N_FEATURES,
+    feature_size,
+    hu_log,
+    silhouette_features,
+)
 from ._raster import rasterize
 from ._render import (
     draw_ground_shadow,
@@ -29,6 +36,7 @@ from ._render import (
 
 __all__ = [
     "BANK_VERSION",
+    "DESCRIPTORS",
     "HU_SCALE",
     "N_FEATURES",
     "Bank",
@@ -44,6 +52,7 @@ __all__ = [
     "capsule_segments",
     "draw_ground_shadow",
     "ensure_bank",
+    "feature_size",
     "gl_features",
     "gl_silhouettes",
     "hu_log",

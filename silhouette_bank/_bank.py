@@ -4,7 +4,7 @@ Layout of a bank folder::
 
     manifest.json          format, version, library digest, settings and their hash,
                            clips, shard table, complete flag
-    shard-00003.npz        features (n, V, 9) float32, root_motion (n, V, 2) float32,
+    shard-00003.npz        features (n, V, F) float32, root_motion (n, V, 2) float32,
                            for the frames [start, stop) of the library (one file a shard)
     bank.npz               all shards merged (written last; the bank is complete)
 
@@ -40,7 +40,7 @@ from control.motion._text import atomic_write, read_npz
 
 from ._body import BodyShape, capsule_body
 from ._camera import CameraRing
-from ._features import HU_SCALE, N_FEATURES
+from ._features import DESCRIPTORS, HU_SCALE, feature_size
 from ._render import motion_features
 
 __all__ = [
@@ -79,7 +79,8 @@ class BankSettings:
     the variants rendered beside the main body.
 
     ``bodies``: further body shapes; ``shadow``: every body also with a shadow blob at
-    its feet. The bank then holds ``ring.n_views`` views per variant, variant after
+    its feet. ``descriptor``: the shape features, ``"hu"`` or ``"grid"``
+    (``silhouette_features``). The bank then holds ``ring.n_views`` views per variant, variant after
     variant (``variants``): view ``j`` of the bank is ring view ``j % ring.n_views`` of
     variant ``j // ring.n_views``. Matching takes the best view, so the variants make the
     match robust to performers of other builds and to shadows, at the cost of a bank and
@@ -90,10 +91,15 @@ class BankSettings:
     renderer: str = "raster"
     bodies: tuple[BodyShape, ...] = ()
     shadow: bool = False
+    descriptor: str = "hu"
 
     def __post_init__(self) -> None:
         if self.renderer not in ("raster", "gl"):
             raise ValueError(f"renderer must be 'raster' or 'gl', not {self.renderer!r}")
+        if self.descriptor not in DESCRIPTORS:
+            raise ValueError(
+                f"descriptor must be one of {', '.join(DESCRIPTORS)}, not {self.descriptor!r}"
+            )
         if self.renderer == "gl" and (self.bodies or self.shadow):
             raise ValueError("body variants and shadows are rendered by the raster renderer only")
 
@@ -119,6 +125,8 @@ class BankSettings:
         if self.bodies or self.shadow:  # only then: older banks keep their keys
             out["bodies"] = [b.to_dict() for b in self.bodies]
             out["shadow"] = self.shadow
+        if self.descriptor != "hu":
+            out["descriptor"] = self.descriptor
         return out
 
     def digest(self) -> str:
@@ -132,6 +140,7 @@ class BankSettings:
             d["renderer"],
             tuple(BodyShape(**b) for b in d.get("bodies", [])),
             bool(d.get("shadow", False)),
+            str(d.get("descriptor", "hu")),
         )
 
 
@@ -154,7 +163,8 @@ class Bank:
 
     Attributes
     ----------
-    features : (n, V, 9) per library frame and view (see ``silhouette_features``).
+    features : (n, V, F) per library frame and view (see ``silhouette_features``; ``F``
+        is ``feature_size(settings.descriptor)``).
     root_motion : (n, V, 2) the root's image motion since the previous frame.
     clip_names, clip_start : which frames belong to which clip.
     settings : how it was rendered. library_digest : what it was rendered from.
@@ -203,7 +213,12 @@ def _shard_job(
         if settings.renderer == "raster":
             parts = [
                 motion_features(
-                    motion, capsule_body(motion.skeleton, shape), settings.ring, frames, shadow=sh
+                    motion,
+                    capsule_body(motion.skeleton, shape),
+                    settings.ring,
+                    frames,
+                    shadow=sh,
+                    descriptor=settings.descriptor,
                 )
                 for shape, sh in settings.variants
             ]
@@ -215,7 +230,7 @@ def _shard_job(
 
             gl = gl or GLRenderer(settings.ring)
             body = capsule_body(motion.skeleton, settings.body)
-            f, m = gl_features(gl, motion, body, settings.ring, frames)
+            f, m = gl_features(gl, motion, body, settings.ring, frames, settings.descriptor)
         feats.append(f)
         moves.append(m)
     if gl is not None:
@@ -229,14 +244,14 @@ def _read_npz(path: Path, keys: Sequence[str]) -> dict[str, np.ndarray]:
     return read_npz(path, keys, BankFileError, "bank file")
 
 
-def _shard_ok(path: Path, n: int, views: int) -> bool:
+def _shard_ok(path: Path, n: int, views: int, size: int) -> bool:
     if not path.is_file():
         return False
     try:
         d = _read_npz(path, ("features", "root_motion"))
     except BankFileError:
         return False
-    return d["features"].shape == (n, views, N_FEATURES) and d["root_motion"].shape == (n, views, 2)
+    return d["features"].shape == (n, views, size) and d["root_motion"].shape == (n, views, 2)
 
 
 def build_bank(
@@ -294,10 +309,11 @@ def build_bank(
     with atomic_write(old) as fh:
         json.dump(manifest, fh, indent=1)
     views = settings.n_views
+    size = feature_size(settings.descriptor)
     todo = []
     for s in shards:
         path = folder / str(s["file"])
-        if _shard_ok(path, int(s["stop"]) - int(s["start"]), views):
+        if _shard_ok(path, int(s["stop"]) - int(s["start"]), views, size):
             continue
         pieces = []
         for c, clip in enumerate(clips):
@@ -379,7 +395,8 @@ def load_bank(
     views = int(manifest["views"])
     if str(d["key"]) != manifest["key"]:
         raise BankFileError(folder / "bank.npz", "does not belong to this manifest")
-    if d["features"].shape != (n, views, N_FEATURES) or d["root_motion"].shape != (n, views, 2):
+    size = feature_size(str(manifest["settings"].get("descriptor", "hu")))
+    if d["features"].shape != (n, views, size) or d["root_motion"].shape != (n, views, 2):
         raise BankFileError(folder / "bank.npz", "arrays of the wrong shape")
     return Bank(
         features=d["features"],

@@ -12,7 +12,7 @@ from control.motion import Motion
 
 from ._body import CapsuleBody, capsule_segments
 from ._camera import CameraRing
-from ._features import N_FEATURES, silhouette_features
+from ._features import feature_size, silhouette_features
 from ._gl import GLRenderer
 from ._raster import rasterize
 
@@ -77,16 +77,17 @@ def _features_of(
     here: FloatArray,
     before: FloatArray,
     first: NDArray[np.bool_],
+    descriptor: str = "hu",
 ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """Features and root motion of masks ``(n, V, H, W)`` given the root's projection
     now and at the previous frame ``(n, V, 2)``; ``first`` marks clip starts."""
     n, v = masks.shape[:2]
-    feats = np.empty((n, v, N_FEATURES), dtype=np.float32)
+    feats = np.empty((n, v, feature_size(descriptor)), dtype=np.float32)
     moves = np.zeros((n, v, 2), dtype=np.float32)
     for i in range(n):
         for j in range(v):
             feats[i, j] = silhouette_features(
-                masks[i, j], (float(here[i, j, 0]), float(here[i, j, 1]))
+                masks[i, j], (float(here[i, j, 0]), float(here[i, j, 1])), descriptor
             )
             rows = np.flatnonzero(masks[i, j].any(axis=1))
             if rows.size and not first[i]:
@@ -112,16 +113,18 @@ def motion_features(
     frames: NDArray[np.int64] | None = None,
     chunk: int = 64,
     shadow: bool = False,
+    descriptor: str = "hu",
 ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-    """Features ``(F, V, 9)`` and root image motion ``(F, V, 2)`` of ``frames``, rasterized
-    (``shadow``: with a shadow blob at the feet, ``draw_ground_shadow``).
+    """Features ``(F, V, feature_size(descriptor))`` and root image motion ``(F, V, 2)``
+    of ``frames``, rasterized (``shadow``: with a shadow blob at the feet,
+    ``draw_ground_shadow``).
 
     The centre features are relative to the projection of the root; the root motion is
     the root's displacement since the previous frame as the current frame's camera sees
     it, in the same units (silhouette heights, x right, y up); 0 at a clip's first frame.
     """
     frames = np.arange(motion.n_frames) if frames is None else np.asarray(frames, dtype=np.int64)
-    feats = np.empty((frames.size, ring.n_views, N_FEATURES), dtype=np.float32)
+    feats = np.empty((frames.size, ring.n_views, feature_size(descriptor)), dtype=np.float32)
     moves = np.zeros((frames.size, ring.n_views, 2), dtype=np.float32)
     for s in range(0, frames.size, chunk):
         fr = frames[s : s + chunk]
@@ -138,7 +141,7 @@ def motion_features(
                 for j in range(v):
                     draw_ground_shadow(masks[i, j], ring, g_cam[i, j])
         here, before = _root_pixels(motion, ring, fr, poses)
-        feats[s : s + n], moves[s : s + n] = _features_of(masks, here, before, fr == 0)
+        feats[s : s + n], moves[s : s + n] = _features_of(masks, here, before, fr == 0, descriptor)
     return feats, moves
 
 
@@ -157,12 +160,17 @@ def gl_silhouettes(
 
 
 def gl_features(
-    gl: GLRenderer, motion: Motion, body: CapsuleBody, ring: CameraRing, frames: NDArray[np.int64]
+    gl: GLRenderer,
+    motion: Motion,
+    body: CapsuleBody,
+    ring: CameraRing,
+    frames: NDArray[np.int64],
+    descriptor: str = "hu",
 ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
     """As ``motion_features``, drawn by pyrender."""
     masks = gl_silhouettes(gl, motion, body, ring, frames)
     here, before = _root_pixels(motion, ring, frames, ring.poses(motion.root_pos[frames]))
-    return _features_of(masks, here, before, frames == 0)
+    return _features_of(masks, here, before, frames == 0, descriptor)
 
 
 def shaded_frames(

@@ -17,6 +17,7 @@ from control.motion import Library, load_library
 from ._bank import BankSettings, ensure_bank, load_bank
 from ._body import BodyShape, capsule_body
 from ._camera import CameraRing
+from ._features import DESCRIPTORS
 from ._render import motion_silhouettes
 
 __all__ = ["add_bank_commands", "contact_sheet"]
@@ -41,6 +42,12 @@ def _add_settings(p: argparse.ArgumentParser) -> None:
         default="raster",
         help="numba capsule rasterizer (default) or pyrender",
     )
+    p.add_argument(
+        "--descriptor",
+        choices=DESCRIPTORS,
+        default="hu",
+        help="silhouette shape features: Hu moments (default) or an 8x4 grid of cells",
+    )
 
 
 def _settings(args: argparse.Namespace) -> BankSettings:
@@ -53,7 +60,12 @@ def _settings(args: argparse.Namespace) -> BankSettings:
         width=args.width,
         height_px=args.height,
     )
-    return BankSettings(ring, BodyShape(args.body_width, args.body_height), args.renderer)
+    return BankSettings(
+        ring,
+        BodyShape(args.body_width, args.body_height),
+        args.renderer,
+        descriptor=args.descriptor,
+    )
 
 
 def add_bank_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

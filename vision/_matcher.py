@@ -7,8 +7,9 @@ motion of each, and the first ``window`` seconds of that motion as the bank sees
 each of its views. DTW compares each with the last ``window`` seconds of the performer's
 features; a path's cost is its best view; the cheapest path wins.
 
-Features compared per frame: the 7 log-Hu moments, standardised with the bank's spread,
-and the silhouette centre's displacement since the window's first frame, in silhouette
+Features compared per frame: the silhouette's shape numbers (the 7 log-Hu moments, or the
+grid's cells: the bank's ``descriptor``) standardised with the bank's spread, and the
+silhouette centre's displacement since the window's first frame, in silhouette
 heights (performer: from the image; bank: the root's image motion accumulated plus the
 centre relative to the root), times ``centre_weight``.
 """
@@ -48,6 +49,14 @@ class MatchSettings:
     relocate: float = 1.0
     relocate_ratio: float = 0.8
     route: float = 4.0
+    #: the temporal prior: a path that plays on in the avatar's clip, without a
+    #: transition in its first ``window`` seconds, has its cost multiplied by ``1 - stay``
+    #: (0: no prior), so the avatar keeps its action unless another fits clearly better
+    stay: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.stay < 1.0:
+            raise ValueError(f"stay must lie in [0, 1), got {self.stay}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,20 +74,27 @@ class Decision:
     extra: dict[str, float] = field(default_factory=dict)
 
 
-def _hu_stats(bank: Bank) -> tuple[FloatArray, FloatArray]:
-    hu = bank.features[..., :7].reshape(-1, 7).astype(np.float64)
-    hu = hu[np.isfinite(hu).all(axis=1)]
-    return hu.mean(axis=0), np.maximum(hu.std(axis=0), 1e-6)
+def _shape_stats(bank: Bank) -> tuple[FloatArray, FloatArray]:
+    """Mean and scale of the bank's shape numbers. Hu moments: each its own spread. Grid
+    cells (many, of one kind): one scale for all, such that they vary as much in all as 7
+    standardised numbers do, so ``centre_weight`` means the same with either."""
+    s = bank.features.shape[-1] - 2
+    x = bank.features[..., :s].reshape(-1, s).astype(np.float64)
+    x = x[np.isfinite(x).all(axis=1)]
+    if bank.settings.descriptor == "hu":
+        return x.mean(axis=0), np.maximum(x.std(axis=0), 1e-6)
+    scale = max(float(np.sqrt(x.var(axis=0).sum() / 7.0)), 1e-6)
+    return x.mean(axis=0), np.full(s, scale)
 
 
 def performer_sequence(
     features: FloatArray, mean: FloatArray, std: FloatArray, centre_weight: float
 ) -> FloatArray:
-    """DTW features ``(n, 9)`` of a performer's raw features ``(n, 9)`` (centre in image
-    coordinates / height)."""
-    out = np.empty((features.shape[0], 9))
-    out[:, :7] = (features[:, :7] - mean) / std
-    out[:, 7:] = (features[:, 7:] - features[0, 7:]) * centre_weight
+    """DTW features ``(n, F)`` of a performer's raw features ``(n, F)`` (shape numbers,
+    then the centre in image coordinates / height)."""
+    out = np.empty(features.shape)
+    out[:, :-2] = (features[:, :-2] - mean) / std
+    out[:, -2:] = (features[:, -2:] - features[0, -2:]) * centre_weight
     return out
 
 
@@ -107,7 +123,10 @@ class Matcher:
         )
         if self.to_bank.size != self.graph.n_frames:
             raise ValueError("the bank and the graph disagree on clip lengths (rebuild the bank)")
-        self.mean, self.std = _hu_stats(bank)
+        self.mean, self.std = _shape_stats(bank)
+        #: features of one performer frame (``silhouette_features(..., descriptor)``)
+        self.descriptor = bank.settings.descriptor
+        self.n_features = bank.features.shape[-1]
         # the bank may hold several variants (bodies, shadows) of the ring's views
         self.ring_views = bank.settings.ring.n_views
         self.plays = self.graph.plays_on()
@@ -115,24 +134,24 @@ class Matcher:
         self._tables: tuple[FloatArray, FloatArray, IntArray] | None = None
 
     def _global_tables(self) -> tuple[FloatArray, FloatArray, IntArray]:
-        """Every graph frame's standardised Hu moments and accumulated centre (times the
-        centre weight) in every view, and the frames a window may start at (in the
+        """Every graph frame's standardised shape numbers and accumulated centre (times
+        the centre weight) in every view, and the frames a window may start at (in the
         component, with ``n`` frames of playback ahead)."""
         if self._tables is None:
-            f = self.bank.features[self.to_bank].astype(np.float64)  # (N, V, 9)
-            hu = np.nan_to_num((f[..., :7] - self.mean) / self.std, nan=0.0)
+            f = self.bank.features[self.to_bank].astype(np.float64)  # (N, V, F)
+            shape = np.nan_to_num((f[..., :-2] - self.mean) / self.std, nan=0.0)
             move = self.bank.root_motion[self.to_bank].astype(np.float64)
             centre = np.empty_like(move)
             for a, b in zip(self.graph.clip_start[:-1], self.graph.clip_start[1:], strict=True):
                 centre[a:b] = np.cumsum(move[a:b], axis=0) - move[a]
-            centre = np.nan_to_num((centre + f[..., 7:]) * self.settings.centre_weight, nan=0.0)
+            centre = np.nan_to_num((centre + f[..., -2:]) * self.settings.centre_weight, nan=0.0)
             ok = self.graph.in_scc.copy()
             runs = np.cumsum(np.concatenate(([0], ~self.plays)))  # breaks before each frame
             n = self.graph.n_frames
             end = np.arange(n) + self.n - 1
             ok &= end < n
             ok[ok] &= runs[end[ok]] == runs[np.flatnonzero(ok)]
-            self._tables = (hu, centre, np.flatnonzero(ok).astype(np.int64))
+            self._tables = (shape, centre, np.flatnonzero(ok).astype(np.int64))
         return self._tables
 
     def locate(self, performer: FloatArray) -> tuple[int, int, float] | None:
@@ -144,10 +163,12 @@ class Matcher:
         if ok.sum() < max(2, self.n // 2):
             return None
         query = performer_sequence(performer[ok], self.mean, self.std, self.settings.centre_weight)
-        hu, centre, starts = self._global_tables()
+        shape, centre, starts = self._global_tables()
         if starts.size == 0:
             return None
-        start, view, cost = dtw_best_window(query, hu, centre, starts, self.n, self.settings.band)
+        start, view, cost = dtw_best_window(
+            query, shape, centre, starts, self.n, self.settings.band
+        )
         return start, view % self.ring_views, cost
 
     def route(self, frame: int, target: int) -> tuple[IntArray, IntArray] | None:
@@ -215,15 +236,15 @@ class Matcher:
         return np.array(out, dtype=np.int64)
 
     def _bank_sequences(self, frames: IntArray) -> FloatArray:
-        """DTW features ``(V, n, 9)`` of graph ``frames`` in every view."""
+        """DTW features ``(V, n, F)`` of graph ``frames`` in every view."""
         b = self.to_bank[frames]
-        f = self.bank.features[b].astype(np.float64)  # (n, V, 9)
+        f = self.bank.features[b].astype(np.float64)  # (n, V, F)
         move = self.bank.root_motion[b].astype(np.float64)  # (n, V, 2)
         out = np.empty_like(f)
-        out[..., :7] = (f[..., :7] - self.mean) / self.std
+        out[..., :-2] = (f[..., :-2] - self.mean) / self.std
         path = np.cumsum(move, axis=0) - move[0]
-        centre = path + f[..., 7:]
-        out[..., 7:] = (centre - centre[0]) * self.settings.centre_weight
+        centre = path + f[..., -2:]
+        out[..., -2:] = (centre - centre[0]) * self.settings.centre_weight
         return np.nan_to_num(out.transpose(1, 0, 2), nan=0.0)
 
     def candidates(self, frame: int) -> list[tuple[int, IntArray, IntArray]]:
@@ -252,7 +273,7 @@ class Matcher:
         return out
 
     def decide(self, frame: int, performer: FloatArray) -> Decision | None:
-        """The best path from ``frame`` for the performer's last features ``(n, 9)``
+        """The best path from ``frame`` for the performer's last features ``(n, F)``
         (NaN rows, frames without a silhouette, are dropped); ``None`` without enough."""
         t0 = time.perf_counter()
         ok = np.isfinite(performer).all(axis=1)
@@ -267,6 +288,9 @@ class Matcher:
         group = np.repeat(np.arange(len(cands)), views)
         costs = dtw_batch(query, refs, group, window=self.settings.band).reshape(len(cands), views)
         per_path = costs.min(axis=1)
+        if self.settings.stay > 0:
+            plays_on = np.array([not (e[: self.n - 1] >= 0).any() for _, _, e in cands])
+            per_path = np.where(plays_on, per_path * (1.0 - self.settings.stay), per_path)
         order = np.argsort(per_path)
         best = int(order[0])
         node, frames, edges = cands[best]

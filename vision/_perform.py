@@ -74,7 +74,8 @@ def perform(
     segmenter: Any = None
     period = 1.0 / graph.fps
     buffer: deque[NDArray[np.float64]] = deque(maxlen=matcher.n)
-    latest = np.full(9, np.nan)
+    blank = np.full(matcher.n_features, np.nan)  # a frame without a silhouette
+    latest = blank
     latest_mask: NDArray[np.bool_] | None = None
     next_tick = 0.0
     next_decision = settings.decide_every
@@ -85,6 +86,7 @@ def perform(
     view = 0
     located = False
     last_relocate = 0.0
+    en_route = 0.0  # media time at which the avatar reaches a relocation's window
     n_read = 0
     t = 0.0
     while True:
@@ -107,7 +109,9 @@ def perform(
             mask = segmenter.apply(frame.image)
         else:
             mask = None
-        latest = silhouette_features(mask) if mask is not None else np.full(9, np.nan)
+        latest = (
+            silhouette_features(mask, descriptor=matcher.descriptor) if mask is not None else blank
+        )
         latest_mask = mask
         if on_frame is not None:
             on_frame(t, mask, avatar)
@@ -141,6 +145,13 @@ def perform(
                     masks, views, view = [latest_mask if keep_masks else None], [got[1]], got[1]
                     entry.update(frame=avatar.frame, located=round(got[2], 4))
                     entry["clip"], entry["clip_frame"] = graph.locate(avatar.frame)
+            if t < en_route - 1e-9:
+                # on the way to a relocation's window: no decision may turn it aside
+                entry.update(decision=None, reason="en route")
+                decisions.append(entry)
+                if log is not None:
+                    log.write(json.dumps(entry) + "\n")
+                continue
             d = matcher.decide(avatar.frame, np.array(buffer)) if full else None
             every = settings.match.relocate
             if d is not None and every > 0 and t - last_relocate >= every - 1e-9:
@@ -164,6 +175,7 @@ def perform(
                             cluster_path=np.zeros(0, dtype=np.int64),
                         )
                         entry["relocated"] = int(got[0])
+                        en_route = t + (way[0].size - 1) * period
             if d is None:
                 entry["decision"] = None
                 entry["reason"] = (

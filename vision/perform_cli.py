@@ -12,7 +12,7 @@ import numpy as np
 from control.cli import _add_graph_args, _add_library_args, _graph_for, start_frame
 from control.clusters import build_higher_layer
 from control.motion import load_library, write_bvh
-from silhouette_bank import BankSettings, BodyShape, ensure_bank, robust_settings
+from silhouette_bank import DESCRIPTORS, BankSettings, BodyShape, ensure_bank, robust_settings
 
 from ._live import LiveView
 from ._matcher import MatchSettings
@@ -56,6 +56,13 @@ def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
         action="store_true",
         help="match against a bank with other bodies (0.9-1.25 wide) and shadows at the "
         "feet too: more robust to performers who are not the avatar, 8x the bank",
+    )
+    p.add_argument(
+        "--descriptor",
+        choices=DESCRIPTORS,
+        default="hu",
+        help="silhouette shape features: hu (7 Hu moments) or grid (how full each cell of an "
+        "8x4 grid over the silhouette is; see the README's accuracy figures)",
     )
     p.add_argument("--k", type=int, help="number of clusters (default: BIC)")
     p.add_argument("--start", help="avatar starts at CLIP:FRAME")
@@ -158,7 +165,8 @@ def _perform(args: argparse.Namespace) -> int:
         )
     library, graph, _, _ = _graph_for(args)
     layer = build_higher_layer(graph, library.clips, k=args.k)
-    bank_settings = robust_settings() if args.variants else BankSettings()
+    base = BankSettings(descriptor=args.descriptor)
+    bank_settings = robust_settings(base) if args.variants else base
     bank, built = ensure_bank(library.clips, bank_settings, progress=None)
     start = start_frame(graph, args.start)
     settings = PerformSettings(

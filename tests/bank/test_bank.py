@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -19,6 +20,7 @@ from silhouette_bank import (
     build_bank,
     capsule_body,
     ensure_bank,
+    feature_size,
     load_bank,
     motion_features,
     robust_settings,
@@ -145,3 +147,21 @@ def test_variants_are_more_views_of_other_bodies_and_shadows(lib: Library, tmp_p
     assert robust_settings().n_views == 18 * 8
     with pytest.raises(ValueError, match="raster renderer only"):
         BankSettings(renderer="gl", shadow=True)
+
+
+def test_a_grid_bank_holds_grid_features(lib: Library, tmp_path: Path) -> None:
+    settings = dataclasses.replace(SMALL, descriptor="grid")
+    bank = build_bank(lib.clips, settings, tmp_path / "g", shard_frames=60, workers=1)
+    assert bank.features.shape == (103, 6, feature_size("grid")) and bank.settings == settings
+    assert load_bank(tmp_path / "g", lib.clips, settings).features.shape[-1] == feature_size("grid")
+    plain = build_bank(lib.clips, SMALL, tmp_path / "p", shard_frames=60, workers=1)
+    # the same silhouettes: the centre is the same, the shape numbers are the grid's
+    np.testing.assert_allclose(bank.features[..., -2:], plain.features[..., -2:])
+    assert np.all((bank.features[..., :-2] >= 0) & (bank.features[..., :-2] <= 1))
+    # the descriptor is part of the key; a Hu bank's settings do not name it
+    assert settings.digest() != SMALL.digest() and "descriptor" not in SMALL.to_dict()
+    assert BankSettings.from_dict(settings.to_dict()) == settings
+    with pytest.raises(StaleBankError):
+        load_bank(tmp_path / "g", lib.clips, SMALL)
+    with pytest.raises(ValueError, match="descriptor must be one of"):
+        BankSettings(descriptor="zernike")

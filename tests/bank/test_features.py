@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from skimage.measure import moments_central, moments_hu, moments_normalized
 
-from silhouette_bank import hu_log, silhouette_features
+from silhouette_bank import feature_size, hu_log, silhouette_features
+from silhouette_bank._features import GRID_COLS, GRID_ROWS, grid_cells
 
 
 def _figure(h: int = 120, w: int = 160) -> np.ndarray:
@@ -70,3 +71,44 @@ def test_empty_and_bad_masks() -> None:
         silhouette_features(np.zeros((2, 3, 4)))
     f = silhouette_features(_figure().astype(bool))
     np.testing.assert_allclose(f, silhouette_features(_figure() * 255))
+
+
+def test_grid_by_hand_and_against_block_means() -> None:
+    m = np.zeros((40, 60), dtype=np.uint8)
+    m[4:36, 22:38] = 1  # 32 rows x 16 columns, centred on column 29.5: every cell full
+    f = silhouette_features(m, descriptor="grid")
+    assert f.shape == (feature_size("grid"),) == (GRID_ROWS * GRID_COLS + 2,)
+    np.testing.assert_allclose(f[:-2], 1.0)
+    # the centre is the same as with Hu moments
+    np.testing.assert_allclose(f[-2:], silhouette_features(m)[-2:])
+    # a figure 2 x 8 rows tall: each cell is the mean of a 2 x 2 pixel block
+    fig = np.zeros((30, 40), dtype=np.uint8)
+    rng = np.random.default_rng(3)
+    fig[5:21, 16:24] = rng.random((16, 8)) < 0.6
+    fig[5, 16:24] = 1  # the top and bottom rows are set, so the span is 16 rows
+    fig[20, 16:24] = 1
+    cells = grid_cells(fig, 5, 21, 20.0, 8, 4)
+    blocks = fig[5:21, 16:24].reshape(8, 2, 4, 2).mean(axis=(1, 3)).ravel()
+    np.testing.assert_allclose(cells, blocks, atol=1e-6)
+
+
+def test_grid_ignores_position_and_nearly_scale_and_clips_at_the_border() -> None:
+    m = _figure()
+    f = silhouette_features(m, descriptor="grid")
+    assert np.all((f[:-2] >= 0) & (f[:-2] <= 1)) and f[:-2].max() > 0.5
+    shifted = np.roll(np.roll(m, 13, axis=1), -7, axis=0)
+    np.testing.assert_allclose(silhouette_features(shifted, descriptor="grid")[:-2], f[:-2])
+    big = cv2.resize(m, (320, 240), interpolation=cv2.INTER_NEAREST)
+    np.testing.assert_allclose(silhouette_features(big, descriptor="grid")[:-2], f[:-2], atol=0.1)
+    # the figure cut by the image's left edge: the cells beyond it are empty, as if the
+    # image went on with background
+    cut = np.ascontiguousarray(m[:, 75:])
+    g = silhouette_features(cut, descriptor="grid")[:-2]
+    padded = np.pad(cut, ((0, 0), (100, 0)))
+    ys, xs = np.nonzero(cut)
+    ref = grid_cells(padded, ys.min(), ys.max() + 1, xs.mean() + 100, GRID_ROWS, GRID_COLS)
+    assert g[0] == 0 and np.isfinite(g).all()
+    np.testing.assert_allclose(g, ref)
+    assert np.isnan(silhouette_features(np.zeros((9, 9), np.uint8), descriptor="grid")).all()
+    with pytest.raises(ValueError, match="descriptor must be one of hu, grid"):
+        silhouette_features(m, descriptor="zernike")

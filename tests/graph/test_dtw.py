@@ -62,12 +62,13 @@ def test_bad_input() -> None:
         dtw(np.zeros((0, 2)), np.zeros((3, 2)))
 
 
-def test_best_window_is_the_exhaustive_minimum() -> None:
+@pytest.mark.parametrize("n_shape", [7, 32])
+def test_best_window_is_the_exhaustive_minimum(n_shape: int) -> None:
     rng = np.random.default_rng(11)
-    hu = rng.normal(size=(60, 3, 7))
+    hu = rng.normal(size=(60, 3, n_shape))
     centre = np.cumsum(rng.normal(size=(60, 3, 2)), axis=0)
     starts = np.array([0, 5, 9, 20, 33, 44], dtype=np.int64)
-    query = rng.normal(size=(12, 9))
+    query = rng.normal(size=(12, n_shape + 2))
     m = 10
 
     def window(s: int, v: int) -> np.ndarray:
@@ -80,3 +81,5 @@ def test_best_window_is_the_exhaustive_minimum() -> None:
         assert costs[(s, v)] == pytest.approx(c)
     with pytest.raises(ValueError, match="inside"):
         dtw_best_window(query, hu, centre, np.array([55]), m)
+    with pytest.raises(ValueError, match="S \\+ 2"):
+        dtw_best_window(query[:, 1:], hu, centre, starts, m)
