@@ -3,6 +3,7 @@ on labelled footage.
 
 Usage: python -m benchmarks.bench_real_video [--videos DIR] [--labels CSV]
        [--library DIR] [--clips PATTERN]... [--coords C] [--sigma-scale S] [--variants]
+       [--descriptor hu|grid]
        [--no-segmentation] [--out FILE]
 
 - Segmentation, for every video in ``--videos`` (default ``../shared/video``), with a
@@ -40,7 +41,7 @@ from benchmarks._report import machine, save
 from control.clusters import build_higher_layer
 from control.graph import GraphOptions, build_graph
 from control.motion import default_library_path, load_library
-from silhouette_bank import BankSettings, ensure_bank, robust_settings
+from silhouette_bank import DESCRIPTORS, BankSettings, ensure_bank, robust_settings
 from vision._matcher import MatchSettings
 from vision._perform import PerformSettings, perform
 from vision._person import PersonSegmenter
@@ -178,6 +179,7 @@ def agreement(
     clips: Sequence[str] | None,
     options: GraphOptions,
     variants: bool,
+    descriptor: str = "hu",
 ) -> dict[str, Any]:
     rows = read_labels(labels)
     lib = load_library(root, clips=list(clips) if clips else None)
@@ -187,7 +189,8 @@ def agreement(
     graph = build_graph(lib.clips, options)
     # trees need reach no further than the matcher's look-ahead
     layer = build_higher_layer(graph, lib.clips, bound_seconds=MatchSettings().lookahead)
-    bank, _ = ensure_bank(lib.clips, robust_settings() if variants else BankSettings())
+    base = BankSettings(descriptor=descriptor)
+    bank, _ = ensure_bank(lib.clips, robust_settings(base) if variants else base)
     by_name = {c.name: c for c in lib.clips}
     names = sorted({r[0] for r in rows})
     per_video: dict[str, Any] = {}
@@ -235,6 +238,7 @@ def agreement(
             "scc_frames": int(graph.in_scc.sum()),
         },
         "bank_views": bank.features.shape[1],
+        "descriptor": descriptor,
         "per_video": per_video,
         "overall_by_lag_s": overall,
         "overall_best_at_lag_le_1s": max(
@@ -260,6 +264,7 @@ def main() -> None:
         "form one component; the default graph's holds only knee raises)",
     )
     ap.add_argument("--variants", action="store_true", help="bank with other bodies, shadows")
+    ap.add_argument("--descriptor", default="hu", choices=DESCRIPTORS, help="shape features")
     ap.add_argument("--out", default="benchmarks/results/real_video.json")
     args = ap.parse_args()
     videos = Path(args.videos)
@@ -268,7 +273,13 @@ def main() -> None:
         result["segmentation"] = segmentation(videos, Path(args.out).parent)
     options = GraphOptions(coords=args.coords, sigma_scale=args.sigma_scale)
     result["agreement"] = agreement(
-        videos, Path(args.labels), Path(args.library), args.clips, options, args.variants
+        videos,
+        Path(args.labels),
+        Path(args.library),
+        args.clips,
+        options,
+        args.variants,
+        args.descriptor,
     )
     save(result, args.out)
 

@@ -14,6 +14,7 @@ import dataclasses
 import json
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -42,6 +43,11 @@ class PerformSettings:
     learn_frames: int = 30
     match: MatchSettings = field(default_factory=MatchSettings)
     seconds: float | None = None  # stop after this much media time (cameras never end)
+    #: run relocation's global search in a thread, its answer taken at a later decision,
+    #: so that a live source is never held up by it (it takes tens to hundreds of ms);
+    #: None: only for a camera or a paced (``realtime``) file, so that replays stay
+    #: deterministic
+    background_search: bool | None = None
 
 
 @dataclass
@@ -87,114 +93,133 @@ def perform(
     located = False
     last_relocate = 0.0
     en_route = 0.0  # media time at which the avatar reaches a relocation's window
+    background = settings.background_search
+    if background is None:
+        background = isinstance(source, CameraSource) or bool(getattr(source, "realtime", False))
+    searcher = ThreadPoolExecutor(1, thread_name_prefix="mimic-search") if background else None
+    pending: Future[tuple[int, int, float] | None] | None = None
     n_read = 0
     t = 0.0
-    while True:
-        frame = source.read()
-        if frame is None:
-            break
-        n_read += 1
-        t = frame.t
-        if settings.seconds is not None and t > settings.seconds:
-            break
-        mask: NDArray[np.bool_] | None
-        if frame.mask is not None:
-            mask = clean_mask(frame.mask)
-        elif frame.image is not None:
-            if segmenter is None:
-                method = resolve_segmentation(
-                    settings.segmentation, isinstance(source, CameraSource)
-                )
-                segmenter = make_segmenter(method, settings.learn_frames)
-            mask = segmenter.apply(frame.image)
-        else:
-            mask = None
-        latest = (
-            silhouette_features(mask, descriptor=matcher.descriptor) if mask is not None else blank
-        )
-        latest_mask = mask
-        if on_frame is not None:
-            on_frame(t, mask, avatar)
-        # the library-rate buffer, and the avatar's clock
-        while next_tick <= t + 1e-9:
-            buffer.append(latest)
-            next_tick += period
-        while t_avatar + period <= t + 1e-9:
-            avatar.step()
-            t_avatar += period
-            masks.append(latest_mask if keep_masks else None)
-            views.append(view)
-        while next_decision <= t + 1e-9:
-            next_decision += settings.decide_every
-            clip, f = graph.locate(avatar.frame)
-            entry: dict[str, Any] = {
-                "t": round(t, 3),
-                "frame": avatar.frame,
-                "clip": clip,
-                "clip_frame": f,
-            }
-            full = len(buffer) == matcher.n
-            if full and not located and settings.match.locate and start is None:
-                # the first full buffer: start the avatar where the library looks most
-                # like the performer (its motion so far is dropped), unless told where
-                got = matcher.locate(np.array(buffer))
-                if got is not None:
-                    located = True
-                    last_relocate = t  # that was this second's global search
-                    avatar = Avatar(graph, clips, start=got[0], seed=seed)
-                    masks, views, view = [latest_mask if keep_masks else None], [got[1]], got[1]
-                    entry.update(frame=avatar.frame, located=round(got[2], 4))
-                    entry["clip"], entry["clip_frame"] = graph.locate(avatar.frame)
-            if t < en_route - 1e-9:
-                # on the way to a relocation's window: no decision may turn it aside
-                entry.update(decision=None, reason="en route")
+    try:
+        while True:
+            frame = source.read()
+            if frame is None:
+                break
+            n_read += 1
+            t = frame.t
+            if settings.seconds is not None and t > settings.seconds:
+                break
+            mask: NDArray[np.bool_] | None
+            if frame.mask is not None:
+                mask = clean_mask(frame.mask)
+            elif frame.image is not None:
+                if segmenter is None:
+                    method = resolve_segmentation(
+                        settings.segmentation, isinstance(source, CameraSource)
+                    )
+                    segmenter = make_segmenter(method, settings.learn_frames)
+                mask = segmenter.apply(frame.image)
+            else:
+                mask = None
+            latest = (
+                silhouette_features(mask, descriptor=matcher.descriptor)
+                if mask is not None
+                else blank
+            )
+            latest_mask = mask
+            if on_frame is not None:
+                on_frame(t, mask, avatar)
+            # the library-rate buffer, and the avatar's clock
+            while next_tick <= t + 1e-9:
+                buffer.append(latest)
+                next_tick += period
+            while t_avatar + period <= t + 1e-9:
+                avatar.step()
+                t_avatar += period
+                masks.append(latest_mask if keep_masks else None)
+                views.append(view)
+            while next_decision <= t + 1e-9:
+                next_decision += settings.decide_every
+                clip, f = graph.locate(avatar.frame)
+                entry: dict[str, Any] = {
+                    "t": round(t, 3),
+                    "frame": avatar.frame,
+                    "clip": clip,
+                    "clip_frame": f,
+                }
+                full = len(buffer) == matcher.n
+                if full and not located and settings.match.locate and start is None:
+                    # the first full buffer: start the avatar where the library looks most
+                    # like the performer (its motion so far is dropped), unless told where
+                    got = matcher.locate(np.array(buffer))
+                    if got is not None:
+                        located = True
+                        last_relocate = t  # that was this second's global search
+                        avatar = Avatar(graph, clips, start=got[0], seed=seed)
+                        masks, views, view = [latest_mask if keep_masks else None], [got[1]], got[1]
+                        entry.update(frame=avatar.frame, located=round(got[2], 4))
+                        entry["clip"], entry["clip_frame"] = graph.locate(avatar.frame)
+                if t < en_route - 1e-9:
+                    # on the way to a relocation's window: no decision may turn it aside
+                    entry.update(decision=None, reason="en route")
+                    decisions.append(entry)
+                    if log is not None:
+                        log.write(json.dumps(entry) + "\n")
+                    continue
+                d = matcher.decide(avatar.frame, np.array(buffer)) if full else None
+                every = settings.match.relocate
+                got = None
+                if d is not None and every > 0:
+                    due = t - last_relocate >= every - 1e-9
+                    if searcher is None and due:
+                        last_relocate = t
+                        got = matcher.locate(np.array(buffer))
+                    elif searcher is not None and pending is not None and pending.done():
+                        got, pending = pending.result(), None
+                    elif searcher is not None and pending is None and due:
+                        last_relocate = t
+                        pending = searcher.submit(matcher.locate, np.array(buffer))
+                    if got is not None and got[2] < settings.match.relocate_ratio * d.cost:
+                        way = matcher.route(avatar.frame, got[0])
+                        if way is None:  # better elsewhere, but too far away through the graph
+                            entry["relocation_unreachable"] = int(got[0])
+                        else:
+                            # the way there, then the window that matched
+                            tail = np.arange(got[0] + 1, got[0] + matcher.n, dtype=np.int64)
+                            frames = np.concatenate((way[0], tail))
+                            edges = np.concatenate((way[1], np.full(tail.size, -1, np.int64)))
+                            d = dataclasses.replace(
+                                d,
+                                frames=frames,
+                                edges=edges,
+                                cost=got[2],
+                                view=got[1],
+                                cluster_path=np.zeros(0, dtype=np.int64),
+                            )
+                            entry["relocated"] = int(got[0])
+                            en_route = t + (way[0].size - 1) * period
+                if d is None:
+                    entry["decision"] = None
+                    entry["reason"] = (
+                        "no silhouette" if not np.isfinite(latest).all() else "filling buffer"
+                    )
+                else:
+                    avatar.take(d.frames, d.edges)
+                    view = d.view
+                    entry.update(
+                        decision=[int(c) for c in d.cluster_path],
+                        cost=round(d.cost, 4),
+                        runner_up=round(d.runner_up, 4) if np.isfinite(d.runner_up) else None,
+                        view=d.view,
+                        candidates=d.candidates,
+                        latency_ms=round(d.latency_ms, 3),
+                    )
                 decisions.append(entry)
                 if log is not None:
                     log.write(json.dumps(entry) + "\n")
-                continue
-            d = matcher.decide(avatar.frame, np.array(buffer)) if full else None
-            every = settings.match.relocate
-            if d is not None and every > 0 and t - last_relocate >= every - 1e-9:
-                last_relocate = t
-                got = matcher.locate(np.array(buffer))
-                if got is not None and got[2] < settings.match.relocate_ratio * d.cost:
-                    way = matcher.route(avatar.frame, got[0])
-                    if way is None:  # better elsewhere, but too far away through the graph
-                        entry["relocation_unreachable"] = int(got[0])
-                    else:
-                        # the way there, then the window that matched
-                        tail = np.arange(got[0] + 1, got[0] + matcher.n, dtype=np.int64)
-                        frames = np.concatenate((way[0], tail))
-                        edges = np.concatenate((way[1], np.full(tail.size, -1, np.int64)))
-                        d = dataclasses.replace(
-                            d,
-                            frames=frames,
-                            edges=edges,
-                            cost=got[2],
-                            view=got[1],
-                            cluster_path=np.zeros(0, dtype=np.int64),
-                        )
-                        entry["relocated"] = int(got[0])
-                        en_route = t + (way[0].size - 1) * period
-            if d is None:
-                entry["decision"] = None
-                entry["reason"] = (
-                    "no silhouette" if not np.isfinite(latest).all() else "filling buffer"
-                )
-            else:
-                avatar.take(d.frames, d.edges)
-                view = d.view
-                entry.update(
-                    decision=[int(c) for c in d.cluster_path],
-                    cost=round(d.cost, 4),
-                    runner_up=round(d.runner_up, 4) if np.isfinite(d.runner_up) else None,
-                    view=d.view,
-                    candidates=d.candidates,
-                    latency_ms=round(d.latency_ms, 3),
-                )
-            decisions.append(entry)
-            if log is not None:
-                log.write(json.dumps(entry) + "\n")
+    finally:
+        if searcher is not None:  # a search still running is left to finish alone
+            searcher.shutdown(wait=False, cancel_futures=True)
     return PerformResult(avatar, decisions, masks, views, t, n_read)
 
 

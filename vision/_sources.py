@@ -92,6 +92,7 @@ class VideoSource:
         self.silhouette = silhouette
         self._i = 0
         self._pacer = _Pacer(realtime)
+        self.realtime = realtime  # paced like a camera
 
     def read(self) -> Frame | None:
         ok, img = self._cap.read()
@@ -128,6 +129,7 @@ class MaskFolderSource:
         self.fps = float(fps)
         self._i = 0
         self._pacer = _Pacer(realtime)
+        self.realtime = realtime  # paced like a camera
 
     def read(self) -> Frame | None:
         if self._i >= len(self.files):

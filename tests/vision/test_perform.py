@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import threading
+import time
 from pathlib import Path
 
 import cv2
@@ -272,3 +274,55 @@ def test_a_bank_with_variants_reports_ring_views(setup, tmp_path: Path) -> None:
     assert got is not None and got[1] == 5 and got[2] < 1e-5
     d = matcher.decide(s, np.concatenate((feats[:, :7], centre), axis=1))
     assert d is not None and 0 <= d.view < 18
+
+
+def test_the_stay_prior_keeps_the_action_unless_another_fits_clearly_better(setup) -> None:
+    _, layer, bank = setup
+    plain = Matcher(layer, bank, MatchSettings(window=1.0, lookahead=1.5))
+    keen = Matcher(layer, bank, MatchSettings(window=1.0, lookahead=1.5, stay=0.5))
+    rng = np.random.default_rng(4)
+    kept = changed = 0
+    for f in rng.choice(np.flatnonzero(layer.graph.in_scc), 30, replace=False):
+        cands = plain.candidates(int(f))
+        on = [c for c in cands if not (c[2][: plain.n - 1] >= 0).any()]
+        if len(cands) < 2 or not on:
+            continue
+        # a performer between playing on and another candidate, nearer the other
+        other = next(c for c in cands if (c[2][: plain.n - 1] >= 0).any())
+
+        def seen(frames: np.ndarray) -> np.ndarray:
+            b = plain.to_bank[plain._window_frames(frames)]
+            feats = bank.features[b, 3].astype(float)
+            move = bank.root_motion[b, 3].astype(float)
+            centre = np.cumsum(move, axis=0) - move[0] + feats[:, -2:]
+            return np.concatenate((feats[:, :-2], centre), axis=1)
+
+        performer = 0.65 * seen(other[1]) + 0.35 * seen(on[0][1])
+        a, k = plain.decide(int(f), performer), keen.decide(int(f), performer)
+        assert a is not None and k is not None
+        a_on = not (a.edges[: plain.n - 1] >= 0).any()
+        k_on = not (k.edges[: plain.n - 1] >= 0).any()
+        kept += k_on and not a_on
+        changed += a_on and not k_on  # the prior never pushes away from playing on
+    assert kept > 0 and changed == 0
+    with pytest.raises(ValueError, match="stay"):
+        MatchSettings(stay=1.0)
+
+
+def test_a_live_source_searches_in_the_background(setup) -> None:
+    sync = _run(setup, VideoSource(RECORDING, silhouette=True))
+    bg = _run(setup, VideoSource(RECORDING, silhouette=True), background_search=True)
+    # the same decision points; the search's answers come at later ones, so the avatar
+    # may differ, but it is matched and relocated all the same
+    assert [d["t"] for d in bg.decisions] == [d["t"] for d in sync.decisions]
+    acted = [d for d in bg.decisions if d["decision"] is not None or d["reason"] == "en route"]
+    assert len(acted) > 0.8 * len(bg.decisions)
+    assert any("relocated" in d or "relocation_unreachable" in d for d in bg.decisions)
+    for _ in range(100):  # the search thread ends once its last search is done
+        if not any(t.name.startswith("mimic-search") for t in threading.enumerate()):
+            break
+        time.sleep(0.05)
+    else:
+        raise AssertionError("the search thread outlived the run")
+    # a paced file is live: the search goes to the background unless told otherwise
+    assert VideoSource(RECORDING, silhouette=True, realtime=True).realtime
