@@ -1,7 +1,8 @@
 """Vision speed: segmentation per camera frame, matcher latency, replay real-time factor;
 and the choice of background subtractor, by measurement.
 
-Usage: python -m benchmarks.bench_vision [LIBRARY_DIR] [--out FILE]
+Usage: python -m benchmarks.bench_vision [LIBRARY_DIR] [--out FILE] [--variants]
+       [--descriptor hu|grid]
 
 - Subtractors (MOG2, KNN and opencv-contrib's bgsegm CNT, GSOC, LSBP, GMG, MOG) on a
   640x480 composite: the committed recording's silhouettes, filled with a textured
@@ -12,7 +13,8 @@ Usage: python -m benchmarks.bench_vision [LIBRARY_DIR] [--out FILE]
   all-shared libraries (default graph, 1 s window, 1.5 s look-ahead). Target p99 <= 5 ms
   on all-shared.
 - The global window search (the avatar's start and relocation, once a second): time
-  per search. ``--variants``: the matcher again on all-shared with the bank variants.
+  per search. ``--variants``: the matcher again on all-shared with the bank variants;
+  ``--descriptor grid``: again with the grid descriptor (and its variants, with both).
 - A 60 s silhouette recording (13_29, made here) replayed offline through `perform`:
   wall time and real-time factor.
 """
@@ -32,7 +34,13 @@ from benchmarks._report import machine, save
 from control.clusters import build_higher_layer
 from control.graph import GraphOptions, build_graph
 from control.motion import default_library_path, load_library
-from silhouette_bank import BankSettings, ensure_bank, robust_settings, silhouette_features
+from silhouette_bank import (
+    DESCRIPTORS,
+    BankSettings,
+    ensure_bank,
+    robust_settings,
+    silhouette_features,
+)
 from vision._matcher import Matcher, MatchSettings
 from vision._perform import PerformSettings, perform
 from vision._record import RecordSettings, record_clip
@@ -116,11 +124,13 @@ def matcher_latency(
     feats = []
     while (f := src.read()) is not None:
         if f.index % 2 == 0:
-            feats.append(silhouette_features(np.asarray(f.mask, dtype=np.uint8)))
+            mask = np.asarray(f.mask, dtype=np.uint8)
+            feats.append(silhouette_features(mask, descriptor=bank.settings.descriptor))
     perf = np.array(feats)
     out: dict[str, Any] = {
         "frames": g.n_frames,
         "bank_views": bank.features.shape[1],
+        "descriptor": bank.settings.descriptor,
         "forest": layer.forest.report,
     }
     for lookahead in lookaheads:
@@ -183,6 +193,12 @@ def main() -> None:
         action="store_true",
         help="also time the matcher on all-shared with the bank variants (builds that bank)",
     )
+    ap.add_argument(
+        "--descriptor",
+        default="hu",
+        choices=DESCRIPTORS,
+        help="grid: also time the matcher with the grid descriptor (builds those banks)",
+    )
     args = ap.parse_args()
     root = Path(args.root)
     result: dict[str, Any] = {
@@ -197,6 +213,15 @@ def main() -> None:
         result["matcher_all_shared_variants"] = matcher_latency(
             root, None, bank_settings=robust_settings()
         )
+    if args.descriptor != "hu":
+        base = BankSettings(descriptor=args.descriptor)
+        result[f"matcher_all_shared_{args.descriptor}"] = matcher_latency(
+            root, None, bank_settings=base
+        )
+        if args.variants:
+            result[f"matcher_all_shared_{args.descriptor}_variants"] = matcher_latency(
+                root, None, bank_settings=robust_settings(base)
+            )
     save(result, args.out)
 
 

@@ -288,10 +288,11 @@ class Matcher:
         group = np.repeat(np.arange(len(cands)), views)
         costs = dtw_batch(query, refs, group, window=self.settings.band).reshape(len(cands), views)
         per_path = costs.min(axis=1)
+        rank = per_path  # the costs reported stay DTW costs; the prior only ranks
         if self.settings.stay > 0:
             plays_on = np.array([not (e[: self.n - 1] >= 0).any() for _, _, e in cands])
-            per_path = np.where(plays_on, per_path * (1.0 - self.settings.stay), per_path)
-        order = np.argsort(per_path)
+            rank = np.where(plays_on, per_path * (1.0 - self.settings.stay), per_path)
+        order = np.argsort(rank, kind="stable")
         best = int(order[0])
         node, frames, edges = cands[best]
         tree = self.layer.forest.tree(frame)
