@@ -3,7 +3,7 @@
 Usage: python -m benchmarks.bench_accuracy [LIBRARY_DIR] [--out FILE] [--clips PATTERN]...
        [--coords relative|fixed] [--sigma-scale S] [--threshold T] [--contact RULE]
        [--folds 13_29,13_30] [--settings W:A,...] [--variants] [--descriptor hu|grid]
-       [--stay S]
+       [--stay S] [--views N]
 
 Two folds on the labelled exercise clips: the performer is a recording of 13_29 (or
 13_30) made by ``mimic record`` (another body, a camera off the ring, mask noise); the
@@ -41,8 +41,10 @@ from control.dtw import dtw_best_window
 from control.graph import GraphOptions, build_graph, random_walk, weighted_joints
 from control.motion import default_library_path, load_library, qconj, qlog, qmul
 from silhouette_bank import (
+    DEFAULT_DESCRIPTOR,
     DESCRIPTORS,
     BankSettings,
+    CameraRing,
     ensure_bank,
     robust_settings,
     silhouette_features,
@@ -139,8 +141,9 @@ def fold(
     settings: tuple[tuple[float, float], ...] = SETTINGS,
     clips: list[str] | None = None,
     variants: bool = False,
-    descriptor: str = "hu",
+    descriptor: str = DEFAULT_DESCRIPTOR,
     stay: float = 0.0,
+    views: int = 18,
 ) -> dict[str, Any]:
     everything = load_library(root, clips=list(clips) if clips else None)
     train = [c for c in everything.clips if c.name != test and c.motion.skeleton.n_joints == 31]
@@ -151,7 +154,7 @@ def fold(
     layer = build_higher_layer(g, train, bound_seconds=max(a for _, a in settings))
     took = time.perf_counter() - t0
     print(f"{test}: graph {g.n_edges} edges, layer built in {took:.0f} s", flush=True)
-    base = BankSettings(descriptor=descriptor)
+    base = BankSettings(CameraRing(n_views=views), descriptor=descriptor)
     bank, _ = ensure_bank(train, robust_settings(base) if variants else base)
     joints = weighted_joints(train[0].motion.skeleton)
     lib_q = np.concatenate([c.motion.quats for c in train])[:, joints]
@@ -260,9 +263,13 @@ def main() -> None:
         "--variants", action="store_true", help="bank with other bodies and shadows too"
     )
     ap.add_argument(
-        "--descriptor", default="hu", choices=DESCRIPTORS, help="silhouette shape features"
+        "--descriptor",
+        default=DEFAULT_DESCRIPTOR,
+        choices=DESCRIPTORS,
+        help="silhouette shape features",
     )
     ap.add_argument("--stay", type=float, default=0.0, help="temporal prior (MatchSettings.stay)")
+    ap.add_argument("--views", type=int, default=18, help="cameras on the bank's ring")
     ap.add_argument(
         "--settings",
         default=",".join(f"{w}:{a}" for w, a in SETTINGS),
@@ -286,8 +293,19 @@ def main() -> None:
         "variants": args.variants,
         "descriptor": args.descriptor,
         "stay": args.stay,
+        "views": args.views,
         "folds": [
-            fold(root, t, options, settings, args.clips, args.variants, args.descriptor, args.stay)
+            fold(
+                root,
+                t,
+                options,
+                settings,
+                args.clips,
+                args.variants,
+                args.descriptor,
+                args.stay,
+                args.views,
+            )
             for t in args.folds.split(",")
         ],
     }

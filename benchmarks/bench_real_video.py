@@ -41,7 +41,13 @@ from benchmarks._report import machine, save
 from control.clusters import build_higher_layer
 from control.graph import GraphOptions, build_graph
 from control.motion import default_library_path, load_library
-from silhouette_bank import DESCRIPTORS, BankSettings, ensure_bank, robust_settings
+from silhouette_bank import (
+    DEFAULT_DESCRIPTOR,
+    DESCRIPTORS,
+    BankSettings,
+    ensure_bank,
+    robust_settings,
+)
 from vision._matcher import MatchSettings
 from vision._perform import PerformSettings, perform
 from vision._person import PersonSegmenter
@@ -179,7 +185,7 @@ def agreement(
     clips: Sequence[str] | None,
     options: GraphOptions,
     variants: bool,
-    descriptor: str = "hu",
+    descriptor: str = DEFAULT_DESCRIPTOR,
 ) -> dict[str, Any]:
     rows = read_labels(labels)
     lib = load_library(root, clips=list(clips) if clips else None)
@@ -264,7 +270,9 @@ def main() -> None:
         "form one component; the default graph's holds only knee raises)",
     )
     ap.add_argument("--variants", action="store_true", help="bank with other bodies, shadows")
-    ap.add_argument("--descriptor", default="hu", choices=DESCRIPTORS, help="shape features")
+    ap.add_argument(
+        "--descriptor", default=DEFAULT_DESCRIPTOR, choices=DESCRIPTORS, help="shape features"
+    )
     ap.add_argument("--out", default="benchmarks/results/real_video.json")
     args = ap.parse_args()
     videos = Path(args.videos)

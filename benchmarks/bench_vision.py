@@ -13,8 +13,8 @@ Usage: python -m benchmarks.bench_vision [LIBRARY_DIR] [--out FILE] [--variants]
   all-shared libraries (default graph, 1 s window, 1.5 s look-ahead). Target p99 <= 5 ms
   on all-shared.
 - The global window search (the avatar's start and relocation, once a second): time
-  per search. ``--variants``: the matcher again on all-shared with the bank variants;
-  ``--descriptor grid``: again with the grid descriptor (and its variants, with both).
+  per search. ``--variants``: the matcher again on all-shared with the bank variants.
+  ``--descriptor``: the banks' shape features (default: the bank's default, grid).
 - A 60 s silhouette recording (13_29, made here) replayed offline through `perform`:
   wall time and real-time factor.
 """
@@ -35,6 +35,7 @@ from control.clusters import build_higher_layer
 from control.graph import GraphOptions, build_graph
 from control.motion import default_library_path, load_library
 from silhouette_bank import (
+    DEFAULT_DESCRIPTOR,
     DESCRIPTORS,
     BankSettings,
     ensure_bank,
@@ -163,11 +164,11 @@ def matcher_latency(
     return out
 
 
-def replay(root: Path) -> dict[str, Any]:
+def replay(root: Path, bank_settings: BankSettings) -> dict[str, Any]:
     lib = load_library(root, clips=["13_30"])
     g = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.03))
     layer = build_higher_layer(g, lib.clips)
-    bank, _ = ensure_bank(lib.clips, BankSettings())
+    bank, _ = ensure_bank(lib.clips, bank_settings)
     with tempfile.TemporaryDirectory() as tmp:
         clip = load_library(root, fps=30, clips=["13_29"]).clip("13_29")
         video = Path(tmp) / "60s.mkv"
@@ -195,33 +196,26 @@ def main() -> None:
     )
     ap.add_argument(
         "--descriptor",
-        default="hu",
+        default=DEFAULT_DESCRIPTOR,
         choices=DESCRIPTORS,
-        help="grid: also time the matcher with the grid descriptor (builds those banks)",
+        help="the bank's shape features (default grid)",
     )
     args = ap.parse_args()
     root = Path(args.root)
+    base = BankSettings(descriptor=args.descriptor)
     result: dict[str, Any] = {
         "machine": machine(),
         "date": time.strftime("%Y-%m-%d"),
         "subtractors_640x480": subtractors(),
-        "matcher_playground": matcher_latency(root, ["01_*"]),
-        "matcher_all_shared": matcher_latency(root, None),
-        "replay": replay(root),
+        "descriptor": args.descriptor,
+        "matcher_playground": matcher_latency(root, ["01_*"], bank_settings=base),
+        "matcher_all_shared": matcher_latency(root, None, bank_settings=base),
+        "replay": replay(root, base),
     }
     if args.variants:
         result["matcher_all_shared_variants"] = matcher_latency(
-            root, None, bank_settings=robust_settings()
+            root, None, bank_settings=robust_settings(base)
         )
-    if args.descriptor != "hu":
-        base = BankSettings(descriptor=args.descriptor)
-        result[f"matcher_all_shared_{args.descriptor}"] = matcher_latency(
-            root, None, bank_settings=base
-        )
-        if args.variants:
-            result[f"matcher_all_shared_{args.descriptor}_variants"] = matcher_latency(
-                root, None, bank_settings=robust_settings(base)
-            )
     save(result, args.out)
 
 

@@ -15,6 +15,7 @@ from ._bank import (
 from ._body import BodyShape, CapsuleBody, capsule_body, capsule_segments
 from ._camera import CameraRing
 from ._features import (
+    DEFAULT_DESCRIPTOR,
     DESCRIPTORS,
     HU_SCALE,
     N_FEATURES,
@@ -36,6 +37,7 @@ from ._render import (
 
 __all__ = [
     "BANK_VERSION",
+    "DEFAULT_DESCRIPTOR",
     "DESCRIPTORS",
     "HU_SCALE",
     "N_FEATURES",

@@ -40,7 +40,7 @@ from control.motion._text import atomic_write, read_npz
 
 from ._body import BodyShape, capsule_body
 from ._camera import CameraRing
-from ._features import DESCRIPTORS, HU_SCALE, feature_size
+from ._features import DEFAULT_DESCRIPTOR, DESCRIPTORS, HU_SCALE, feature_size
 from ._render import motion_features
 
 __all__ = [
@@ -79,7 +79,7 @@ class BankSettings:
     the variants rendered beside the main body.
 
     ``bodies``: further body shapes; ``shadow``: every body also with a shadow blob at
-    its feet. ``descriptor``: the shape features, ``"hu"`` or ``"grid"``
+    its feet. ``descriptor``: the shape features, ``"grid"`` (default) or ``"hu"``
     (``silhouette_features``). The bank then holds ``ring.n_views`` views per variant, variant after
     variant (``variants``): view ``j`` of the bank is ring view ``j % ring.n_views`` of
     variant ``j // ring.n_views``. Matching takes the best view, so the variants make the
@@ -91,7 +91,7 @@ class BankSettings:
     renderer: str = "raster"
     bodies: tuple[BodyShape, ...] = ()
     shadow: bool = False
-    descriptor: str = "hu"
+    descriptor: str = DEFAULT_DESCRIPTOR
 
     def __post_init__(self) -> None:
         if self.renderer not in ("raster", "gl"):
@@ -125,7 +125,7 @@ class BankSettings:
         if self.bodies or self.shadow:  # only then: older banks keep their keys
             out["bodies"] = [b.to_dict() for b in self.bodies]
             out["shadow"] = self.shadow
-        if self.descriptor != "hu":
+        if self.descriptor != "hu":  # banks from before the grid have no key: Hu
             out["descriptor"] = self.descriptor
         return out
 

@@ -2,7 +2,7 @@
 
 Two descriptors of the silhouette's shape, chosen by ``descriptor``; either is followed by
 the silhouette centre (the last two numbers). ``silhouette_features(mask, origin,
-"hu") -> (9,)`` (Lee et al.'s kind of feature, the default):
+"hu") -> (9,)`` (Lee et al.'s kind of feature; this function's default):
 
 - ``[0:7]`` the 7 Hu moments of the binary mask (``cv2.moments(binaryImage=True)``),
   log-scaled so that their magnitudes are comparable: ``sign(h) log10(1 + |h| / s_k)``.
@@ -29,8 +29,9 @@ much of each cell of a grid the silhouette fills. The grid spans the silhouette'
 (its height ``h``) and ``h * GRID_COLS / GRID_ROWS`` around the centre's column (square
 cells), so it too ignores where the silhouette is and how large; cells beyond the image
 count as empty. Unlike Hu moments it keeps *where* limbs are, and a blob at the feet
-changes the bottom cells only, not every number (``benchmarks/bench_accuracy.py
---descriptor``; issue 9).
+changes the bottom cells only, not every number. It is the bank's default
+(``DEFAULT_DESCRIPTOR``): it matched performers of other builds and viewpoints better
+(``benchmarks/bench_accuracy.py --descriptor``; issue 9).
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
+    "DEFAULT_DESCRIPTOR",
     "DESCRIPTORS",
     "GRID_COLS",
     "GRID_ROWS",
@@ -54,6 +56,9 @@ __all__ = [
 #: features of the default descriptor ("hu"): 7 Hu moments and the centre
 N_FEATURES = 9
 DESCRIPTORS = ("hu", "grid")
+#: the bank's default: the grid, which the accuracy benchmark found the better of the two
+#: (``benchmarks/bench_accuracy.py --descriptor``; README)
+DEFAULT_DESCRIPTOR = "grid"
 GRID_ROWS = 8
 GRID_COLS = 4
 FloatArray = NDArray[np.float64]

@@ -17,7 +17,7 @@ from control.motion import Library, load_library
 from ._bank import BankSettings, ensure_bank, load_bank
 from ._body import BodyShape, capsule_body
 from ._camera import CameraRing
-from ._features import DESCRIPTORS
+from ._features import DEFAULT_DESCRIPTOR, DESCRIPTORS
 from ._render import motion_silhouettes
 
 __all__ = ["add_bank_commands", "contact_sheet"]
@@ -45,8 +45,8 @@ def _add_settings(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--descriptor",
         choices=DESCRIPTORS,
-        default="hu",
-        help="silhouette shape features: Hu moments (default) or an 8x4 grid of cells",
+        default=DEFAULT_DESCRIPTOR,
+        help="silhouette shape features: an 8x4 grid of cells (default) or 7 Hu moments",
     )
 
 

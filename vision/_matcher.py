@@ -133,6 +133,14 @@ class Matcher:
         self._cache: dict[tuple[int, int], tuple[IntArray, IntArray] | None] = {}
         self._tables: tuple[FloatArray, FloatArray, IntArray] | None = None
 
+    def _check(self, performer: FloatArray) -> None:
+        if performer.ndim != 2 or performer.shape[1] != self.n_features:
+            raise ValueError(
+                f"performer features must be (n, {self.n_features}) for the bank's "
+                f"{self.descriptor!r} descriptor, got {performer.shape}: compute them with "
+                f"silhouette_features(mask, descriptor={self.descriptor!r})"
+            )
+
     def _global_tables(self) -> tuple[FloatArray, FloatArray, IntArray]:
         """Every graph frame's standardised shape numbers and accumulated centre (times
         the centre weight) in every view, and the frames a window may start at (in the
@@ -159,6 +167,7 @@ class Matcher:
         view and variant) that looks most like the performer's last features; ``frame`` is
         where the window starts, ``view`` the ring's view. ``None`` without enough
         silhouette."""
+        self._check(performer)
         ok = np.isfinite(performer).all(axis=1)
         if ok.sum() < max(2, self.n // 2):
             return None
@@ -276,6 +285,7 @@ class Matcher:
         """The best path from ``frame`` for the performer's last features ``(n, F)``
         (NaN rows, frames without a silhouette, are dropped); ``None`` without enough."""
         t0 = time.perf_counter()
+        self._check(performer)
         ok = np.isfinite(performer).all(axis=1)
         if ok.sum() < max(2, self.n // 2):
             return None

@@ -12,7 +12,14 @@ import numpy as np
 from control.cli import _add_graph_args, _add_library_args, _graph_for, start_frame
 from control.clusters import build_higher_layer
 from control.motion import load_library, write_bvh
-from silhouette_bank import DESCRIPTORS, BankSettings, BodyShape, ensure_bank, robust_settings
+from silhouette_bank import (
+    DEFAULT_DESCRIPTOR,
+    DESCRIPTORS,
+    BankSettings,
+    BodyShape,
+    ensure_bank,
+    robust_settings,
+)
 
 from ._live import LiveView
 from ._matcher import MatchSettings
@@ -60,9 +67,9 @@ def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
     p.add_argument(
         "--descriptor",
         choices=DESCRIPTORS,
-        default="hu",
-        help="silhouette shape features: hu (7 Hu moments) or grid (how full each cell of an "
-        "8x4 grid over the silhouette is; see the README's accuracy figures)",
+        default=DEFAULT_DESCRIPTOR,
+        help="silhouette shape features: grid (default: how full each cell of an 8x4 grid "
+        "over the silhouette is) or hu (7 Hu moments); see the README's accuracy figures",
     )
     p.add_argument("--k", type=int, help="number of clusters (default: BIC)")
     p.add_argument("--start", help="avatar starts at CLIP:FRAME")

@@ -27,7 +27,7 @@ from silhouette_bank import (
 )
 from vision.cli import main
 
-SMALL = BankSettings(CameraRing(n_views=6, width=80, height_px=60))
+SMALL = BankSettings(CameraRing(n_views=6, width=80, height_px=60), descriptor="hu")
 
 
 @pytest.fixture(scope="module")
@@ -96,7 +96,7 @@ def test_stale_and_broken_banks(lib: Library, tmp_path: Path) -> None:
 
 @pytest.mark.gl
 def test_gl_bank_agrees_with_raster(lib: Library, tmp_path: Path) -> None:
-    gl = BankSettings(SMALL.ring, renderer="gl")
+    gl = dataclasses.replace(SMALL, renderer="gl")
     a = build_bank(lib.clips[:1], gl, tmp_path / "gl", workers=1)
     b = build_bank(lib.clips[:1], SMALL, tmp_path / "r", workers=1)
     assert np.abs(a.features[..., :2] - b.features[..., :2]).mean() < 0.05
@@ -125,7 +125,7 @@ def test_cli_build_info_show(
 
 
 def test_variants_are_more_views_of_other_bodies_and_shadows(lib: Library, tmp_path: Path) -> None:
-    settings = BankSettings(SMALL.ring, bodies=(BodyShape(width=1.25),), shadow=True)
+    settings = dataclasses.replace(SMALL, bodies=(BodyShape(width=1.25),), shadow=True)
     assert [(b.width, s) for b, s in settings.variants] == [
         (1.0, False),
         (1.25, False),
@@ -143,7 +143,7 @@ def test_variants_are_more_views_of_other_bodies_and_shadows(lib: Library, tmp_p
     assert np.all(drop < 0)
     # the settings survive the manifest, and a plain bank's key is unchanged by them
     assert BankSettings.from_dict(settings.to_dict()) == settings
-    assert "shadow" not in SMALL.to_dict()
+    assert "shadow" not in SMALL.to_dict() and "descriptor" not in SMALL.to_dict()
     assert robust_settings().n_views == 18 * 8
     with pytest.raises(ValueError, match="raster renderer only"):
         BankSettings(renderer="gl", shadow=True)
@@ -158,7 +158,9 @@ def test_a_grid_bank_holds_grid_features(lib: Library, tmp_path: Path) -> None:
     # the same silhouettes: the centre is the same, the shape numbers are the grid's
     np.testing.assert_allclose(bank.features[..., -2:], plain.features[..., -2:])
     assert np.all((bank.features[..., :-2] >= 0) & (bank.features[..., :-2] <= 1))
-    # the descriptor is part of the key; a Hu bank's settings do not name it
+    # the grid is the default; the descriptor is part of the key; a Hu bank's settings do
+    # not name it (banks from before the grid keep their key)
+    assert BankSettings().descriptor == "grid"
     assert settings.digest() != SMALL.digest() and "descriptor" not in SMALL.to_dict()
     assert BankSettings.from_dict(settings.to_dict()) == settings
     with pytest.raises(StaleBankError):
