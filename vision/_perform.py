@@ -159,14 +159,9 @@ def perform(
                         masks, views, view = [latest_mask if keep_masks else None], [got[1]], got[1]
                         entry.update(frame=avatar.frame, located=round(got[2], 4))
                         entry["clip"], entry["clip_frame"] = graph.locate(avatar.frame)
-                if t < en_route - 1e-9:
-                    # on the way to a relocation's window: no decision may turn it aside
-                    entry.update(decision=None, reason="en route")
-                    decisions.append(entry)
-                    if log is not None:
-                        log.write(json.dumps(entry) + "\n")
-                    continue
-                d = matcher.decide(avatar.frame, np.array(buffer)) if full else None
+                # on the way to a relocation's window: no decision may turn it aside
+                routing = t < en_route - 1e-9
+                d = matcher.decide(avatar.frame, np.array(buffer)) if full and not routing else None
                 every = settings.match.relocate
                 got = None
                 if d is not None and every > 0:
@@ -201,7 +196,11 @@ def perform(
                 if d is None:
                     entry["decision"] = None
                     entry["reason"] = (
-                        "no silhouette" if not np.isfinite(latest).all() else "filling buffer"
+                        "en route"
+                        if routing
+                        else "no silhouette"
+                        if not np.isfinite(latest).all()
+                        else "filling buffer"
                     )
                 else:
                     avatar.take(d.frames, d.edges)
