@@ -96,12 +96,12 @@ def _recognition(
     src.close()
     x = np.array(feats)
     g = layer.graph
+    clip_of = np.searchsorted(g.clip_start, np.arange(g.n_frames), side="right")
     out: dict[str, Any] = {}
     for seconds in (1.0, 2.0, 3.0):
         m = Matcher(layer, bank, MatchSettings(window=seconds))
         shape, centre, _ = m._global_tables()
         # every window inside one clip: the whole reference take, as issue 9's baseline
-        clip_of = np.searchsorted(g.clip_start, np.arange(g.n_frames), side="right")
         ends = np.arange(g.n_frames) + m.n - 1
         take = np.flatnonzero(ends < g.n_frames)
         take = take[clip_of[take] == clip_of[ends[take]]].astype(np.int64)
