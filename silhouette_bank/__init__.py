@@ -14,15 +14,20 @@ from ._bank import (
 )
 from ._body import BodyShape, CapsuleBody, capsule_body, capsule_segments
 from ._camera import CameraRing
-from ._features import (
+from ._descriptor import (
     DEFAULT_DESCRIPTOR,
     DESCRIPTORS,
     HU_SCALE,
-    N_FEATURES,
-    feature_size,
+    POSE_JOINTS,
+    Descriptor,
+    GridDescriptor,
+    HuDescriptor,
+    PoseDescriptor,
+    get_descriptor,
+    grid_cells,
     hu_log,
-    silhouette_features,
 )
+from ._features import feature_size, silhouette_features
 from ._raster import rasterize
 from ._render import (
     draw_ground_shadow,
@@ -40,13 +45,17 @@ __all__ = [
     "DEFAULT_DESCRIPTOR",
     "DESCRIPTORS",
     "HU_SCALE",
-    "N_FEATURES",
+    "POSE_JOINTS",
     "Bank",
     "BankFileError",
     "BankSettings",
     "BodyShape",
     "CameraRing",
     "CapsuleBody",
+    "Descriptor",
+    "GridDescriptor",
+    "HuDescriptor",
+    "PoseDescriptor",
     "StaleBankError",
     "bank_cache_dir",
     "build_bank",
@@ -55,8 +64,10 @@ __all__ = [
     "draw_ground_shadow",
     "ensure_bank",
     "feature_size",
+    "get_descriptor",
     "gl_features",
     "gl_silhouettes",
+    "grid_cells",
     "hu_log",
     "load_bank",
     "motion_features",

@@ -40,7 +40,8 @@ from control.motion._text import atomic_write, read_npz
 
 from ._body import BodyShape, capsule_body
 from ._camera import CameraRing
-from ._features import DEFAULT_DESCRIPTOR, DESCRIPTORS, HU_SCALE, feature_size
+from ._descriptor import DEFAULT_DESCRIPTOR, HU_SCALE, Descriptor, get_descriptor
+from ._pose import motion_pose_features
 from ._render import motion_features
 
 __all__ = [
@@ -57,7 +58,7 @@ __all__ = [
 ]
 
 #: Bump when features or rendering change for the same settings.
-BANK_VERSION = 1
+BANK_VERSION = 2  # 2: grid cells sampled to a fraction of a pixel; pose banks
 FloatArray = NDArray[np.float32]
 
 
@@ -79,12 +80,13 @@ class BankSettings:
     the variants rendered beside the main body.
 
     ``bodies``: further body shapes; ``shadow``: every body also with a shadow blob at
-    its feet. ``descriptor``: the shape features, ``"grid"`` (default) or ``"hu"``
-    (``silhouette_features``). The bank then holds ``ring.n_views`` views per variant, variant after
-    variant (``variants``): view ``j`` of the bank is ring view ``j % ring.n_views`` of
-    variant ``j // ring.n_views``. Matching takes the best view, so the variants make the
-    match robust to performers of other builds and to shadows, at the cost of a bank and
-    a matcher that many times larger."""
+    its feet. ``descriptor``: what each frame and view is reduced to (``DESCRIPTORS``:
+    ``"multigrid"`` by default, ``"grid"``, ``"hu"``, or ``"pose"``, the avatar's joints
+    projected, which admits no body variants or shadows). The bank then holds
+    ``ring.n_views`` views per variant, variant after variant (``variants``): view ``j``
+    of the bank is ring view ``j % ring.n_views`` of variant ``j // ring.n_views``.
+    Matching takes the best view, so the variants make the match robust to performers
+    of other builds and to shadows, at the cost of a bank and a matcher that many times larger."""
 
     ring: CameraRing = field(default_factory=CameraRing)
     body: BodyShape = field(default_factory=BodyShape)
@@ -96,10 +98,9 @@ class BankSettings:
     def __post_init__(self) -> None:
         if self.renderer not in ("raster", "gl"):
             raise ValueError(f"renderer must be 'raster' or 'gl', not {self.renderer!r}")
-        if self.descriptor not in DESCRIPTORS:
-            raise ValueError(
-                f"descriptor must be one of {', '.join(DESCRIPTORS)}, not {self.descriptor!r}"
-            )
+        get_descriptor(self.descriptor)  # a clear error for an unknown name
+        if self.descriptor == "pose" and (self.bodies or self.shadow):
+            raise ValueError("a pose bank projects joints: body variants and shadows do not apply")
         if self.renderer == "gl" and (self.bodies or self.shadow):
             raise ValueError("body variants and shadows are rendered by the raster renderer only")
 
@@ -108,6 +109,11 @@ class BankSettings:
         """``(body, shadow)`` of each block of ``ring.n_views`` views, in bank order."""
         shapes = [self.body, *self.bodies]
         return [(b, False) for b in shapes] + ([(b, True) for b in shapes] if self.shadow else [])
+
+    @property
+    def features(self) -> Descriptor:
+        """The descriptor object of ``descriptor``."""
+        return get_descriptor(self.descriptor)
 
     @property
     def n_views(self) -> int:
@@ -163,8 +169,8 @@ class Bank:
 
     Attributes
     ----------
-    features : (n, V, F) per library frame and view (see ``silhouette_features``; ``F``
-        is ``feature_size(settings.descriptor)``).
+    features : (n, V, F) per library frame and view (``F`` is
+        ``settings.features.size``; the descriptor object knows the layout).
     root_motion : (n, V, 2) the root's image motion since the previous frame.
     clip_names, clip_start : which frames belong to which clip.
     settings : how it was rendered. library_digest : what it was rendered from.
@@ -210,7 +216,9 @@ def _shard_job(
     gl = None
     for motion, a, b in pieces:
         frames = np.arange(a, b)
-        if settings.renderer == "raster":
+        if settings.descriptor == "pose":
+            f, m = motion_pose_features(motion, settings.ring, frames)
+        elif settings.renderer == "raster":
             parts = [
                 motion_features(
                     motion,
@@ -309,7 +317,7 @@ def build_bank(
     with atomic_write(old) as fh:
         json.dump(manifest, fh, indent=1)
     views = settings.n_views
-    size = feature_size(settings.descriptor)
+    size = settings.features.size
     todo = []
     for s in shards:
         path = folder / str(s["file"])
@@ -395,7 +403,10 @@ def load_bank(
     views = int(manifest["views"])
     if str(d["key"]) != manifest["key"]:
         raise BankFileError(folder / "bank.npz", "does not belong to this manifest")
-    size = feature_size(str(manifest["settings"].get("descriptor", "hu")))
+    try:
+        size = get_descriptor(str(manifest["settings"].get("descriptor", "hu"))).size
+    except ValueError as exc:
+        raise BankFileError(mpath, str(exc)) from None
     if d["features"].shape != (n, views, size) or d["root_motion"].shape != (n, views, 2):
         raise BankFileError(folder / "bank.npz", "arrays of the wrong shape")
     return Bank(

@@ -17,7 +17,7 @@ from control.motion import Library, load_library
 from ._bank import BankSettings, ensure_bank, load_bank
 from ._body import BodyShape, capsule_body
 from ._camera import CameraRing
-from ._features import DEFAULT_DESCRIPTOR, DESCRIPTORS
+from ._descriptor import DEFAULT_DESCRIPTOR, DESCRIPTORS
 from ._render import motion_silhouettes
 
 __all__ = ["add_bank_commands", "contact_sheet"]
@@ -46,7 +46,9 @@ def _add_settings(p: argparse.ArgumentParser) -> None:
         "--descriptor",
         choices=DESCRIPTORS,
         default=DEFAULT_DESCRIPTOR,
-        help="silhouette shape features: an 8x4 grid of cells (default) or 7 Hu moments",
+        help="multigrid (default: 16x8, 8x4 and 4x2 grids of cells over the silhouette), "
+        "grid (8x4 cells), hu (7 Hu moments) or pose (the joints projected, for "
+        "landmark matching)",
     )
 
 

@@ -16,6 +16,7 @@ centre relative to the root), times ``centre_weight``.
 
 from __future__ import annotations
 
+import itertools
 import time
 from dataclasses import dataclass, field
 
@@ -24,9 +25,18 @@ from numpy.typing import NDArray
 
 from control.clusters import HigherLayer
 from control.dtw import dtw_batch, dtw_best_window
-from silhouette_bank import Bank
+from silhouette_bank import DEFAULT_DESCRIPTOR, Bank, Descriptor, get_descriptor
 
-__all__ = ["Decision", "MatchSettings", "Matcher", "performer_sequence"]
+__all__ = [
+    "Decision",
+    "MatchSettings",
+    "Matcher",
+    "best_window",
+    "performer_queries",
+    "performer_sequence",
+    "shape_stats",
+    "window_tables",
+]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -53,10 +63,18 @@ class MatchSettings:
     #: transition in its first ``window`` seconds, has its cost multiplied by ``1 - stay``
     #: (0: no prior), so the avatar keeps its action unless another fits clearly better
     stay: float = 0.0
+    #: also match the performer mirrored (left and right exchanged), and for landmarks
+    #: with left and right labels swapped: the best reading wins
+    mirror: bool = True
+    #: per-frame cost above which a window matches nothing real and no decision is made
+    #: (``None``: the descriptor's own threshold, ``Descriptor.reject``)
+    reject: float | None = None
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.stay < 1.0:
             raise ValueError(f"stay must lie in [0, 1), got {self.stay}")
+        if self.reject is not None and not self.reject > 0:
+            raise ValueError(f"reject must be positive, got {self.reject}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,28 +92,85 @@ class Decision:
     extra: dict[str, float] = field(default_factory=dict)
 
 
-def _shape_stats(bank: Bank) -> tuple[FloatArray, FloatArray]:
-    """Mean and scale of the bank's shape numbers. Hu moments: each its own spread. Grid
-    cells (many, of one kind): one scale for all, such that they vary as much in all as 7
-    standardised numbers do, so ``centre_weight`` means the same with either."""
-    s = bank.features.shape[-1] - 2
-    x = bank.features[..., :s].reshape(-1, s).astype(np.float64)
-    x = x[np.isfinite(x).all(axis=1)]
-    if bank.settings.descriptor == "hu":
-        return x.mean(axis=0), np.maximum(x.std(axis=0), 1e-6)
-    scale = max(float(np.sqrt(x.var(axis=0).sum() / 7.0)), 1e-6)
-    return x.mean(axis=0), np.full(s, scale)
+def shape_stats(bank: Bank) -> tuple[FloatArray, FloatArray]:
+    """Mean and scale of the bank's shape numbers, by its descriptor's rule."""
+    desc = bank.settings.features
+    x = desc.shape(bank.features).reshape(-1, desc.n_shape).astype(np.float64)
+    return desc.standardiser(x[np.isfinite(x).all(axis=1)])
 
 
 def performer_sequence(
-    features: FloatArray, mean: FloatArray, std: FloatArray, centre_weight: float
+    features: FloatArray,
+    mean: FloatArray,
+    std: FloatArray,
+    centre_weight: float,
+    descriptor: Descriptor | str = DEFAULT_DESCRIPTOR,
 ) -> FloatArray:
-    """DTW features ``(n, F)`` of a performer's raw features ``(n, F)`` (shape numbers,
-    then the centre in image coordinates / height)."""
+    """DTW features ``(n, F)`` of a performer's raw features ``(n, F)`` of
+    ``descriptor`` (shape numbers, then the centre in image coordinates / body size)."""
+    desc = get_descriptor(descriptor)
     out = np.empty(features.shape)
-    out[:, :-2] = (features[:, :-2] - mean) / std
-    out[:, -2:] = (features[:, -2:] - features[0, -2:]) * centre_weight
+    out[:, : desc.n_shape] = (desc.shape(features) - mean) / std
+    c = desc.centre(features)
+    out[:, desc.n_shape :] = (c - c[0]) * centre_weight
     return out
+
+
+def performer_queries(
+    performer: FloatArray,
+    desc: Descriptor,
+    mean: FloatArray,
+    std: FloatArray,
+    centre_weight: float,
+    mirror: bool = True,
+) -> list[FloatArray]:
+    """DTW queries of a performer's features ``(n, F)`` without NaN rows: one per
+    reading of ``desc.variants`` (as seen; mirrored; for landmarks, sides swapped)."""
+    return [
+        performer_sequence(np.asarray(v, dtype=np.float64), mean, std, centre_weight, desc)
+        for v in desc.variants(performer, mirror)
+    ]
+
+
+def window_tables(
+    bank: Bank,
+    frames: IntArray,
+    clip_start: IntArray,
+    mean: FloatArray,
+    std: FloatArray,
+    centre_weight: float,
+) -> tuple[FloatArray, FloatArray]:
+    """What the whole-library window search compares: for rows ``frames`` (bank frames;
+    ``clip_start`` splits them into clips), the standardised shape numbers ``(N, V, S)``
+    and the centre accumulated along each clip ``(N, V, 2)``, times ``centre_weight``
+    (a window's centre is taken relative to its first frame by the DTW kernel)."""
+    desc = bank.settings.features
+    f = bank.features[frames].astype(np.float64)  # (N, V, F)
+    shape = np.nan_to_num((desc.shape(f) - mean) / std, nan=0.0)
+    move = bank.root_motion[frames].astype(np.float64)
+    centre = np.empty_like(move)
+    for a, b in itertools.pairwise(clip_start):
+        centre[a:b] = np.cumsum(move[a:b], axis=0) - move[a]
+    centre = np.nan_to_num((centre + desc.centre(f)) * centre_weight, nan=0.0)
+    return shape, centre
+
+
+def best_window(
+    queries: list[FloatArray],
+    shape: FloatArray,
+    centre: FloatArray,
+    starts: IntArray,
+    length: int,
+    band: int,
+) -> tuple[int, int, float]:
+    """``(start, view, cost)`` of the window nearest any of ``queries`` by DTW
+    (``control.dtw.dtw_best_window``), over ``starts``, every view."""
+    best = (-1, -1, float("inf"))
+    for q in queries:
+        got = dtw_best_window(q, shape, centre, starts, length, band)
+        if got[2] < best[2]:
+            best = got
+    return best
 
 
 class Matcher:
@@ -123,10 +198,15 @@ class Matcher:
         )
         if self.to_bank.size != self.graph.n_frames:
             raise ValueError("the bank and the graph disagree on clip lengths (rebuild the bank)")
-        self.mean, self.std = _shape_stats(bank)
-        #: features of one performer frame (``silhouette_features(..., descriptor)``)
-        self.descriptor = bank.settings.descriptor
-        self.n_features = bank.features.shape[-1]
+        self.mean, self.std = shape_stats(bank)
+        #: what one performer frame is reduced to: the bank's descriptor
+        self.desc = bank.settings.features
+        self.descriptor = self.desc.name
+        self.n_features = self.desc.size
+        reject = self.settings.reject
+        self.reject = self.desc.reject if reject is None else reject
+        #: why the last ``decide`` or ``locate`` gave nothing ("" when it gave something)
+        self.why = ""
         # the bank may hold several variants (bodies, shadows) of the ring's views
         self.ring_views = bank.settings.ring.n_views
         self.plays = self.graph.plays_on()
@@ -146,13 +226,14 @@ class Matcher:
         the centre weight) in every view, and the frames a window may start at (in the
         component, with ``n`` frames of playback ahead)."""
         if self._tables is None:
-            f = self.bank.features[self.to_bank].astype(np.float64)  # (N, V, F)
-            shape = np.nan_to_num((f[..., :-2] - self.mean) / self.std, nan=0.0)
-            move = self.bank.root_motion[self.to_bank].astype(np.float64)
-            centre = np.empty_like(move)
-            for a, b in zip(self.graph.clip_start[:-1], self.graph.clip_start[1:], strict=True):
-                centre[a:b] = np.cumsum(move[a:b], axis=0) - move[a]
-            centre = np.nan_to_num((centre + f[..., -2:]) * self.settings.centre_weight, nan=0.0)
+            shape, centre = window_tables(
+                self.bank,
+                self.to_bank,
+                self.graph.clip_start,
+                self.mean,
+                self.std,
+                self.settings.centre_weight,
+            )
             ok = self.graph.in_scc.copy()
             runs = np.cumsum(np.concatenate(([0], ~self.plays)))  # breaks before each frame
             n = self.graph.n_frames
@@ -162,23 +243,55 @@ class Matcher:
             self._tables = (shape, centre, np.flatnonzero(ok).astype(np.int64))
         return self._tables
 
-    def locate(self, performer: FloatArray) -> tuple[int, int, float] | None:
-        """``(frame, view, cost)``: the library window (any frame of the component, any
-        view and variant) that looks most like the performer's last features; ``frame`` is
-        where the window starts, ``view`` the ring's view. ``None`` without enough
-        silhouette."""
+    def queries(self, performer: FloatArray) -> list[FloatArray] | None:
+        """The DTW queries ``(m, F)`` of the performer's last features ``(n, F)``: NaN rows
+        (frames without a silhouette or pose) dropped, one query per reading
+        (``Descriptor.variants``: as seen, mirrored, ...). ``None`` (and ``why``) when
+        fewer than half the window's frames are usable."""
         self._check(performer)
         ok = np.isfinite(performer).all(axis=1)
         if ok.sum() < max(2, self.n // 2):
+            self.why = "no silhouette" if self.desc.kind == "silhouette" else "no pose"
             return None
-        query = performer_sequence(performer[ok], self.mean, self.std, self.settings.centre_weight)
+        return performer_queries(
+            performer[ok],
+            self.desc,
+            self.mean,
+            self.std,
+            self.settings.centre_weight,
+            self.settings.mirror,
+        )
+
+    def per_frame(self, cost: float, query: FloatArray) -> float:
+        """A DTW cost as a per-frame cost (over the square root of the query's length),
+        the scale of ``reject``."""
+        return cost / float(np.sqrt(max(query.shape[0], 1)))
+
+    def _rejected(self, cost: float, query: FloatArray) -> bool:
+        c = self.per_frame(cost, query)
+        if c > self.reject:
+            self.why = f"no match (cost {c:.2f} per frame > {self.reject:g})"
+            return True
+        return False
+
+    def locate(self, performer: FloatArray) -> tuple[int, int, float] | None:
+        """``(frame, view, cost)``: the library window (any frame of the component, any
+        view and variant, the performer as seen or mirrored) that looks most like the
+        performer's last features; ``frame`` is where the window starts, ``view`` the
+        ring's view. ``None`` without enough silhouette, or when even the best window
+        costs more than ``reject`` (``why`` says which)."""
+        queries = self.queries(performer)
+        if queries is None:
+            return None
         shape, centre, starts = self._global_tables()
         if starts.size == 0:
+            self.why = "no window in the component"
             return None
-        start, view, cost = dtw_best_window(
-            query, shape, centre, starts, self.n, self.settings.band
-        )
-        return start, view % self.ring_views, cost
+        best = best_window(queries, shape, centre, starts, self.n, self.settings.band)
+        if self._rejected(best[2], queries[0]):
+            return None
+        self.why = ""
+        return best[0], best[1] % self.ring_views, best[2]
 
     def route(self, frame: int, target: int) -> tuple[IntArray, IntArray] | None:
         """The shortest way ``(frames, edges)`` from ``frame`` to ``target`` through the
@@ -250,10 +363,11 @@ class Matcher:
         f = self.bank.features[b].astype(np.float64)  # (n, V, F)
         move = self.bank.root_motion[b].astype(np.float64)  # (n, V, 2)
         out = np.empty_like(f)
-        out[..., :-2] = (f[..., :-2] - self.mean) / self.std
+        k = self.desc.n_shape
+        out[..., :k] = (self.desc.shape(f) - self.mean) / self.std
         path = np.cumsum(move, axis=0) - move[0]
-        centre = path + f[..., -2:]
-        out[..., -2:] = (centre - centre[0]) * self.settings.centre_weight
+        centre = path + self.desc.centre(f)
+        out[..., k:] = (centre - centre[0]) * self.settings.centre_weight
         return np.nan_to_num(out.transpose(1, 0, 2), nan=0.0)
 
     def candidates(self, frame: int) -> list[tuple[int, IntArray, IntArray]]:
@@ -285,18 +399,19 @@ class Matcher:
         """The best path from ``frame`` for the performer's last features ``(n, F)``
         (NaN rows, frames without a silhouette, are dropped); ``None`` without enough."""
         t0 = time.perf_counter()
-        self._check(performer)
-        ok = np.isfinite(performer).all(axis=1)
-        if ok.sum() < max(2, self.n // 2):
+        queries = self.queries(performer)
+        if queries is None:
             return None
-        query = performer_sequence(performer[ok], self.mean, self.std, self.settings.centre_weight)
         cands = self.candidates(frame)
         if not cands:
+            self.why = "no candidate path"
             return None
         views = self.bank.features.shape[1]
         refs = np.concatenate([self._bank_sequences(self._window_frames(f)) for _, f, _ in cands])
         group = np.repeat(np.arange(len(cands)), views)
-        costs = dtw_batch(query, refs, group, window=self.settings.band).reshape(len(cands), views)
+        costs = np.min(
+            [dtw_batch(q, refs, group, window=self.settings.band) for q in queries], axis=0
+        ).reshape(len(cands), views)
         per_path = costs.min(axis=1)
         rank = per_path  # the costs reported stay DTW costs; the prior only ranks
         if self.settings.stay > 0:
@@ -304,6 +419,9 @@ class Matcher:
             rank = np.where(plays_on, per_path * (1.0 - self.settings.stay), per_path)
         order = np.argsort(rank, kind="stable")
         best = int(order[0])
+        if self._rejected(float(per_path[best]), queries[0]):
+            return None
+        self.why = ""
         node, frames, edges = cands[best]
         tree = self.layer.forest.tree(frame)
         return Decision(

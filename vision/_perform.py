@@ -27,6 +27,7 @@ from control.clusters import HigherLayer
 from control.motion import Clip
 from silhouette_bank import Bank, silhouette_features
 
+from ._landmarks import PoseReader
 from ._matcher import Matcher, MatchSettings
 from ._person import make_segmenter, resolve_segmentation
 from ._segment import clean_mask
@@ -38,7 +39,8 @@ __all__ = ["PerformResult", "PerformSettings", "perform"]
 @dataclass(frozen=True)
 class PerformSettings:
     decide_every: float = 0.1
-    #: "auto": a camera learns a plate (mog2), footage uses a person segmenter (selfie)
+    #: "auto": the pose descriptor's landmarks need the pose model; otherwise a camera
+    #: learns a plate (mog2) and footage uses a person segmenter (pose)
     segmentation: str = "auto"
     learn_frames: int = 30
     match: MatchSettings = field(default_factory=MatchSettings)
@@ -78,6 +80,9 @@ def perform(
     matcher = Matcher(layer, bank, settings.match)
     avatar = Avatar(graph, clips, start=start, seed=seed)
     segmenter: Any = None
+    landmarks = matcher.desc.kind == "pose"
+    reader = PoseReader() if landmarks else None
+    why_blank = ""  # why the latest frame has no features
     period = 1.0 / graph.fps
     buffer: deque[NDArray[np.float64]] = deque(maxlen=matcher.n)
     blank = np.full(matcher.n_features, np.nan)  # a frame without a silhouette
@@ -111,21 +116,31 @@ def perform(
                 break
             mask: NDArray[np.bool_] | None
             if frame.mask is not None:
+                if landmarks:
+                    raise ValueError(
+                        f"{source.name}: the pose descriptor needs "
+                        "colour frames, and this source gives silhouettes (use a silhouette "
+                        "descriptor: --descriptor multigrid)"
+                    )
                 mask = clean_mask(frame.mask)
             elif frame.image is not None:
                 if segmenter is None:
                     method = resolve_segmentation(
-                        settings.segmentation, isinstance(source, CameraSource)
+                        settings.segmentation, isinstance(source, CameraSource), landmarks
                     )
                     segmenter = make_segmenter(method, settings.learn_frames)
                 mask = segmenter.apply(frame.image)
             else:
                 mask = None
-            latest = (
-                silhouette_features(mask, descriptor=matcher.descriptor)
-                if mask is not None
-                else blank
-            )
+            if reader is not None:
+                lm = getattr(segmenter, "landmarks", None) if frame.image is not None else None
+                h_px, w_px = frame.image.shape[:2] if frame.image is not None else (1, 1)
+                latest = reader.read(lm, (w_px, h_px))
+                why_blank = reader.why
+            elif mask is not None:
+                latest = silhouette_features(mask, descriptor=matcher.desc)
+            else:
+                latest, why_blank = blank, "no silhouette"
             latest_mask = mask
             if on_frame is not None:
                 on_frame(t, mask, avatar)
@@ -198,9 +213,11 @@ def perform(
                     entry["reason"] = (
                         "en route"
                         if routing
-                        else "no silhouette"
+                        else why_blank
                         if not np.isfinite(latest).all()
                         else "filling buffer"
+                        if not full
+                        else matcher.why or "no decision"
                     )
                 else:
                     avatar.take(d.frames, d.edges)

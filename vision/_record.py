@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from control.motion import Clip
+from control.motion import Clip, Motion
 from control.motion._text import atomic_write
 from silhouette_bank import (
     BodyShape,
@@ -32,7 +32,7 @@ from silhouette_bank import (
     rasterize,
 )
 
-__all__ = ["RecordSettings", "add_mask_noise", "record_clip"]
+__all__ = ["RecordSettings", "add_mask_noise", "performer_masks", "record_clip"]
 
 
 @dataclass(frozen=True)
@@ -88,6 +88,35 @@ def add_mask_noise(
     return m
 
 
+def performer_masks(
+    motion: Motion, settings: RecordSettings | None = None, frames: NDArray[np.int64] | None = None
+) -> NDArray[np.uint8]:
+    """The performer's masks ``(F, H, W)`` (0/1) of ``frames`` (default all) of
+    ``motion``, filmed as ``settings`` says: a static camera on the middle of the action,
+    the performer's body, a shadow at the feet, ragged edges and holes."""
+    settings = settings or RecordSettings()
+    m = motion
+    frames = np.arange(m.n_frames) if frames is None else np.asarray(frames, dtype=np.int64)
+    ring = settings.ring()
+    body = capsule_body(m.skeleton, settings.body)
+    seg = capsule_segments(m, body)[frames]
+    centre = m.root_pos[frames].mean(axis=0)  # a static camera on the middle of the action
+    pose = ring.poses(centre)[0]
+    b = seg.shape[1]
+    cam = ring.to_camera(seg.reshape(-1, b * 2, 3), np.broadcast_to(pose, (frames.size, 4, 4)))
+    masks = rasterize(cam.reshape(frames.size, b, 2, 3), body.radius, ring)
+    ground = m.root_pos[frames].copy()
+    ground[:, 1] = 0.0
+    ground_cam = ring.to_camera(ground[:, None, :], np.broadcast_to(pose, (frames.size, 4, 4)))
+    rng = np.random.default_rng(settings.seed)
+    out = np.empty_like(masks)
+    for i in range(frames.size):
+        if settings.shadow:  # the same blob the bank's shadow variants draw
+            draw_ground_shadow(masks[i], ring, ground_cam[i, 0])
+        out[i] = add_mask_noise(masks[i], rng, settings.edge_noise, settings.holes)
+    return out
+
+
 def record_clip(
     clip: Clip,
     out: str | Path,
@@ -104,18 +133,8 @@ def record_clip(
     if not 0 <= start < stop <= m.n_frames:
         raise ValueError(f"frame range {start}..{stop} is not inside {clip.name} (0..{m.n_frames})")
     ring = settings.ring()
-    body = capsule_body(m.skeleton, settings.body)
     frames = np.arange(start, stop)
-    seg = capsule_segments(m, body)[frames]
-    centre = m.root_pos[frames].mean(axis=0)  # a static camera on the middle of the action
-    pose = ring.poses(centre)[0]
-    b = seg.shape[1]
-    cam = ring.to_camera(seg.reshape(-1, b * 2, 3), np.broadcast_to(pose, (frames.size, 4, 4)))
-    masks = rasterize(cam.reshape(frames.size, b, 2, 3), body.radius, ring)
-    ground = m.root_pos[frames].copy()
-    ground[:, 1] = 0.0
-    ground_cam = ring.to_camera(ground[:, None, :], np.broadcast_to(pose, (frames.size, 4, 4)))
-    rng = np.random.default_rng(settings.seed)
+    masks = performer_masks(m, settings, frames)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.stem}.tmp{out.suffix or '.mkv'}")
     writer = cv2.VideoWriter(
@@ -125,10 +144,7 @@ def record_clip(
         raise OSError(f"{out}: cannot write an FFV1 video here")
     try:
         for i in range(frames.size):
-            if settings.shadow:  # the same blob the bank's shadow variants draw
-                draw_ground_shadow(masks[i], ring, ground_cam[i, 0])
-            noisy = add_mask_noise(masks[i], rng, settings.edge_noise, settings.holes)
-            writer.write(noisy * 255)
+            writer.write(masks[i] * 255)
     finally:
         writer.release()
     tmp.replace(out)

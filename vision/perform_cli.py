@@ -24,10 +24,10 @@ from silhouette_bank import (
 from ._live import LiveView
 from ._matcher import MatchSettings
 from ._perform import PerformSettings, perform, write_video
-from ._person import PERSON_METHODS
+from ._person import PERSON_METHODS, person_segmentation_available
 from ._record import RecordSettings, record_clip
 from ._segment import METHODS
-from ._sources import open_source
+from ._sources import MaskFolderSource, open_source
 
 __all__ = ["add_perform_commands"]
 
@@ -54,8 +54,8 @@ def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
         choices=("auto", *PERSON_METHODS, *METHODS),
         default="auto",
         help="auto (default): a camera learns the empty scene first (mog2); a video file has "
-        "no such plate, so a person segmenter (selfie, needs MediaPipe) is used; pose: "
-        "MediaPipe's pose model; the rest are OpenCV background subtractors",
+        "no such plate, so a person segmenter (pose, needs MediaPipe) is used; the pose "
+        "descriptor always uses the pose model; the rest are OpenCV background subtractors",
     )
     p.add_argument("--learn-frames", type=int, default=30, help="frames to learn the background")
     p.add_argument(
@@ -66,10 +66,13 @@ def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
     )
     p.add_argument(
         "--descriptor",
-        choices=DESCRIPTORS,
-        default=DEFAULT_DESCRIPTOR,
-        help="silhouette shape features: grid (default: how full each cell of an 8x4 grid "
-        "over the silhouette is) or hu (7 Hu moments); see the README's accuracy figures",
+        choices=("auto", *DESCRIPTORS),
+        default="auto",
+        help="what each frame is reduced to. auto (default): pose (MediaPipe's body "
+        "landmarks against the avatar's projected joints) for colour video and cameras "
+        "when MediaPipe is installed, else multigrid (how full each cell of 16x8, 8x4 and "
+        "4x2 grids over the silhouette is); grid, hu (7 Hu moments): see the README's "
+        "recognition figures",
     )
     p.add_argument("--k", type=int, help="number of clusters (default: BIC)")
     p.add_argument("--start", help="avatar starts at CLIP:FRAME")
@@ -161,6 +164,23 @@ def _live_painter(view: LiveView, library: Any, graph: Any, bank: Any) -> Any:
     return paint
 
 
+def choose_descriptor(name: str, source: Any) -> str:
+    """``"auto"`` made concrete for ``source``: ``pose`` where there are colour frames
+    (a camera, a colour video) and MediaPipe is installed (it recognised far better than
+    any silhouette descriptor: ``benchmarks/bench_recognition.py``), else the bank's
+    default silhouette descriptor. A pose descriptor for a silhouette source is an
+    error."""
+    colour = not (isinstance(source, MaskFolderSource) or getattr(source, "silhouette", False))
+    if name == "auto":
+        return "pose" if colour and person_segmentation_available() else DEFAULT_DESCRIPTOR
+    if name == "pose" and not colour:
+        raise SystemExit(
+            f"mimic perform: {source.name} holds silhouettes, and the pose descriptor needs "
+            "colour frames (use --descriptor multigrid, or auto)"
+        )
+    return name
+
+
 def _perform(args: argparse.Namespace) -> int:
     source = open_source(args.camera, args.video, args.masks, realtime=args.realtime)
     if args.camera is not None and args.seconds is None:
@@ -170,10 +190,14 @@ def _perform(args: argparse.Namespace) -> int:
             "step out of view for two seconds so that the background can be learned",
             file=sys.stderr,
         )
+    descriptor = choose_descriptor(args.descriptor, source)
+    print(f"descriptor: {descriptor}", file=sys.stderr)
     library, graph, _, _ = _graph_for(args)
     layer = build_higher_layer(graph, library.clips, k=args.k)
-    base = BankSettings(descriptor=args.descriptor)
-    bank_settings = robust_settings(base) if args.variants else base
+    base = BankSettings(descriptor=descriptor)
+    if args.variants and descriptor == "pose":
+        print("--variants: body variants do not apply to the pose descriptor", file=sys.stderr)
+    bank_settings = robust_settings(base) if args.variants and descriptor != "pose" else base
     bank, built = ensure_bank(library.clips, bank_settings, progress=None)
     start = start_frame(graph, args.start)
     settings = PerformSettings(

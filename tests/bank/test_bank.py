@@ -158,12 +158,61 @@ def test_a_grid_bank_holds_grid_features(lib: Library, tmp_path: Path) -> None:
     # the same silhouettes: the centre is the same, the shape numbers are the grid's
     np.testing.assert_allclose(bank.features[..., -2:], plain.features[..., -2:])
     assert np.all((bank.features[..., :-2] >= 0) & (bank.features[..., :-2] <= 1))
-    # the grid is the default; the descriptor is part of the key; a Hu bank's settings do
-    # not name it (banks from before the grid keep their key)
-    assert BankSettings().descriptor == "grid"
+    # the multigrid is the default; the descriptor is part of the key; a Hu bank's
+    # settings do not name it (banks from before the grid keep their key)
+    assert BankSettings().descriptor == "multigrid"
     assert settings.digest() != SMALL.digest() and "descriptor" not in SMALL.to_dict()
     assert BankSettings.from_dict(settings.to_dict()) == settings
     with pytest.raises(StaleBankError):
         load_bank(tmp_path / "g", lib.clips, SMALL)
     with pytest.raises(ValueError, match="descriptor must be one of"):
         BankSettings(descriptor="zernike")
+
+
+@pytest.mark.parametrize("name", ["hu", "grid", "multigrid", "pose"])
+def test_every_descriptor_round_trips_through_the_bank(
+    lib: Library, tmp_path: Path, name: str
+) -> None:
+    settings = dataclasses.replace(SMALL, descriptor=name)
+    bank = build_bank(lib.clips, settings, tmp_path / name, shard_frames=50, workers=1)
+    again = load_bank(tmp_path / name, lib.clips, settings)
+    assert bank.settings.features.name == name == again.settings.descriptor
+    assert again.features.shape == (103, 6, feature_size(name))
+    np.testing.assert_array_equal(again.features, bank.features)
+    assert np.isfinite(bank.features).all() and np.isfinite(bank.root_motion).all()
+    # the descriptor is part of the key: another one's bank is stale
+    other = "hu" if name != "hu" else "grid"
+    with pytest.raises(StaleBankError):
+        load_bank(tmp_path / name, lib.clips, dataclasses.replace(SMALL, descriptor=other))
+
+
+def test_a_pose_bank_projects_the_joints(lib: Library, tmp_path: Path) -> None:
+    from control.motion import forward_kinematics, role_point
+
+    settings = dataclasses.replace(SMALL, descriptor="pose")
+    bank = build_bank(lib.clips, settings, tmp_path / "pose", shard_frames=50, workers=1)
+    clip = lib.clip("02_01")
+    k = bank.frame_of("02_01", 10)
+    pose = forward_kinematics(clip.motion)
+    root = clip.motion.root_pos[10]
+    cam_pose = settings.ring.poses(root)
+    for v in (0, 3):  # front (camera on +Z) and back
+        pts = np.stack(
+            [
+                pose.positions[10, role_point(clip.motion.skeleton, r)[1]]
+                for r in ("left_shoulder", "right_shoulder", "left_hip", "right_hip")
+            ]
+        )
+        px = settings.ring.project(settings.ring.to_camera(pts, cam_pose[v]))
+        torso = np.linalg.norm(px[:2].mean(axis=0) - px[2:].mean(axis=0))
+        got = bank.features[k, v]
+        # the left shoulder relative to the mid-hip, in torso lengths, y up
+        want = (px[0] - px[2:].mean(axis=0)) / torso * [1, -1]
+        np.testing.assert_allclose(got[:2], want, atol=1e-4)
+    # seen from the front (view 0: the camera on +Z, the subject facing it or not) and
+    # from behind, left and right trade sides of the image
+    assert np.sign(bank.features[k, 0, 0] - bank.features[k, 0, 2]) != np.sign(
+        bank.features[k, 3, 0] - bank.features[k, 3, 2]
+    )
+    with pytest.raises(ValueError, match="pose bank projects joints"):
+        BankSettings(descriptor="pose", shadow=True)

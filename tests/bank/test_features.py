@@ -7,8 +7,20 @@ import numpy as np
 import pytest
 from skimage.measure import moments_central, moments_hu, moments_normalized
 
-from silhouette_bank import feature_size, hu_log, silhouette_features
-from silhouette_bank._features import GRID_COLS, GRID_ROWS, grid_cells
+from silhouette_bank import (
+    DESCRIPTORS,
+    feature_size,
+    get_descriptor,
+    grid_cells,
+    hu_log,
+    silhouette_features,
+)
+
+GRID_ROWS, GRID_COLS = 8, 4
+
+
+def _hu(mask: np.ndarray, origin: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+    return silhouette_features(mask, origin, "hu")
 
 
 def _figure(h: int = 120, w: int = 160) -> np.ndarray:
@@ -25,7 +37,7 @@ def _figure(h: int = 120, w: int = 160) -> np.ndarray:
 def test_square_by_hand() -> None:
     m = np.zeros((20, 30), dtype=np.uint8)
     m[5:15, 10:20] = 1  # 10 x 10 square, centre (14.5, 9.5)
-    f = silhouette_features(m, origin=(0.0, 0.0))
+    f = _hu(m, origin=(0.0, 0.0))
     assert f[7] == pytest.approx(14.5 / 10) and f[8] == pytest.approx(-9.5 / 10)
     # a square's first Hu moment: (mu20 + mu02) / m00^2 = 2 (n^4 / 12) / n^4 = 1/6
     # (discrete pixels: n^2 - 1 instead of n^2 in mu20)
@@ -49,17 +61,17 @@ def test_hu_moments_match_skimage() -> None:
     # skimage mirrors the sign of the 7th moment (its y axis); magnitudes agree
     np.testing.assert_allclose(ours[:6], ref[:6], rtol=1e-6)
     np.testing.assert_allclose(abs(ours[6]), abs(ref[6]), rtol=1e-6)
-    np.testing.assert_allclose(silhouette_features(_figure())[:6], hu_log(ref)[:6], rtol=1e-9)
+    np.testing.assert_allclose(_hu(_figure())[:6], hu_log(ref)[:6], rtol=1e-9)
 
 
 def test_unchanged_by_translation_and_nearly_by_scale() -> None:
     m = _figure()
-    f = silhouette_features(m, origin=(80.0, 60.0))
+    f = _hu(m, origin=(80.0, 60.0))
     shifted = np.roll(np.roll(m, 13, axis=1), -7, axis=0)
-    g = silhouette_features(shifted, origin=(93.0, 53.0))
+    g = _hu(shifted, origin=(93.0, 53.0))
     np.testing.assert_allclose(g, f, atol=1e-12)
     big = cv2.resize(m, (320, 240), interpolation=cv2.INTER_NEAREST)
-    b = silhouette_features(big, origin=(160.0 - 0.5, 120.0 - 0.5))
+    b = _hu(big, origin=(160.0 - 0.5, 120.0 - 0.5))
     # scale: the same to within the pixel grid's error
     np.testing.assert_allclose(b[:4], f[:4], atol=0.05)
     np.testing.assert_allclose(b[7:], f[7:], atol=0.02)
@@ -69,8 +81,8 @@ def test_empty_and_bad_masks() -> None:
     assert np.isnan(silhouette_features(np.zeros((10, 10), dtype=bool))).all()
     with pytest.raises(ValueError, match="2-D"):
         silhouette_features(np.zeros((2, 3, 4)))
-    f = silhouette_features(_figure().astype(bool))
-    np.testing.assert_allclose(f, silhouette_features(_figure() * 255))
+    f = _hu(_figure().astype(bool))
+    np.testing.assert_allclose(f, _hu(_figure() * 255))
 
 
 def test_grid_by_hand_and_against_block_means() -> None:
@@ -80,14 +92,14 @@ def test_grid_by_hand_and_against_block_means() -> None:
     assert f.shape == (feature_size("grid"),) == (GRID_ROWS * GRID_COLS + 2,)
     np.testing.assert_allclose(f[:-2], 1.0)
     # the centre is the same as with Hu moments
-    np.testing.assert_allclose(f[-2:], silhouette_features(m)[-2:])
+    np.testing.assert_allclose(f[-2:], _hu(m)[-2:])
     # a figure 2 x 8 rows tall: each cell is the mean of a 2 x 2 pixel block
     fig = np.zeros((30, 40), dtype=np.uint8)
     rng = np.random.default_rng(3)
     fig[5:21, 16:24] = rng.random((16, 8)) < 0.6
     fig[5, 16:24] = 1  # the top and bottom rows are set, so the span is 16 rows
     fig[20, 16:24] = 1
-    cells = grid_cells(fig, 5, 21, 20.0, 8, 4)
+    cells = grid_cells(fig, 5, 21, 19.5, 8, 4)  # columns 16..23 about their middle
     blocks = fig[5:21, 16:24].reshape(8, 2, 4, 2).mean(axis=(1, 3)).ravel()
     np.testing.assert_allclose(cells, blocks, atol=1e-6)
 
@@ -108,7 +120,70 @@ def test_grid_ignores_position_and_nearly_scale_and_clips_at_the_border() -> Non
     ys, xs = np.nonzero(cut)
     ref = grid_cells(padded, ys.min(), ys.max() + 1, xs.mean() + 100, GRID_ROWS, GRID_COLS)
     assert g[0] == 0 and np.isfinite(g).all()
-    np.testing.assert_allclose(g, ref)
+    np.testing.assert_allclose(g, ref, atol=1e-6)
     assert np.isnan(silhouette_features(np.zeros((9, 9), np.uint8), descriptor="grid")).all()
-    with pytest.raises(ValueError, match="descriptor must be one of hu, grid"):
+    with pytest.raises(ValueError, match="descriptor must be one of hu, grid, multigrid, pose"):
         silhouette_features(m, descriptor="zernike")
+
+
+@pytest.mark.parametrize("name", ["hu", "grid", "multigrid"])
+def test_a_descriptor_owns_its_layout_and_mirrors_the_image(name: str) -> None:
+    desc = get_descriptor(name)
+    m = _figure()
+    f = silhouette_features(m, (80.0, 60.0), name)
+    assert f.shape == (desc.size,) == (feature_size(name),) and desc.kind == "silhouette"
+    np.testing.assert_array_equal(desc.shape(f), f[: desc.n_shape])
+    np.testing.assert_array_equal(desc.centre(f), f[desc.n_shape :])
+    # the mirrored image's vector is the vector mirrored (the grid's columns about the
+    # centroid are rounded to pixels, so cells agree to a pixel column's worth)
+    flipped = np.ascontiguousarray(m[:, ::-1])
+    g = silhouette_features(flipped, (159 - 80.0, 60.0), name)  # pixel x -> 159 - x
+    np.testing.assert_allclose(desc.mirror(f), g, atol=0.2 if name != "hu" else 1e-6)
+    assert np.mean(np.abs(desc.mirror(f) - g)) < 0.03
+    np.testing.assert_allclose(desc.mirror(desc.mirror(f)), f)
+    # a standardiser from rows: Hu each by its spread, cells by one scale
+    rows = np.random.default_rng(0).random((50, desc.n_shape))
+    mean, scale = desc.standardiser(rows)
+    assert mean.shape == scale.shape == (desc.n_shape,)
+    total = float(np.sum(((rows - mean) / scale).var(axis=0)))
+    assert total == pytest.approx(7.0)
+    assert (np.unique(scale).size == 1) == (name != "hu")
+
+
+def test_multigrid_is_the_grids_concatenated() -> None:
+    m = _figure()
+    f = silhouette_features(m, descriptor="multigrid")
+    desc = get_descriptor("multigrid")
+    rows = np.flatnonzero(m.any(axis=1))
+    xs = np.nonzero(m)[1]
+    parts = [grid_cells(m, rows[0], rows[-1] + 1, xs.mean(), r, c) for r, c in desc.levels]
+    np.testing.assert_allclose(desc.shape(f), np.concatenate(parts))
+    np.testing.assert_allclose(desc.centre(f), silhouette_features(m, descriptor="grid")[-2:])
+
+
+def test_pose_descriptor_normalises_position_scale_and_swaps_sides() -> None:
+    desc = get_descriptor("pose")
+    assert "pose" in DESCRIPTORS and desc.kind == "pose" and desc.size == 26
+    # a T-pose by hand: shoulders 1 above the hips (torso length 1), y down in pixels
+    arms = [[-0.5, -1], [0.5, -1], [-1, -1], [1, -1], [-1.5, -1], [1.5, -1]]
+    legs = [[-0.3, 0], [0.3, 0], [-0.3, 1], [0.3, 1], [-0.3, 2], [0.3, 2]]
+    pts = np.array([*arms, *legs], dtype=float)
+    f = desc.from_points(pts)
+    np.testing.assert_allclose(f[:2], [-0.5, 1.0])  # left shoulder: y up
+    np.testing.assert_allclose(f[-4:-2], [0.3, -2.0])  # right ankle
+    np.testing.assert_allclose(f[-2:], [0.0, 0.0])
+    # moved and scaled in the image: the same shape, the centre in torso lengths
+    g = desc.from_points(pts * 40 + [100, 50], (0.0, 0.0))
+    np.testing.assert_allclose(g[:24], f[:24], atol=1e-12)
+    np.testing.assert_allclose(g[-2:], [100 / 40, -50 / 40])
+    swapped = desc.swap(f)
+    np.testing.assert_allclose(swapped[:2], f[2:4] * 0 + [0.5, 1.0])
+    np.testing.assert_allclose(desc.swap(swapped), f)
+    # mirroring the image negates x, and what was the left arm is seen as a right arm
+    sides = [1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10]
+    np.testing.assert_allclose(desc.mirror(f), desc.from_points((pts * [-1, 1])[sides]))
+    assert len(desc.variants(f)) == 4 and len(desc.variants(f, mirror=False)) == 2
+    # a degenerate torso has no vector; masks are not its input
+    assert np.isnan(desc.from_points(np.zeros((12, 2)))).all()
+    with pytest.raises(ValueError, match="landmarks, not masks"):
+        silhouette_features(_figure(), descriptor="pose")

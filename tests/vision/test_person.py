@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
+from vision._landmarks import PoseReader
 from vision._person import (
     PersonSegmenter,
     make_segmenter,
@@ -86,7 +87,11 @@ def test_a_plate_subtractor_loses_a_person_who_is_there_from_the_start(mocap: Pa
 
 def test_choosing_a_segmenter() -> None:
     assert resolve_segmentation("auto", live=True) == "mog2"  # a camera learns its plate
-    assert resolve_segmentation("auto", live=False) == "selfie"  # footage has none
+    assert resolve_segmentation("auto", live=False) == "pose"  # footage has none
+    # the pose descriptor needs the pose model's landmarks, camera or file
+    assert resolve_segmentation("auto", live=True, landmarks=True) == "pose"
+    with pytest.raises(ValueError, match="needs the pose model's landmarks"):
+        resolve_segmentation("mog2", live=True, landmarks=True)
     assert resolve_segmentation("knn", live=False) == "knn"
     assert isinstance(make_segmenter("pose"), PersonSegmenter)
     assert isinstance(make_segmenter("mog2", 5), Segmenter)
@@ -94,3 +99,41 @@ def test_choosing_a_segmenter() -> None:
         PersonSegmenter("body")
     with pytest.raises(ValueError, match=r"expected a BGR image \(H, W, 3\)"):
         PersonSegmenter().apply(np.zeros((10, 10), dtype=np.uint8))
+
+
+def test_pose_landmarks_become_pose_vectors(squats: list[np.ndarray]) -> None:
+    model = PersonSegmenter("pose")
+    reader = PoseReader()
+    vecs = []
+    for img in squats:
+        model.apply(img)
+        assert model.landmarks is not None and model.landmarks.shape == (33, 3)
+        v = reader.read(model.landmarks, (img.shape[1], img.shape[0]))
+        assert reader.why == "" and np.isfinite(v).all()
+        vecs.append(v)
+    x = np.array(vecs)
+    # the hips are 0 and the torso 1 long; the shoulders above the hips, the ankles below
+    mid_shoulder = 0.5 * (x[:, 0:2] + x[:, 2:4])
+    np.testing.assert_allclose(np.linalg.norm(mid_shoulder, axis=1), 1.0, atol=1e-9)
+    assert (mid_shoulder[:, 1] > 0.8).all() and (x[:, 21] < -0.5).all()
+    # squats: the knees rise towards the hips and fall back
+    assert np.ptp(x[:, 17]) > 0.3
+    # nobody in view, and a person upside down (the detector finds no torso it trusts,
+    # or a pose of low confidence): no vector, and why
+    assert np.isnan(reader.read(None, (640, 480))).all() and reader.why == "nobody in view"
+    model.apply(np.full((480, 640, 3), 128, dtype=np.uint8))
+    blank = reader.read(model.landmarks, (640, 480))
+    assert np.isnan(blank).all() and reader.why
+    # a limb of low confidence holds its last place for a moment, then the frame is
+    # given up (half a body)
+    model.apply(squats[0])
+    assert model.landmarks is not None
+    lm = model.landmarks.copy()
+    good = reader.read(lm, (720, 1280))
+    lm[27, 2] = 0.0  # the left ankle unseen
+    held = reader.read(lm, (720, 1280))
+    np.testing.assert_allclose(held[20:22], good[20:22])
+    for _ in range(reader.hold):
+        reader.read(lm, (720, 1280))
+    assert np.isnan(reader.read(lm, (720, 1280))).all() and "half a body" in reader.why
+    model.close()

@@ -1,0 +1,323 @@
+"""Descriptors: what one performer frame (and one bank frame and view) is reduced to.
+
+A descriptor owns its layout, so that the bank, the matcher and DTW never slice feature
+vectors themselves. Every descriptor's vector is ``(size,)``: ``n_shape`` shape numbers,
+then 2 centre numbers (x right, y up, relative to an origin, in the descriptor's unit of
+body size). The kinds:
+
+- ``"hu"``: the 7 log-scaled Hu moments of the mask (Lee et al.'s kind of feature), then
+  the silhouette centre in silhouette heights; each Hu number standardised by its own
+  spread in the bank.
+- ``"grid"``: how much of each cell of an 8x4 grid over the silhouette it fills.
+- ``"multigrid"``: grids of 16x8, 8x4 and 4x2 cells over the same box, concatenated: the
+  fine grid sees the limbs, the coarse ones still agree when a limb is a cell off
+  (another body, another camera). Measured against the others by
+  ``benchmarks/bench_recognition.py``. Grid cells, all of one kind, share one scale.
+- ``"pose"``: 2D body landmarks (shoulders, elbows, wrists, hips, knees, ankles; left
+  before right) relative to the mid-hip, in torso lengths (mid-shoulder to mid-hip), then
+  the mid-hip as the centre. The bank projects the avatar's joints into each view; the
+  live side takes MediaPipe Pose's landmarks (``vision``). Needs colour video.
+
+Standardisation (``standardiser``): the matcher divides shape numbers by a scale taken
+from the bank, such that the shape numbers together vary as much as 7 standardised
+numbers do (for Hu: exactly so, each by its own spread); so ``centre_weight`` means the
+same with every descriptor.
+
+``mirror`` gives the vector of the left/right mirrored image (a performer who does the
+action with the other side, or a mirrored camera), so that the matcher can try both.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "DEFAULT_DESCRIPTOR",
+    "DESCRIPTORS",
+    "HU_SCALE",
+    "POSE_JOINTS",
+    "Descriptor",
+    "GridDescriptor",
+    "HuDescriptor",
+    "PoseDescriptor",
+    "get_descriptor",
+    "grid_cells",
+    "hu_log",
+]
+
+FloatArray = NDArray[np.float64]
+
+#: s_k of the Hu log scale, per moment (see ``hu_log``)
+HU_SCALE = np.array([1e-7, 1e-7, 1e-7, 1e-7, 5e-6, 2e-4, 1.5e-6])
+
+#: the pose descriptor's landmarks, as joint roles (``control.motion.ROLE_ALIASES``), in
+#: order: each part left then right
+POSE_JOINTS = (
+    "left_shoulder",
+    "right_shoulder",
+    "left_elbow",
+    "right_elbow",
+    "left_wrist",
+    "right_wrist",
+    "left_hip",
+    "right_hip",
+    "left_knee",
+    "right_knee",
+    "left_ankle",
+    "right_ankle",
+)
+
+
+def hu_log(hu: FloatArray) -> FloatArray:
+    """``sign(h) log10(1 + |h| / s_k)`` of Hu moments ``(..., 7)``: a log scale that is
+    continuous through 0.
+
+    For the first four moments (always clearly positive) ``s = 1e-7`` and this is
+    ``log10(h) + 7``. The last three change sign on real silhouettes (h7 about half of
+    the time), and the usual ``-sign(h) log10|h|`` jumps by twice its size when a tiny
+    value changes sign (jumps of 14 were measured between two camera distances); here
+    ``s`` is a tenth of the moment's median size on our renders, so values smaller than
+    that pass through 0 continuously.
+    """
+    hu = np.asarray(hu, dtype=np.float64)
+    return np.sign(hu) * np.log10(1.0 + np.abs(hu) / HU_SCALE)
+
+
+def grid_cells(
+    mask: NDArray[np.uint8], top: int, bottom: int, cx: float, rows: int, cols: int
+) -> FloatArray:
+    """Fraction filled of each of ``rows x cols`` cells ``(rows * cols,)``, row by row
+    from the top: the grid spans image rows ``[top, bottom)`` and ``h * cols / rows``
+    columns (rounded) centred on ``cx`` (pixel-index coordinates, as the centroid of
+    ``cv2.moments``; sampled to a fraction of a pixel, so the mirrored image gives the
+    mirrored cells); cells beyond the image are empty."""
+    h = bottom - top
+    width = max(1, round(h * cols / rows))
+    shift = np.array([[1.0, 0.0, cx - (width - 1) / 2.0], [0.0, 1.0, float(top)]])
+    crop = cv2.warpAffine(
+        np.asarray(mask, dtype=np.float32),
+        shift,
+        (width, h),
+        flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=0.0,
+    )
+    cells = cv2.resize(crop, (cols, rows), interpolation=cv2.INTER_AREA)
+    # the area average of values in [0, 1], less float32's rounding (1.0000002 seen)
+    return np.clip(np.asarray(cells, dtype=np.float64).ravel(), 0.0, 1.0)
+
+
+def _binary(mask: NDArray[np.generic]) -> NDArray[np.uint8]:
+    m = np.ascontiguousarray(mask)
+    if m.ndim != 2:
+        raise ValueError(f"mask must be 2-D, got shape {m.shape}")
+    if m.dtype != np.uint8 or m.max(initial=0) > 1:
+        m = (m != 0).astype(np.uint8)
+    return m
+
+
+@dataclass(frozen=True)
+class Descriptor:
+    """The layout of one kind of feature vector: ``n_shape`` shape numbers, then the
+    centre (2). Subclasses compute it."""
+
+    name: str
+    n_shape: int
+    #: "silhouette" (computed from a binary mask) or "pose" (from body landmarks)
+    kind: str = "silhouette"
+    #: a window whose best match costs more than this per frame (the DTW cost over the
+    #: square root of its length, on standardised numbers) matches nothing real: the
+    #: matcher rejects it (measured by ``benchmarks/bench_recognition.py``)
+    reject: float = float("inf")
+
+    @property
+    def size(self) -> int:
+        """Length of a feature vector."""
+        return self.n_shape + 2
+
+    def shape(self, x: NDArray[np.floating]) -> NDArray[np.floating]:
+        """The shape numbers ``(..., n_shape)`` of vectors ``(..., size)``."""
+        return x[..., : self.n_shape]
+
+    def centre(self, x: NDArray[np.floating]) -> NDArray[np.floating]:
+        """The centre ``(..., 2)`` of vectors ``(..., size)``."""
+        return x[..., self.n_shape :]
+
+    def standardiser(self, rows: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Mean and scale ``(n_shape,)`` of shape numbers ``(N, n_shape)`` (finite rows):
+        by default one scale for all, such that together they vary as much as 7
+        standardised numbers."""
+        x = np.asarray(rows, dtype=np.float64)
+        if x.shape[0] == 0:
+            return np.zeros(self.n_shape), np.ones(self.n_shape)
+        scale = max(float(np.sqrt(x.var(axis=0).sum() / 7.0)), 1e-6)
+        return x.mean(axis=0), np.full(self.n_shape, scale)
+
+    def mirror(self, x: NDArray[np.floating]) -> NDArray[np.floating]:
+        """Vectors ``(..., size)`` of the left/right mirrored image."""
+        out = np.array(x, copy=True)
+        out[..., self.n_shape] *= -1.0
+        return out
+
+    def variants(self, x: NDArray[np.floating], mirror: bool = True) -> list[NDArray[np.floating]]:
+        """The readings of a performer's vectors ``(..., size)`` to match: as seen, and
+        with ``mirror`` also mirrored."""
+        return [x, self.mirror(x)] if mirror else [x]
+
+    def from_mask(
+        self, mask: NDArray[np.generic], origin: tuple[float, float] = (0.0, 0.0)
+    ) -> FloatArray:
+        """The vector ``(size,)`` of a binary mask ``(H, W)`` (nonzero = silhouette), all
+        NaN when it is empty; ``origin`` in pixels (x right, y down). The centre is the
+        silhouette's centroid minus ``origin``, over the silhouette's height, y up."""
+        m = _binary(mask)
+        out = np.full(self.size, np.nan)
+        mom = cv2.moments(m, binaryImage=True)
+        if mom["m00"] <= 0:
+            return out
+        rows = np.flatnonzero(m.any(axis=1))
+        top, bottom = int(rows[0]), int(rows[-1]) + 1
+        height = float(bottom - top)
+        cx = mom["m10"] / mom["m00"]
+        cy = mom["m01"] / mom["m00"]
+        out[: self.n_shape] = self._shape_of(m, mom, top, bottom, cx)
+        out[-2] = (cx - origin[0]) / height
+        out[-1] = -(cy - origin[1]) / height
+        return out
+
+    def _shape_of(
+        self, m: NDArray[np.uint8], mom: dict[str, float], top: int, bottom: int, cx: float
+    ) -> FloatArray:
+        raise ValueError(f"the {self.name!r} descriptor is computed from body landmarks, not masks")
+
+
+@dataclass(frozen=True)
+class HuDescriptor(Descriptor):
+    """7 log-scaled Hu moments (``hu_log``) and the centre."""
+
+    name: str = "hu"
+    n_shape: int = 7
+
+    def standardiser(self, rows: FloatArray) -> tuple[FloatArray, FloatArray]:
+        x = np.asarray(rows, dtype=np.float64)
+        if x.shape[0] == 0:
+            return np.zeros(7), np.ones(7)
+        return x.mean(axis=0), np.maximum(x.std(axis=0), 1e-6)
+
+    def mirror(self, x: NDArray[np.floating]) -> NDArray[np.floating]:
+        out = super().mirror(x)
+        out[..., 6] *= -1.0  # h7 is the skew invariant: it changes sign under reflection
+        return out
+
+    def _shape_of(
+        self, m: NDArray[np.uint8], mom: dict[str, float], top: int, bottom: int, cx: float
+    ) -> FloatArray:
+        return hu_log(np.asarray(cv2.HuMoments(mom), dtype=np.float64).ravel())
+
+
+@dataclass(frozen=True)
+class GridDescriptor(Descriptor):
+    """Cell fill fractions of grids ``levels`` (``(rows, cols)`` each, concatenated) over
+    the silhouette: rows span its height, ``h * cols / rows`` columns its centroid's
+    column; position and scale drop out."""
+
+    name: str = "grid"
+    n_shape: int = 32
+    levels: tuple[tuple[int, int], ...] = ((8, 4),)
+
+    def __post_init__(self) -> None:
+        if sum(r * c for r, c in self.levels) != self.n_shape:
+            raise ValueError(f"{self.name}: n_shape must be the number of cells of {self.levels}")
+
+    def _shape_of(
+        self, m: NDArray[np.uint8], mom: dict[str, float], top: int, bottom: int, cx: float
+    ) -> FloatArray:
+        return np.concatenate([grid_cells(m, top, bottom, cx, r, c) for r, c in self.levels])
+
+    def mirror(self, x: NDArray[np.floating]) -> NDArray[np.floating]:
+        out = super().mirror(x)
+        at = 0
+        for r, c in self.levels:
+            cells = out[..., at : at + r * c].reshape(*out.shape[:-1], r, c)
+            out[..., at : at + r * c] = cells[..., ::-1].reshape(*out.shape[:-1], r * c)
+            at += r * c
+        return out
+
+
+@dataclass(frozen=True)
+class PoseDescriptor(Descriptor):
+    """12 landmarks (``POSE_JOINTS``) relative to the mid-hip in torso lengths, x right,
+    y up, then the mid-hip relative to the origin in torso lengths."""
+
+    name: str = "pose"
+    n_shape: int = 2 * len(POSE_JOINTS)
+    kind: str = "pose"
+
+    def from_points(
+        self, points: FloatArray, origin: FloatArray | tuple[float, float] = (0.0, 0.0)
+    ) -> FloatArray:
+        """Vectors ``(..., size)`` of image points ``(..., 12, 2)`` (pixels, x right, y
+        down, in ``POSE_JOINTS`` order) with the centre relative to ``origin`` (``(2,)``
+        or ``(..., 2)`` pixels); NaN where the torso is degenerate."""
+        p = np.asarray(points, dtype=np.float64)
+        if p.shape[-2:] != (len(POSE_JOINTS), 2):
+            raise ValueError(f"points must be (..., {len(POSE_JOINTS)}, 2), got {p.shape}")
+        hip = 0.5 * (p[..., 6, :] + p[..., 7, :])
+        shoulder = 0.5 * (p[..., 0, :] + p[..., 1, :])
+        torso = np.linalg.norm(shoulder - hip, axis=-1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            torso = np.where(torso > 1e-6, torso, np.nan)
+            rel = (p - hip[..., None, :]) / torso[..., None, None]
+            centre = (hip - np.asarray(origin, dtype=np.float64)) / torso[..., None]
+        rel[..., 1] *= -1.0
+        centre[..., 1] *= -1.0
+        out = np.empty((*p.shape[:-2], self.size))
+        out[..., : self.n_shape] = rel.reshape(*p.shape[:-2], self.n_shape)
+        out[..., self.n_shape :] = centre
+        return out
+
+    def swap(self, x: NDArray[np.floating]) -> NDArray[np.floating]:
+        """Vectors ``(..., size)`` with left and right landmarks exchanged (a detector
+        that took the performer's left for the right)."""
+        out = np.array(x, copy=True)
+        pts = out[..., : self.n_shape].reshape(*out.shape[:-1], len(POSE_JOINTS) // 2, 2, 2)
+        out[..., : self.n_shape] = pts[..., ::-1, :].reshape(*out.shape[:-1], self.n_shape)
+        return out
+
+    def mirror(self, x: NDArray[np.floating]) -> NDArray[np.floating]:
+        out = self.swap(super().mirror(x))
+        out[..., 0 : self.n_shape : 2] *= -1.0
+        return out
+
+    def variants(self, x: NDArray[np.floating], mirror: bool = True) -> list[NDArray[np.floating]]:
+        """As seen and with left and right swapped (detectors confuse the two on a
+        performer seen from behind), and with ``mirror`` both mirrored too."""
+        out = [x, self.swap(x)]
+        return out + [self.mirror(v) for v in out] if mirror else out
+
+
+_DESCRIPTORS: dict[str, Descriptor] = {
+    "hu": HuDescriptor(),
+    "grid": GridDescriptor(),
+    "multigrid": GridDescriptor("multigrid", 128 + 32 + 8, levels=((16, 8), (8, 4), (4, 2))),
+    "pose": PoseDescriptor(),
+}
+DESCRIPTORS = tuple(_DESCRIPTORS)
+#: the silhouette bank's default (``benchmarks/bench_recognition.py``; README)
+DEFAULT_DESCRIPTOR = "multigrid"
+
+
+def get_descriptor(name: str | Descriptor) -> Descriptor:
+    """The descriptor called ``name`` (one of ``DESCRIPTORS``)."""
+    if isinstance(name, Descriptor):
+        return name
+    try:
+        return _DESCRIPTORS[name]
+    except KeyError:
+        raise ValueError(
+            f"descriptor must be one of {', '.join(DESCRIPTORS)}, not {name!r}"
+        ) from None
