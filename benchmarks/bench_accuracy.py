@@ -113,7 +113,7 @@ def _recognition(
                 continue
             rows = x[end - m.n : end]
             rows = rows[np.isfinite(rows).all(axis=1)]  # as locate does
-            query = performer_sequence(rows, m.mean, m.std, m.settings.centre_weight)
+            query = performer_sequence(rows, m.mean, m.proj, m.settings.centre_weight, m.desc)
             s, _, _ = dtw_best_window(query, shape, centre, take, m.n, m.settings.band)
             hits.append(
                 (

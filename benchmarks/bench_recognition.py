@@ -109,10 +109,10 @@ class Search:
         self.bank = bank
         self.desc = bank.settings.features
         self.n = n
-        self.mean, self.std = shape_stats(bank)
+        self.mean, self.proj = shape_stats(bank)
         frames = np.arange(bank.n_frames)
         self.shape, self.centre = window_tables(
-            bank, frames, bank.clip_start, self.mean, self.std, CENTRE_WEIGHT
+            bank, frames, bank.clip_start, self.mean, self.proj, CENTRE_WEIGHT
         )
         cs = bank.clip_start
         self.starts = np.concatenate(
@@ -126,7 +126,7 @@ class Search:
         ok = np.isfinite(feats).all(axis=1)
         if ok.sum() < self.n // 2:
             return None
-        qs = performer_queries(feats[ok], self.desc, self.mean, self.std, CENTRE_WEIGHT)
+        qs = performer_queries(feats[ok], self.desc, self.mean, self.proj, CENTRE_WEIGHT)
         s, _, cost = best_window(qs, self.shape, self.centre, self.starts, self.n, BAND)
         return str(self.lib_labels[s + self.n - 1]), cost / np.sqrt(qs[0].shape[0])
 

@@ -41,11 +41,13 @@ from control.motion._text import atomic_write, read_npz
 from ._body import BodyShape, capsule_body
 from ._camera import CameraRing
 from ._descriptor import DEFAULT_DESCRIPTOR, HU_SCALE, Descriptor, get_descriptor
+from ._metric import learn_metric
 from ._pose import motion_pose_features
 from ._render import motion_features
 
 __all__ = [
     "BANK_VERSION",
+    "METRIC_DIMS",
     "Bank",
     "BankFileError",
     "BankSettings",
@@ -57,8 +59,12 @@ __all__ = [
     "robust_settings",
 ]
 
+#: dimensions of the learned metric by default, per descriptor (the others: none)
+METRIC_DIMS = {"multigrid": 24}
+
 #: Bump when features or rendering change for the same settings.
-BANK_VERSION = 2  # 2: grid cells sampled to a fraction of a pixel; pose banks
+#: 2: grid cells sampled to a fraction of a pixel, pose banks; 3: the pose scale
+BANK_VERSION = 3
 FloatArray = NDArray[np.float32]
 
 
@@ -94,11 +100,20 @@ class BankSettings:
     bodies: tuple[BodyShape, ...] = ()
     shadow: bool = False
     descriptor: str = DEFAULT_DESCRIPTOR
+    #: dimensions of the metric learned from the bank (``_metric.learn_metric``): 0
+    #: none; ``None``: the descriptor's default (``METRIC_DIMS``)
+    metric: int | None = None
 
     def __post_init__(self) -> None:
         if self.renderer not in ("raster", "gl"):
             raise ValueError(f"renderer must be 'raster' or 'gl', not {self.renderer!r}")
         get_descriptor(self.descriptor)  # a clear error for an unknown name
+        if self.metric is not None and self.metric < 0:
+            raise ValueError(f"metric must be a number of dimensions (0: none), not {self.metric}")
+        if self.metric and get_descriptor(self.descriptor).kind != "silhouette":
+            raise ValueError(
+                f"a learned metric is for silhouette descriptors, not {self.descriptor!r}"
+            )
         if self.descriptor == "pose" and (self.bodies or self.shadow):
             raise ValueError("a pose bank projects joints: body variants and shadows do not apply")
         if self.renderer == "gl" and (self.bodies or self.shadow):
@@ -109,6 +124,11 @@ class BankSettings:
         """``(body, shadow)`` of each block of ``ring.n_views`` views, in bank order."""
         shapes = [self.body, *self.bodies]
         return [(b, False) for b in shapes] + ([(b, True) for b in shapes] if self.shadow else [])
+
+    @property
+    def metric_dims(self) -> int:
+        """Dimensions of the learned metric (0: none)."""
+        return METRIC_DIMS.get(self.descriptor, 0) if self.metric is None else self.metric
 
     @property
     def features(self) -> Descriptor:
@@ -133,6 +153,8 @@ class BankSettings:
             out["shadow"] = self.shadow
         if self.descriptor != "hu":  # banks from before the grid have no key: Hu
             out["descriptor"] = self.descriptor
+        if self.metric_dims:
+            out["metric"] = self.metric_dims
         return out
 
     def digest(self) -> str:
@@ -140,13 +162,16 @@ class BankSettings:
 
     @staticmethod
     def from_dict(d: dict[str, Any]) -> BankSettings:
+        desc = str(d.get("descriptor", "hu"))
+        metric = int(d.get("metric", 0))
         return BankSettings(
             CameraRing(**d["ring"]),
             BodyShape(**d["body"]),
             d["renderer"],
             tuple(BodyShape(**b) for b in d.get("bodies", [])),
             bool(d.get("shadow", False)),
-            str(d.get("descriptor", "hu")),
+            desc,
+            None if metric == METRIC_DIMS.get(desc, 0) else metric,
         )
 
 
@@ -175,6 +200,8 @@ class Bank:
     clip_names, clip_start : which frames belong to which clip.
     settings : how it was rendered. library_digest : what it was rendered from.
     path : the folder.
+    metric : ``(mean (S,), projection (S, d))`` of the learned metric, or ``None``: shape
+        numbers ``x`` are compared as ``(x - mean) @ projection``.
     """
 
     features: FloatArray
@@ -184,6 +211,7 @@ class Bank:
     settings: BankSettings
     library_digest: str
     path: str
+    metric: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
 
     @property
     def n_frames(self) -> int:
@@ -352,14 +380,19 @@ def build_bank(
     parts = [_read_npz(folder / str(s["file"]), ("features", "root_motion")) for s in shards]
     features = np.concatenate([p["features"] for p in parts])
     root_motion = np.concatenate([p["root_motion"] for p in parts])
-    with atomic_write(folder / "bank.npz", "wb") as fh:
-        np.savez(
-            fh,
-            features=features,
-            root_motion=root_motion,
-            clip_start=starts,
-            key=np.array(key),
+    arrays: dict[str, np.ndarray] = {
+        "features": features,
+        "root_motion": root_motion,
+        "clip_start": starts,
+        "key": np.array(key),
+    }
+    if settings.metric_dims:
+        mean, proj = learn_metric(
+            clips, settings.descriptor, settings.ring, settings.body, settings.metric_dims
         )
+        arrays.update(metric_mean=mean, metric=proj)
+    with atomic_write(folder / "bank.npz", "wb") as fh:
+        np.savez(fh, **arrays)  # type: ignore[arg-type]  # (numpy stubs: allow_pickle)
     manifest["complete"] = True
     manifest["built"] = {
         "seconds": round(time.perf_counter() - t0, 3),
@@ -398,7 +431,11 @@ def load_bank(
         raise StaleBankError(mpath, "built from another motion library")
     if settings is not None and settings.digest() != manifest["settings_digest"]:
         raise StaleBankError(mpath, "built with other render settings")
-    d = _read_npz(folder / "bank.npz", ("features", "root_motion", "clip_start", "key"))
+    settings_read = BankSettings.from_dict(manifest["settings"])
+    keys = ["features", "root_motion", "clip_start", "key"]
+    if settings_read.metric_dims:
+        keys += ["metric_mean", "metric"]
+    d = _read_npz(folder / "bank.npz", keys)
     n = int(manifest["clip_start"][-1])
     views = int(manifest["views"])
     if str(d["key"]) != manifest["key"]:
@@ -409,14 +446,24 @@ def load_bank(
         raise BankFileError(mpath, str(exc)) from None
     if d["features"].shape != (n, views, size) or d["root_motion"].shape != (n, views, 2):
         raise BankFileError(folder / "bank.npz", "arrays of the wrong shape")
+    metric = None
+    if settings_read.metric_dims:
+        s = settings_read.features.n_shape
+        mean, proj = d["metric_mean"], d["metric"]
+        if mean.shape != (s,) or proj.ndim != 2 or proj.shape[0] != s:
+            raise BankFileError(folder / "bank.npz", "a metric of the wrong shape")
+        if not (np.isfinite(mean).all() and np.isfinite(proj).all()):
+            raise BankFileError(folder / "bank.npz", "a metric that is not finite")
+        metric = (mean.astype(np.float64), proj.astype(np.float64))
     return Bank(
         features=d["features"],
         root_motion=d["root_motion"],
         clip_names=tuple(manifest["clip_names"]),
         clip_start=np.asarray(manifest["clip_start"], dtype=np.int64),
-        settings=BankSettings.from_dict(manifest["settings"]),
+        settings=settings_read,
         library_digest=str(manifest["library_digest"]),
         path=str(folder),
+        metric=metric,
     )
 
 

@@ -14,8 +14,9 @@ body size). The kinds:
   (another body, another camera). Measured against the others by
   ``benchmarks/bench_recognition.py``. Grid cells, all of one kind, share one scale.
 - ``"pose"``: 2D body landmarks (shoulders, elbows, wrists, hips, knees, ankles; left
-  before right) relative to the mid-hip, in torso lengths (mid-shoulder to mid-hip), then
-  the mid-hip as the centre. The bank projects the avatar's joints into each view; the
+  before right) relative to the mid-hip, in torso lengths (mid-shoulder to mid-hip, or
+  what the legs' bones in the image say it is when the torso leans towards the camera),
+  then the mid-hip as the centre. The bank projects the avatar's joints into each view; the
   live side takes MediaPipe Pose's landmarks (``vision``). Needs colour video.
 
 Standardisation (``standardiser``): the matcher divides shape numbers by a scale taken
@@ -40,6 +41,8 @@ __all__ = [
     "DESCRIPTORS",
     "HU_SCALE",
     "POSE_JOINTS",
+    "SHIN_RATIO",
+    "THIGH_RATIO",
     "Descriptor",
     "GridDescriptor",
     "HuDescriptor",
@@ -70,6 +73,12 @@ POSE_JOINTS = (
     "left_ankle",
     "right_ankle",
 )
+
+
+#: thigh (hip to knee) and shin (knee to ankle) in torso lengths (mid-hip to mid-shoulder):
+#: 0.424, 0.461 and 0.52 m on the CMU exercise subject
+THIGH_RATIO = 0.82
+SHIN_RATIO = 0.89
 
 
 def hu_log(hu: FloatArray) -> FloatArray:
@@ -251,7 +260,9 @@ class GridDescriptor(Descriptor):
 @dataclass(frozen=True)
 class PoseDescriptor(Descriptor):
     """12 landmarks (``POSE_JOINTS``) relative to the mid-hip in torso lengths, x right,
-    y up, then the mid-hip relative to the origin in torso lengths."""
+    y up, then the mid-hip relative to the origin in torso lengths. The image's torso
+    length is the largest of the torso, each thigh over ``THIGH_RATIO`` and each shin
+    over ``SHIN_RATIO`` (all foreshortened; the largest is the nearest the truth)."""
 
     name: str = "pose"
     n_shape: int = 2 * len(POSE_JOINTS)
@@ -269,6 +280,13 @@ class PoseDescriptor(Descriptor):
         hip = 0.5 * (p[..., 6, :] + p[..., 7, :])
         shoulder = 0.5 * (p[..., 0, :] + p[..., 1, :])
         torso = np.linalg.norm(shoulder - hip, axis=-1)
+        # a torso bent towards the camera is short in the image: the scale is the
+        # largest of the torso and the legs' bones in torso lengths (each foreshortened
+        # by its own angle, so the largest is the nearest the truth)
+        for a, b, ratio in ((6, 8, THIGH_RATIO), (8, 10, SHIN_RATIO)):  # left; +1: right
+            for k in (0, 1):
+                bone = np.linalg.norm(p[..., a + k, :] - p[..., b + k, :], axis=-1) / ratio
+                torso = np.fmax(torso, bone)
         with np.errstate(invalid="ignore", divide="ignore"):
             torso = np.where(torso > 1e-6, torso, np.nan)
             rel = (p - hip[..., None, :]) / torso[..., None, None]

@@ -93,26 +93,40 @@ class Decision:
 
 
 def shape_stats(bank: Bank) -> tuple[FloatArray, FloatArray]:
-    """Mean and scale of the bank's shape numbers, by its descriptor's rule."""
+    """``(mean (S,), proj (S, d))``: DTW compares shape numbers ``x`` as
+    ``(x - mean) @ proj``. With the bank's learned metric: its projection, scaled so that
+    the ``d`` numbers vary as much in all as 7 standardised numbers; otherwise the
+    descriptor's standardiser (``proj`` diagonal, ``d = S``)."""
     desc = bank.settings.features
-    x = desc.shape(bank.features).reshape(-1, desc.n_shape).astype(np.float64)
-    return desc.standardiser(x[np.isfinite(x).all(axis=1)])
+    x = desc.shape(bank.features).reshape(-1, desc.n_shape)
+    x = x[:: max(1, x.shape[0] // 200_000)].astype(np.float64)  # a large bank: a sample
+    x = x[np.isfinite(x).all(axis=1)]
+    if bank.metric is not None:
+        mean, proj = bank.metric
+        z = (x - mean) @ proj
+        spread = float(np.sqrt(z.var(axis=0).sum() / 7.0)) if z.size else 1.0
+        return mean, proj / max(spread, 1e-9)
+    mean, scale = desc.standardiser(x)
+    return mean, np.diag(1.0 / scale)
 
 
 def performer_sequence(
     features: FloatArray,
     mean: FloatArray,
-    std: FloatArray,
+    proj: FloatArray,
     centre_weight: float,
     descriptor: Descriptor | str = DEFAULT_DESCRIPTOR,
 ) -> FloatArray:
-    """DTW features ``(n, F)`` of a performer's raw features ``(n, F)`` of
-    ``descriptor`` (shape numbers, then the centre in image coordinates / body size)."""
+    """DTW features ``(n, d + 2)`` of a performer's raw features ``(n, F)`` of
+    ``descriptor`` (shape numbers, then the centre in image coordinates / body size):
+    the shape numbers mapped by ``shape_stats``'s ``(mean, proj)``, the centre's
+    displacement since the first frame times ``centre_weight``."""
     desc = get_descriptor(descriptor)
-    out = np.empty(features.shape)
-    out[:, : desc.n_shape] = (desc.shape(features) - mean) / std
+    d = proj.shape[1]
+    out = np.empty((features.shape[0], d + 2))
+    out[:, :d] = (desc.shape(features) - mean) @ proj
     c = desc.centre(features)
-    out[:, desc.n_shape :] = (c - c[0]) * centre_weight
+    out[:, d:] = (c - c[0]) * centre_weight
     return out
 
 
@@ -120,14 +134,14 @@ def performer_queries(
     performer: FloatArray,
     desc: Descriptor,
     mean: FloatArray,
-    std: FloatArray,
+    proj: FloatArray,
     centre_weight: float,
     mirror: bool = True,
 ) -> list[FloatArray]:
     """DTW queries of a performer's features ``(n, F)`` without NaN rows: one per
     reading of ``desc.variants`` (as seen; mirrored; for landmarks, sides swapped)."""
     return [
-        performer_sequence(np.asarray(v, dtype=np.float64), mean, std, centre_weight, desc)
+        performer_sequence(np.asarray(v, dtype=np.float64), mean, proj, centre_weight, desc)
         for v in desc.variants(performer, mirror)
     ]
 
@@ -137,21 +151,27 @@ def window_tables(
     frames: IntArray,
     clip_start: IntArray,
     mean: FloatArray,
-    std: FloatArray,
+    proj: FloatArray,
     centre_weight: float,
 ) -> tuple[FloatArray, FloatArray]:
     """What the whole-library window search compares: for rows ``frames`` (bank frames;
-    ``clip_start`` splits them into clips), the standardised shape numbers ``(N, V, S)``
+    ``clip_start`` splits them into clips), the mapped shape numbers ``(N, V, d)``
     and the centre accumulated along each clip ``(N, V, 2)``, times ``centre_weight``
     (a window's centre is taken relative to its first frame by the DTW kernel)."""
     desc = bank.settings.features
-    f = bank.features[frames].astype(np.float64)  # (N, V, F)
-    shape = np.nan_to_num((desc.shape(f) - mean) / std, nan=0.0)
+    n, v = frames.size, bank.features.shape[1]
+    shape = np.empty((n, v, proj.shape[1]))
+    place = np.empty((n, v, 2))
+    for a in range(0, n, 2048):  # in blocks: a bank of many views is large in float64
+        f = bank.features[frames[a : a + 2048]].astype(np.float64)  # (b, V, F)
+        shape[a : a + f.shape[0]] = (desc.shape(f) - mean) @ proj
+        place[a : a + f.shape[0]] = desc.centre(f)
+    np.nan_to_num(shape, copy=False, nan=0.0)
     move = bank.root_motion[frames].astype(np.float64)
     centre = np.empty_like(move)
     for a, b in itertools.pairwise(clip_start):
         centre[a:b] = np.cumsum(move[a:b], axis=0) - move[a]
-    centre = np.nan_to_num((centre + desc.centre(f)) * centre_weight, nan=0.0)
+    centre = np.nan_to_num((centre + place) * centre_weight, nan=0.0)
     return shape, centre
 
 
@@ -198,7 +218,7 @@ class Matcher:
         )
         if self.to_bank.size != self.graph.n_frames:
             raise ValueError("the bank and the graph disagree on clip lengths (rebuild the bank)")
-        self.mean, self.std = shape_stats(bank)
+        self.mean, self.proj = shape_stats(bank)
         #: what one performer frame is reduced to: the bank's descriptor
         self.desc = bank.settings.features
         self.descriptor = self.desc.name
@@ -231,7 +251,7 @@ class Matcher:
                 self.to_bank,
                 self.graph.clip_start,
                 self.mean,
-                self.std,
+                self.proj,
                 self.settings.centre_weight,
             )
             ok = self.graph.in_scc.copy()
@@ -257,7 +277,7 @@ class Matcher:
             performer[ok],
             self.desc,
             self.mean,
-            self.std,
+            self.proj,
             self.settings.centre_weight,
             self.settings.mirror,
         )
@@ -362,9 +382,9 @@ class Matcher:
         b = self.to_bank[frames]
         f = self.bank.features[b].astype(np.float64)  # (n, V, F)
         move = self.bank.root_motion[b].astype(np.float64)  # (n, V, 2)
-        out = np.empty_like(f)
-        k = self.desc.n_shape
-        out[..., :k] = (self.desc.shape(f) - self.mean) / self.std
+        k = self.proj.shape[1]
+        out = np.empty((*f.shape[:2], k + 2))
+        out[..., :k] = (self.desc.shape(f) - self.mean) @ self.proj
         path = np.cumsum(move, axis=0) - move[0]
         centre = path + self.desc.centre(f)
         out[..., k:] = (centre - centre[0]) * self.settings.centre_weight

@@ -12,6 +12,9 @@ import pytest
 
 from control.motion import Library, load_library
 from silhouette_bank import (
+    POSE_JOINTS,
+    SHIN_RATIO,
+    THIGH_RATIO,
     BankFileError,
     BankSettings,
     BodyShape,
@@ -180,6 +183,11 @@ def test_every_descriptor_round_trips_through_the_bank(
     assert again.features.shape == (103, 6, feature_size(name))
     np.testing.assert_array_equal(again.features, bank.features)
     assert np.isfinite(bank.features).all() and np.isfinite(bank.root_motion).all()
+    # the multigrid's bank holds its learned metric; the others none
+    assert (again.metric is not None) == (name == "multigrid") == (settings.metric_dims > 0)
+    if again.metric is not None and bank.metric is not None:
+        assert again.metric[1].shape == (settings.features.n_shape, 24)
+        np.testing.assert_array_equal(again.metric[1], bank.metric[1])
     # the descriptor is part of the key: another one's bank is stale
     other = "hu" if name != "hu" else "grid"
     with pytest.raises(StaleBankError):
@@ -198,17 +206,19 @@ def test_a_pose_bank_projects_the_joints(lib: Library, tmp_path: Path) -> None:
     cam_pose = settings.ring.poses(root)
     for v in (0, 3):  # front (camera on +Z) and back
         pts = np.stack(
-            [
-                pose.positions[10, role_point(clip.motion.skeleton, r)[1]]
-                for r in ("left_shoulder", "right_shoulder", "left_hip", "right_hip")
-            ]
+            [pose.positions[10, role_point(clip.motion.skeleton, r)[1]] for r in POSE_JOINTS]
         )
         px = settings.ring.project(settings.ring.to_camera(pts, cam_pose[v]))
-        torso = np.linalg.norm(px[:2].mean(axis=0) - px[2:].mean(axis=0))
+        hip = px[6:8].mean(axis=0)
+        scale = max(
+            [float(np.linalg.norm(px[:2].mean(axis=0) - hip))]
+            + [float(np.linalg.norm(px[6 + i] - px[8 + i])) / THIGH_RATIO for i in (0, 1)]
+            + [float(np.linalg.norm(px[8 + i] - px[10 + i])) / SHIN_RATIO for i in (0, 1)]
+        )
         got = bank.features[k, v]
-        # the left shoulder relative to the mid-hip, in torso lengths, y up
-        want = (px[0] - px[2:].mean(axis=0)) / torso * [1, -1]
-        np.testing.assert_allclose(got[:2], want, atol=1e-4)
+        # every joint relative to the mid-hip, in torso lengths, y up
+        want = ((px - hip) / scale * [1, -1]).ravel()
+        np.testing.assert_allclose(got[:24], want, atol=1e-4)
     # seen from the front (view 0: the camera on +Z, the subject facing it or not) and
     # from behind, left and right trade sides of the image
     assert np.sign(bank.features[k, 0, 0] - bank.features[k, 0, 2]) != np.sign(
@@ -216,3 +226,31 @@ def test_a_pose_bank_projects_the_joints(lib: Library, tmp_path: Path) -> None:
     )
     with pytest.raises(ValueError, match="pose bank projects joints"):
         BankSettings(descriptor="pose", shadow=True)
+
+
+def test_the_learned_metric_discounts_the_body_and_keeps_the_pose(lib: Library) -> None:
+    """Same frame and view, other body widths: near under the metric; other frames: far
+    (measured against the plain standardised cells)."""
+    from silhouette_bank._metric import learn_metric
+
+    ring = SMALL.ring
+    mean, proj = learn_metric(lib.clips, "multigrid", ring, BodyShape(), 24)
+    assert proj.shape == (168, 24) and np.isfinite(proj).all()
+    clip = lib.clip("02_03")  # a run: every frame another pose
+    frames = np.arange(0, clip.motion.n_frames, 2)
+
+    def cells(width: float) -> np.ndarray:
+        body = capsule_body(clip.motion.skeleton, BodyShape(width=width))
+        f, _ = motion_features(clip.motion, body, ring, frames, descriptor="multigrid")
+        return f[..., :168].reshape(-1, 168).astype(float)
+
+    a, b = cells(1.0), cells(1.2)  # the same poses, a heavier body
+
+    def ratio(z: np.ndarray, w: np.ndarray) -> float:
+        same = np.linalg.norm(z - w, axis=1).mean()
+        other = np.linalg.norm(z - np.roll(z, 7, axis=0), axis=1).mean()
+        return float(same / other)
+
+    plain = ratio(a, b)
+    learned = ratio((a - mean) @ proj, (b - mean) @ proj)
+    assert learned < 0.7 * plain

@@ -9,6 +9,7 @@ from skimage.measure import moments_central, moments_hu, moments_normalized
 
 from silhouette_bank import (
     DESCRIPTORS,
+    THIGH_RATIO,
     feature_size,
     get_descriptor,
     grid_cells,
@@ -166,11 +167,11 @@ def test_pose_descriptor_normalises_position_scale_and_swaps_sides() -> None:
     assert "pose" in DESCRIPTORS and desc.kind == "pose" and desc.size == 26
     # a T-pose by hand: shoulders 1 above the hips (torso length 1), y down in pixels
     arms = [[-0.5, -1], [0.5, -1], [-1, -1], [1, -1], [-1.5, -1], [1.5, -1]]
-    legs = [[-0.3, 0], [0.3, 0], [-0.3, 1], [0.3, 1], [-0.3, 2], [0.3, 2]]
+    legs = [[-0.3, 0], [0.3, 0], [-0.3, 0.6], [0.3, 0.6], [-0.3, 1.2], [0.3, 1.2]]
     pts = np.array([*arms, *legs], dtype=float)
     f = desc.from_points(pts)
     np.testing.assert_allclose(f[:2], [-0.5, 1.0])  # left shoulder: y up
-    np.testing.assert_allclose(f[-4:-2], [0.3, -2.0])  # right ankle
+    np.testing.assert_allclose(f[-4:-2], [0.3, -1.2])  # right ankle
     np.testing.assert_allclose(f[-2:], [0.0, 0.0])
     # moved and scaled in the image: the same shape, the centre in torso lengths
     g = desc.from_points(pts * 40 + [100, 50], (0.0, 0.0))
@@ -183,6 +184,12 @@ def test_pose_descriptor_normalises_position_scale_and_swaps_sides() -> None:
     sides = [1, 0, 3, 2, 5, 4, 7, 6, 9, 8, 11, 10]
     np.testing.assert_allclose(desc.mirror(f), desc.from_points((pts * [-1, 1])[sides]))
     assert len(desc.variants(f)) == 4 and len(desc.variants(f, mirror=False)) == 2
+    # bent over towards the camera, the torso is short in the image: the legs say how
+    # long it is (a thigh is THIGH_RATIO torsos long)
+    bent = pts.copy()
+    bent[:6, 1] = -0.2
+    thigh = 0.6 / THIGH_RATIO
+    np.testing.assert_allclose(desc.from_points(bent)[:2], [-0.5 / thigh, 0.2 / thigh])
     # a degenerate torso has no vector; masks are not its input
     assert np.isnan(desc.from_points(np.zeros((12, 2)))).all()
     with pytest.raises(ValueError, match="landmarks, not masks"):

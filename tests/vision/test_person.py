@@ -112,9 +112,11 @@ def test_pose_landmarks_become_pose_vectors(squats: list[np.ndarray]) -> None:
         assert reader.why == "" and np.isfinite(v).all()
         vecs.append(v)
     x = np.array(vecs)
-    # the hips are 0 and the torso 1 long; the shoulders above the hips, the ankles below
+    # the hips are 0 and the torso at most 1 long (1 unless the legs say the torso is
+    # foreshortened); the shoulders above the hips, the ankles below
     mid_shoulder = 0.5 * (x[:, 0:2] + x[:, 2:4])
-    np.testing.assert_allclose(np.linalg.norm(mid_shoulder, axis=1), 1.0, atol=1e-9)
+    torso = np.linalg.norm(mid_shoulder, axis=1)
+    assert (torso <= 1 + 1e-9).all() and np.median(torso) > 0.8
     assert (mid_shoulder[:, 1] > 0.8).all() and (x[:, 21] < -0.5).all()
     # squats: the knees rise towards the hips and fall back
     assert np.ptp(x[:, 17]) > 0.3

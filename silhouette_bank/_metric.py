@@ -1,0 +1,102 @@
+"""A metric learned from the bank itself: which differences between silhouettes are pose,
+and which are only body, shadow or camera?
+
+The bank can render any library frame as other performers would look: other body widths,
+a shadow at the feet, cameras higher and lower and between the ring's views. Each
+(frame, view) is then a class whose members differ in everything but the pose; linear
+discriminant analysis (scikit-learn's ``LinearDiscriminantAnalysis``, eigen solver with
+a little shrinkage) finds the few directions of the shape numbers along which classes
+differ most relative to how much each class varies. The matcher compares silhouettes
+along those directions only (``Bank.metric``), which both carries over to performers the
+library has not seen (``benchmarks/bench_recognition.py``) and makes DTW cheaper (24
+numbers a frame instead of 168).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from control.motion import Clip
+
+from ._body import BodyShape, capsule_body
+from ._camera import CameraRing
+from ._descriptor import get_descriptor
+from ._render import motion_features
+
+__all__ = ["METRIC_FRAMES", "learn_metric", "metric_rings"]
+
+FloatArray = NDArray[np.float64]
+
+#: at most this many library frames (spread evenly) teach the metric
+METRIC_FRAMES = 400
+_WIDTHS = (1.0, 0.9, 1.1, 1.25)
+
+
+def metric_rings(ring: CameraRing) -> list[CameraRing]:
+    """The cameras of the learning set: the ring itself, and rings 0.3 m lower and 0.4 m
+    higher, turned 7 degrees either way (between the ring's views)."""
+    return [
+        ring,
+        dataclasses.replace(ring, height=ring.height - 0.3, azimuth_offset=ring.azimuth_offset + 7),
+        dataclasses.replace(ring, height=ring.height + 0.4, azimuth_offset=ring.azimuth_offset - 7),
+    ]
+
+
+def learn_metric(
+    clips: Sequence[Clip],
+    descriptor: str,
+    ring: CameraRing,
+    body: BodyShape,
+    dims: int,
+    max_frames: int = METRIC_FRAMES,
+) -> tuple[FloatArray, FloatArray]:
+    """``(mean (S,), projection (S, dims))``: shape numbers ``x`` are compared as
+    ``(x - mean) @ projection``. Learned from up to ``max_frames`` frames of ``clips``
+    (evenly spread), each seen by every view of ``metric_rings(ring)`` with bodies of
+    widths 1, 0.9, 1.1, 1.25 (times ``body``), each with and without a shadow."""
+    from sklearn.discriminant_analysis import LinearDiscriminantAnalysis
+
+    desc = get_descriptor(descriptor)
+    if desc.kind != "silhouette":
+        raise ValueError(f"a learned metric is for silhouette descriptors, not {descriptor!r}")
+    total = sum(c.motion.n_frames for c in clips)
+    if total == 0:
+        raise ValueError("no frames to learn a metric from")
+    every = max(1, math.ceil(total / max_frames))
+    rings = metric_rings(ring)
+    xs, ys = [], []
+    label = 0
+    for clip in clips:
+        frames = np.arange(0, clip.motion.n_frames, every)
+        if frames.size == 0:
+            continue
+        per = []
+        for w in _WIDTHS:
+            shape = BodyShape(width=body.width * w, height=body.height)
+            cap = capsule_body(clip.motion.skeleton, shape)
+            for shadow in (False, True):
+                for r in rings:
+                    f, _ = motion_features(
+                        clip.motion, cap, r, frames, shadow=shadow, descriptor=desc.name
+                    )
+                    per.append(desc.shape(f.astype(np.float64)))  # (n, V, S)
+        x = np.stack(per, axis=2)  # (n, V, K, S)
+        n, v, k, s = x.shape
+        xs.append(x.reshape(n * v * k, s))
+        ys.append(label + np.repeat(np.arange(n * v), k))
+        label += n * v
+    x = np.concatenate(xs)
+    y = np.concatenate(ys)
+    ok = np.isfinite(x).all(axis=1)
+    x, y = x[ok], y[ok]
+    dims = min(dims, x.shape[1], np.unique(y).size - 1)
+    lda = LinearDiscriminantAnalysis(solver="eigen", shrinkage=1e-3, n_components=dims)
+    lda.fit(x, y)
+    mean = x.mean(axis=0)  # (the eigen solver does not centre; distances do not care)
+    proj = np.asarray(lda.scalings_[:, :dims], dtype=np.float64)
+    return mean, proj
