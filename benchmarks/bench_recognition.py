@@ -185,6 +185,11 @@ def _garbage(masks: np.ndarray, rng: np.random.Generator) -> dict[str, np.ndarra
     return {"upside_down": np.ascontiguousarray(masks[:, ::-1]), "blobs": blobs}
 
 
+def _over(x: list[float], limit: float) -> float | None:
+    """The share of per-frame costs ``x`` over ``limit`` (what the matcher rejects)."""
+    return round(float(np.mean(np.asarray(x) > limit)), 3) if x else None
+
+
 def _quantiles(x: list[float]) -> dict[str, float] | None:
     if not x:
         return None
@@ -223,18 +228,32 @@ def folds(
                 motion, labels = performer(
                     lib.clip(test), kw.get("tempo", 1.0), kw.get("mirrored", False)
                 )
+                bad: dict[str, np.ndarray] = {}
                 if desc.kind == "pose":
                     feats = _pose_points(motion, kw["rs"], rng)
+                    if var == "base":  # upside down, and landmarks strewn at random
+                        flip = feats.copy()
+                        flip[:, 1 : desc.n_shape : 2] *= -1.0
+                        strewn = feats.copy()
+                        strewn[:, : desc.n_shape] = rng.uniform(
+                            -2, 2, (feats.shape[0], desc.n_shape)
+                        )
+                        bad = {"upside_down": flip, "random": strewn}
                 else:
                     masks = performer_masks(motion, kw["rs"])
                     feats = np.array([silhouette_features(m, descriptor=name) for m in masks])
                     if var == "base":
-                        for what, bad in _garbage(masks, rng).items():
-                            bf = np.array([silhouette_features(m, descriptor=name) for m in bad])
-                            for end in range(n, bf.shape[0] + 1, 4 * step):
-                                got = search(bf[end - n : end])
-                                if got is not None:
-                                    junk.setdefault(what, []).append(got[1])
+                        bad = {
+                            what: np.array(
+                                [silhouette_features(m, descriptor=name) for m in junk_masks]
+                            )
+                            for what, junk_masks in _garbage(masks, rng).items()
+                        }
+                for what, bf in bad.items():
+                    for end in range(n, bf.shape[0] + 1, 4 * step):
+                        got = search(bf[end - n : end])
+                        if got is not None:
+                            junk.setdefault(what, []).append(got[1])
                 r = _score(search, feats, labels, step)
                 true_costs += r.pop("costs")
                 rows[var] = r
@@ -271,6 +290,8 @@ def folds(
             "cost_true": _quantiles(true_costs),
             "cost_garbage": {k: _quantiles(v) for k, v in junk.items()},
             "reject": desc.reject,
+            "rejected_true": _over(true_costs, desc.reject),
+            "rejected_garbage": {k: _over(v, desc.reject) for k, v in junk.items()},
         }
     return out
 
@@ -335,6 +356,8 @@ def real_clips(
             "chance": round(search.chance([truth] * len(hits)), 3) if hits and truth else None,
             "cost_true": _quantiles(costs),
             "cost_upside_down": _quantiles(bad),
+            "rejected_true": _over(costs, search.desc.reject),
+            "rejected_upside_down": _over(bad, search.desc.reject),
         }
         print(f"pose on {file}: {out[file]['right']} of {len(hits)} windows", flush=True)
     return out

@@ -320,9 +320,14 @@ class PoseDescriptor(Descriptor):
 
 _DESCRIPTORS: dict[str, Descriptor] = {
     "hu": HuDescriptor(),
-    "grid": GridDescriptor(),
-    "multigrid": GridDescriptor("multigrid", 128 + 32 + 8, levels=((16, 8), (8, 4), (4, 2))),
-    "pose": PoseDescriptor(),
+    # reject: above the 99th percentile of true matches' costs on the leave-one-take-out
+    # folds, below most garbage (bench_recognition.py; Hu moments cannot tell a person
+    # upside down, being invariant to rotation: no threshold)
+    "grid": GridDescriptor(reject=5.0),
+    "multigrid": GridDescriptor(
+        "multigrid", 128 + 32 + 8, reject=4.0, levels=((16, 8), (8, 4), (4, 2))
+    ),
+    "pose": PoseDescriptor(reject=4.5),
 }
 DESCRIPTORS = tuple(_DESCRIPTORS)
 #: the silhouette bank's default (``benchmarks/bench_recognition.py``; README)

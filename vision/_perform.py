@@ -211,14 +211,16 @@ def perform(
                 if d is None:
                     entry["decision"] = None
                     entry["reason"] = (
-                        "en route"
-                        if routing
-                        else why_blank
+                        why_blank  # nothing to match, on the way or not
                         if not np.isfinite(latest).all()
+                        else "en route"
+                        if routing
                         else "filling buffer"
                         if not full
                         else matcher.why or "no decision"
                     )
+                    if routing:
+                        entry["en_route"] = True
                 else:
                     avatar.take(d.frames, d.edges)
                     view = d.view
