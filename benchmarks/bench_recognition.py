@@ -300,25 +300,30 @@ def real_clips(
     root: Path, takes: list[str], videos: Path, labels: Path, window: float
 ) -> dict[str, Any]:
     """The pose descriptor on the shared real clips: MediaPipe landmarks, a pose bank of
-    all the takes, the label of the best window against ours."""
+    all the takes, the label of the best window against ours; beside it the default
+    silhouette descriptor on the pose model's person masks."""
     lib = load_library(root, clips=takes)
     rate = float(lib.fps or 15.0)
     bank, _ = ensure_bank(list(lib.clips), BankSettings(descriptor="pose"))
+    sil_bank, _ = ensure_bank(list(lib.clips), BankSettings())
     lib_labels = np.concatenate([_labels(c) for c in lib.clips])
     n = max(2, round(window * rate))
     search = Search(bank, n, lib_labels)
+    sil_search = Search(sil_bank, n, lib_labels)
     names = {a.lower(): a for a in set(lib_labels) - {""}}
     out: dict[str, Any] = {}
     for file, start, end, label in read_labels(labels):
         cap = cv2.VideoCapture(str(videos / file))
         fps = cap.get(cv2.CAP_PROP_FPS) or 30.0
         model, reader = PersonSegmenter("pose"), PoseReader()
-        vecs, why = [], []
+        vecs, why, sil = [], [], []
+        blank = np.full(sil_bank.settings.features.size, np.nan)
         while True:
             ok, img = cap.read()
             if not ok:
                 break
-            model.apply(np.asarray(img, dtype=np.uint8))
+            mask = model.apply(np.asarray(img, dtype=np.uint8))
+            sil.append(blank if mask is None else silhouette_features(mask))
             vecs.append(reader.read(model.landmarks, (img.shape[1], img.shape[0])))
             why.append(reader.why)
         cap.release()
@@ -327,8 +332,10 @@ def real_clips(
         t = np.arange(0.0, len(vecs) / fps, 1.0 / rate)
         idx = np.minimum((t * fps + 1e-9).astype(int), len(vecs) - 1)
         feats = np.array(vecs)[idx]
+        sil_feats = np.array(sil)[idx]
         truth = names.get(label.lower())
         hits = []
+        sil_hits = []
         costs = []
         for e in range(n, idx.size + 1, max(1, round(0.5 * rate))):
             te = t[e - 1]
@@ -339,6 +346,8 @@ def real_clips(
                 continue
             hits.append(got[0] == truth)
             costs.append(got[1])
+            sil_got = sil_search(sil_feats[e - n : e])
+            sil_hits.append(sil_got is not None and sil_got[0] == truth)
         # garbage: the same landmarks upside down
         flip = feats.copy()
         k = get_descriptor("pose").n_shape
@@ -354,6 +363,7 @@ def real_clips(
             "windows": len(hits),
             "right": round(float(np.mean(hits)), 3) if hits else None,
             "chance": round(search.chance([truth] * len(hits)), 3) if hits and truth else None,
+            "right_multigrid_masks": round(float(np.mean(sil_hits)), 3) if sil_hits else None,
             "cost_true": _quantiles(costs),
             "cost_upside_down": _quantiles(bad),
             "rejected_true": _over(costs, search.desc.reject),
@@ -387,7 +397,9 @@ def main() -> None:
             k: {**v["rs"].to_dict(), **{a: b for a, b in v.items() if a != "rs"}}
             for k, v in VARIATIONS.items()
         },
-        "descriptors": folds(root, takes, args.descriptors.split(","), args.window, args.variants),
+        "descriptors": folds(
+            root, takes, [d for d in args.descriptors.split(",") if d], args.window, args.variants
+        ),
     }
     if not args.no_video:
         result["real_clips_pose"] = real_clips(

@@ -24,7 +24,7 @@ from silhouette_bank import (
 from ._live import LiveView
 from ._matcher import MatchSettings
 from ._perform import PerformSettings, perform, write_video
-from ._person import PERSON_METHODS, person_segmentation_available
+from ._person import INSTALL, PERSON_METHODS, person_segmentation_available
 from ._record import RecordSettings, record_clip
 from ._segment import METHODS
 from ._sources import MaskFolderSource, open_source
@@ -178,6 +178,10 @@ def choose_descriptor(name: str, source: Any) -> str:
             f"mimic perform: {source.name} holds silhouettes, and the pose descriptor needs "
             "colour frames (use --descriptor multigrid, or auto)"
         )
+    if name == "pose" and not person_segmentation_available():
+        raise SystemExit(
+            f"mimic perform: the pose descriptor needs MediaPipe; install it with: {INSTALL}"
+        )
     return name
 
 
@@ -185,13 +189,14 @@ def _perform(args: argparse.Namespace) -> int:
     source = open_source(args.camera, args.video, args.masks, realtime=args.realtime)
     if args.camera is not None and args.seconds is None:
         print("a camera never ends: stop with Ctrl-C (or give --seconds)", file=sys.stderr)
-    if args.camera is not None and args.segmentation in ("auto", *METHODS):
+    descriptor = choose_descriptor(args.descriptor, source)
+    print(f"descriptor: {descriptor}", file=sys.stderr)
+    plate = args.segmentation in METHODS or (args.segmentation == "auto" and descriptor != "pose")
+    if args.camera is not None and plate:
         print(
             "step out of view for two seconds so that the background can be learned",
             file=sys.stderr,
         )
-    descriptor = choose_descriptor(args.descriptor, source)
-    print(f"descriptor: {descriptor}", file=sys.stderr)
     library, graph, _, _ = _graph_for(args)
     layer = build_higher_layer(graph, library.clips, k=args.k)
     base = BankSettings(descriptor=descriptor)

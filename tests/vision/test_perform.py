@@ -444,3 +444,17 @@ def test_perform_with_landmarks_logs_why_a_frame_has_no_pose(
     # a silhouette video cannot feed landmarks: a clear error naming it
     with pytest.raises(ValueError, match="pose descriptor needs colour frames"):
         perform(VideoSource(RECORDING, silhouette=True), layer, bank, lib.clips)
+
+
+def test_the_default_descriptor_follows_the_source(mocap: Path) -> None:
+    from vision.perform_cli import choose_descriptor
+
+    silhouettes = VideoSource(RECORDING, silhouette=True)
+    colour = VideoSource(mocap.parent / "video" / "pose_1.mp4")
+    assert choose_descriptor("auto", silhouettes) == "multigrid"
+    assert choose_descriptor("auto", colour) == "pose"  # MediaPipe is installed in CI
+    assert choose_descriptor("hu", colour) == "hu"
+    with pytest.raises(SystemExit, match="pose descriptor needs colour frames"):
+        choose_descriptor("pose", silhouettes)
+    silhouettes.close()
+    colour.close()
