@@ -2,7 +2,7 @@
 
 Usage: python -m benchmarks.bench_accuracy [LIBRARY_DIR] [--out FILE] [--clips PATTERN]...
        [--coords relative|fixed] [--sigma-scale S] [--threshold T] [--contact RULE]
-       [--folds 13_29,13_30] [--settings W:A,...] [--variants] [--descriptor hu|grid]
+       [--folds 13_29,13_30] [--settings W:A,...] [--variants] [--descriptor D]
        [--stay S] [--views N]
 
 Two folds on the labelled exercise clips: the performer is a recording of 13_29 (or
@@ -265,7 +265,7 @@ def main() -> None:
     ap.add_argument(
         "--descriptor",
         default=DEFAULT_DESCRIPTOR,
-        choices=DESCRIPTORS,
+        choices=[d for d in DESCRIPTORS if d != "pose"],  # it replays silhouettes
         help="silhouette shape features",
     )
     ap.add_argument("--stay", type=float, default=0.0, help="temporal prior (MatchSettings.stay)")

@@ -3,7 +3,7 @@ on labelled footage.
 
 Usage: python -m benchmarks.bench_real_video [--videos DIR] [--labels CSV]
        [--library DIR] [--clips PATTERN]... [--coords C] [--sigma-scale S] [--variants]
-       [--descriptor hu|grid]
+       [--descriptor multigrid|grid|hu]
        [--no-segmentation] [--out FILE]
 
 - Segmentation, for every video in ``--videos`` (default ``../shared/video``), with a
@@ -286,7 +286,10 @@ def main() -> None:
     )
     ap.add_argument("--variants", action="store_true", help="bank with other bodies, shadows")
     ap.add_argument(
-        "--descriptor", default=DEFAULT_DESCRIPTOR, choices=DESCRIPTORS, help="shape features"
+        "--descriptor",
+        default=DEFAULT_DESCRIPTOR,
+        choices=[d for d in DESCRIPTORS if d != "pose"],  # (pose: bench_recognition)
+        help="silhouette descriptor",
     )
     ap.add_argument("--out", default="benchmarks/results/real_video.json")
     args = ap.parse_args()
