@@ -22,7 +22,9 @@ body size). The kinds:
 Standardisation (``standardiser``): the matcher divides shape numbers by a scale taken
 from the bank, such that the shape numbers together vary as much as 7 standardised
 numbers do (for Hu: exactly so, each by its own spread); so ``centre_weight`` means the
-same with every descriptor.
+same with every descriptor. A multigrid bank also holds a metric learned from the bank
+(``_metric``): the matcher then compares the cells along its 24 directions, scaled the
+same way.
 
 ``mirror`` gives the vector of the left/right mirrored image (a performer who does the
 action with the other side, or a mirrored camera), so that the matcher can try both.
