@@ -63,8 +63,9 @@ __all__ = [
 METRIC_DIMS = {"multigrid": 24}
 
 #: Bump when features or rendering change for the same settings.
-#: 2: grid cells sampled to a fraction of a pixel, pose banks; 3: the pose scale
-BANK_VERSION = 3
+#: 2: grid cells sampled to a fraction of a pixel, pose banks; 3: the pose scale; 4: the
+#: pose bank's root motion in the same scale
+BANK_VERSION = 4
 FloatArray = NDArray[np.float32]
 
 
@@ -392,7 +393,7 @@ def build_bank(
         )
         arrays.update(metric_mean=mean, metric=proj)
     with atomic_write(folder / "bank.npz", "wb") as fh:
-        np.savez(fh, **arrays)  # type: ignore[arg-type]  # (numpy stubs: allow_pickle)
+        np.savez(fh, **arrays)  # type: ignore[arg-type]  # (numpy's hints: allow_pickle)
     manifest["complete"] = True
     manifest["built"] = {
         "seconds": round(time.perf_counter() - t0, 3),

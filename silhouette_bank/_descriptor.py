@@ -270,25 +270,33 @@ class PoseDescriptor(Descriptor):
     n_shape: int = 2 * len(POSE_JOINTS)
     kind: str = "pose"
 
+    def scale(self, points: FloatArray) -> FloatArray:
+        """The torso length ``(...)`` in pixels of image points ``(..., 12, 2)``: the
+        largest of the torso (mid-hip to mid-shoulder) and the legs' bones in torso
+        lengths. A torso bent towards the camera is short in the image, and each bone is
+        foreshortened by its own angle, so the largest is the nearest the truth."""
+        p = np.asarray(points, dtype=np.float64)
+        hip = 0.5 * (p[..., 6, :] + p[..., 7, :])
+        shoulder = 0.5 * (p[..., 0, :] + p[..., 1, :])
+        torso = np.linalg.norm(shoulder - hip, axis=-1)
+        for a, b, ratio in ((6, 8, THIGH_RATIO), (8, 10, SHIN_RATIO)):  # left; +1: right
+            for k in (0, 1):
+                bone = np.linalg.norm(p[..., a + k, :] - p[..., b + k, :], axis=-1) / ratio
+                torso = np.fmax(torso, bone)
+        return torso
+
     def from_points(
         self, points: FloatArray, origin: FloatArray | tuple[float, float] = (0.0, 0.0)
     ) -> FloatArray:
         """Vectors ``(..., size)`` of image points ``(..., 12, 2)`` (pixels, x right, y
         down, in ``POSE_JOINTS`` order) with the centre relative to ``origin`` (``(2,)``
-        or ``(..., 2)`` pixels); NaN where the torso is degenerate."""
+        or ``(..., 2)`` pixels), in units of ``scale``; NaN where the torso is
+        degenerate."""
         p = np.asarray(points, dtype=np.float64)
         if p.shape[-2:] != (len(POSE_JOINTS), 2):
             raise ValueError(f"points must be (..., {len(POSE_JOINTS)}, 2), got {p.shape}")
         hip = 0.5 * (p[..., 6, :] + p[..., 7, :])
-        shoulder = 0.5 * (p[..., 0, :] + p[..., 1, :])
-        torso = np.linalg.norm(shoulder - hip, axis=-1)
-        # a torso bent towards the camera is short in the image: the scale is the
-        # largest of the torso and the legs' bones in torso lengths (each foreshortened
-        # by its own angle, so the largest is the nearest the truth)
-        for a, b, ratio in ((6, 8, THIGH_RATIO), (8, 10, SHIN_RATIO)):  # left; +1: right
-            for k in (0, 1):
-                bone = np.linalg.norm(p[..., a + k, :] - p[..., b + k, :], axis=-1) / ratio
-                torso = np.fmax(torso, bone)
+        torso = self.scale(p)
         with np.errstate(invalid="ignore", divide="ignore"):
             torso = np.where(torso > 1e-6, torso, np.nan)
             rel = (p - hip[..., None, :]) / torso[..., None, None]

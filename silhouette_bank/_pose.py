@@ -67,10 +67,7 @@ def motion_pose_features(
         feats[:, j] = desc.from_points(px[:, j, :12], here[:, j])
     prev = motion.root_pos[np.maximum(frames - 1, 0)]
     before = ring.project(ring.to_camera(prev[:, None, None, :], poses)[..., 0, :])  # (F, V, 2)
-    torso_all = np.linalg.norm(
-        0.5 * (px[..., 0, :] + px[..., 1, :]) - 0.5 * (px[..., 6, :] + px[..., 7, :]), axis=-1
-    )
-    d = (here - before) / torso_all[..., None]
+    d = (here - before) / desc.scale(px[..., :12, :])[..., None]  # the centre's unit
     d[..., 1] *= -1.0
     d[frames == 0] = 0.0
     moves[:] = d

@@ -219,6 +219,16 @@ def test_a_pose_bank_projects_the_joints(lib: Library, tmp_path: Path) -> None:
         # every joint relative to the mid-hip, in torso lengths, y up
         want = ((px - hip) / scale * [1, -1]).ravel()
         np.testing.assert_allclose(got[:24], want, atol=1e-4)
+        # the root's image motion since the last frame, in the same torso lengths
+        assert settings.features.scale(px) == pytest.approx(scale)
+        now, before = (
+            settings.ring.project(
+                settings.ring.to_camera(clip.motion.root_pos[f][None], cam_pose[v])
+            )[0]
+            for f in (10, 9)
+        )
+        moved = (now - before) / scale * [1, -1]
+        np.testing.assert_allclose(bank.root_motion[k, v], moved, atol=1e-4)
     # seen from the front (view 0: the camera on +Z, the subject facing it or not) and
     # from behind, left and right trade sides of the image
     assert np.sign(bank.features[k, 0, 0] - bank.features[k, 0, 2]) != np.sign(
