@@ -7,11 +7,14 @@ motion of each, and the first ``window`` seconds of that motion as the bank sees
 each of its views. DTW compares each with the last ``window`` seconds of the performer's
 features; a path's cost is its best view; the cheapest path wins.
 
-Features compared per frame: the silhouette's shape numbers (the 7 log-Hu moments, or the
-grid's cells: the bank's ``descriptor``) standardised with the bank's spread, and the
-silhouette centre's displacement since the window's first frame, in silhouette
-heights (performer: from the image; bank: the root's image motion accumulated plus the
-centre relative to the root), times ``centre_weight``.
+Features compared per frame, by the bank's descriptor (``silhouette_bank.Descriptor``):
+its shape numbers (Hu moments, grid cells, or landmarks) mapped by ``shape_stats`` (the
+bank's learned metric, or the descriptor's standardisation), and the centre's
+displacement since the window's first frame, in units of body size (performer: from the
+image; bank: the root's image motion accumulated plus the centre relative to the root),
+times ``centre_weight``. The performer is read as seen and mirrored (and, for landmarks,
+with the sides swapped; ``Descriptor.variants``); the best reading wins. A best match
+costing more than ``reject`` per frame is no match: ``why`` says so.
 """
 
 from __future__ import annotations
@@ -45,7 +48,7 @@ IntArray = NDArray[np.int64]
 @dataclass(frozen=True)
 class MatchSettings:
     """``window`` seconds of performer compared; candidates reached within ``lookahead``
-    seconds; DTW band ``band`` frames; ``centre_weight`` against the Hu moments."""
+    seconds; DTW band ``band`` frames; ``centre_weight`` against the shape numbers."""
 
     window: float = 1.0
     lookahead: float = 1.5
