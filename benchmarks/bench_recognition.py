@@ -61,7 +61,13 @@ from silhouette_bank import (
 )
 from silhouette_bank._pose import joint_points
 from vision._landmarks import PoseReader
-from vision._matcher import best_window, performer_queries, shape_stats, window_tables
+from vision._matcher import (
+    best_window,
+    per_frame_cost,
+    performer_queries,
+    shape_stats,
+    window_tables,
+)
 from vision._person import PersonSegmenter
 from vision._record import RecordSettings, performer_masks
 
@@ -124,11 +130,11 @@ class Search:
         """The label at the end of the best window for performer features ``(n, F)``,
         and its per-frame cost; ``None`` with fewer than half the frames usable."""
         ok = np.isfinite(feats).all(axis=1)
-        if ok.sum() < self.n // 2:
+        if ok.sum() < max(2, self.n // 2):  # as the matcher
             return None
         qs = performer_queries(feats[ok], self.desc, self.mean, self.proj, CENTRE_WEIGHT)
         s, _, cost = best_window(qs, self.shape, self.centre, self.starts, self.n, BAND)
-        return str(self.lib_labels[s + self.n - 1]), cost / np.sqrt(qs[0].shape[0])
+        return str(self.lib_labels[s + self.n - 1]), per_frame_cost(cost, qs[0].shape[0])
 
     def chance(self, labels: list[str]) -> float:
         ends = self.lib_labels[self.starts + self.n - 1]

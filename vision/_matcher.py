@@ -35,6 +35,7 @@ __all__ = [
     "MatchSettings",
     "Matcher",
     "best_window",
+    "per_frame_cost",
     "performer_queries",
     "performer_sequence",
     "shape_stats",
@@ -178,6 +179,12 @@ def window_tables(
     return shape, centre
 
 
+def per_frame_cost(cost: float, length: int) -> float:
+    """A DTW cost of a query of ``length`` frames as a per-frame cost (over the square
+    root of the length): the scale of ``Descriptor.reject``."""
+    return cost / float(np.sqrt(max(length, 1)))
+
+
 def best_window(
     queries: list[FloatArray],
     shape: FloatArray,
@@ -286,9 +293,8 @@ class Matcher:
         )
 
     def per_frame(self, cost: float, query: FloatArray) -> float:
-        """A DTW cost as a per-frame cost (over the square root of the query's length),
-        the scale of ``reject``."""
-        return cost / float(np.sqrt(max(query.shape[0], 1)))
+        """``per_frame_cost`` of a DTW cost of ``query``: the scale of ``reject``."""
+        return per_frame_cost(cost, query.shape[0])
 
     def _rejected(self, cost: float, query: FloatArray) -> bool:
         c = self.per_frame(cost, query)
