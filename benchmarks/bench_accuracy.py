@@ -28,6 +28,8 @@ Targets (issue 6) at a lag of 1 s or less: score >= 0.7, agreement >= 80%.
 from __future__ import annotations
 
 import argparse
+import ast
+import itertools
 import tempfile
 import time
 from pathlib import Path
@@ -36,9 +38,16 @@ from typing import Any
 import numpy as np
 
 from benchmarks._report import machine, save
-from control.clusters import build_higher_layer
+from control.clusters import cached_higher_layer
 from control.dtw import dtw_best_window
-from control.graph import GraphOptions, build_graph, random_walk, weighted_joints
+from control.graph import (
+    GraphOptions,
+    build_graph,
+    joint_jumps,
+    lowest_foot,
+    random_walk,
+    weighted_joints,
+)
 from control.motion import default_library_path, load_library, qconj, qlog, qmul
 from silhouette_bank import (
     DEFAULT_DESCRIPTOR,
@@ -49,6 +58,7 @@ from silhouette_bank import (
     robust_settings,
     silhouette_features,
 )
+from vision._library import on_the_floor
 from vision._matcher import Matcher, MatchSettings, performer_sequence
 from vision._perform import PerformSettings, perform
 from vision._record import RecordSettings, record_clip
@@ -134,6 +144,108 @@ def _recognition(
     return out
 
 
+def _switches_per_minute(labels: list[str], seconds: float) -> float:
+    return sum(a != b for a, b in itertools.pairwise(labels)) / max(seconds / 60.0, 1e-9)
+
+
+def _run_figures(
+    r: Any,
+    window: float,
+    lookahead: float,
+    fps: float,
+    perf_labels: list[str | None],
+    lib_labels: np.ndarray,
+    lib_q: np.ndarray,
+    truth_q: np.ndarray,
+    known: set[str],
+    random_err: float,
+    nearest: float,
+    walk_frames: np.ndarray,
+    train: list[Any],
+) -> dict[str, Any]:
+    """Agreement, pose score, coherence, latency and physical checks of one perform run."""
+    frames = np.array([d["frame"] for d in r.decisions])
+    times = np.array([d["t"] for d in r.decisions])
+    made = [d for d in r.decisions if d["decision"] is not None]
+    curve = []
+    for lag in LAGS:
+        k = np.round((times - lag) * fps).astype(int)
+        ok = (k >= 0) & (k < truth_q.shape[0])
+        err = _pose_dist(lib_q[frames[ok]], truth_q[k[ok]]).mean()
+        score = (random_err - err) / max(random_err - nearest, 1e-9)
+        lab = [perf_labels[i] for i in k[ok]]
+        got = [str(lib_labels[f]) for f in frames[ok]]
+        pairs = [(g, t) for g, t in zip(got, lab, strict=True) if t is not None]
+        # a random walk's chance of showing the performer's action: the share of its
+        # frames with that label
+        walk_labels = lib_labels[walk_frames]
+        share = {t: float(np.mean(walk_labels == t)) for t in known}
+        per_action: dict[str, float] = {}
+        for action in sorted({t for _, t in pairs}):
+            hit = [g == t for g, t in pairs if t == action]
+            per_action[action] = round(float(np.mean(hit)), 3)
+        kn = [g == t for g, t in pairs if t in known]
+        curve.append(
+            {
+                "lag": lag,
+                "pose_error": float(err),
+                "score": float(score),
+                "label_agreement": float(np.mean([g == t for g, t in pairs])) if pairs else None,
+                "label_agreement_known_actions": float(np.mean(kn)) if kn else None,
+                "random_walk_agreement_known_actions": float(
+                    np.mean([share[t] for _, t in pairs if t in known])
+                )
+                if kn
+                else None,
+                "per_action": per_action,
+            }
+        )
+    # coherence: action switches a minute, the avatar's against the performer's
+    k = np.clip(np.round(times * fps).astype(int), 0, len(perf_labels) - 1)
+    seconds = float(times[-1] - times[0]) if times.size > 1 else 0.0
+    avatar_labels = [str(lib_labels[f]) for f in frames]
+    performer_labels = [perf_labels[i] or "" for i in k]
+    lat = np.array([d["latency_ms"] for d in made]) if made else np.zeros(1)
+    motion = r.avatar.motion().motion
+    low = lowest_foot(motion)
+    lib_low = np.concatenate([lowest_foot(c.motion) for c in train])
+    lib_root = np.concatenate([c.motion.root_pos[:, 1] for c in train])
+    syn_jumps = joint_jumps(motion)
+    _, jumps_at, _ = r.avatar.history()
+    lib_jj = np.concatenate([joint_jumps(c.motion) for c in train])
+    at = jumps_at[(jumps_at >= 1) & (jumps_at <= syn_jumps.size)] - 1
+    return {
+        "window": window,
+        "lookahead": lookahead,
+        "decisions": len(r.decisions),
+        "decisions_made": len(made),
+        "direct_jumps": sum("jump" in d for d in made),
+        "curve": curve,
+        "switches_per_minute": {
+            "avatar": round(_switches_per_minute(avatar_labels, seconds), 2),
+            "performer": round(_switches_per_minute(performer_labels, seconds), 2),
+        },
+        "latency_ms": {
+            "p50": float(np.percentile(lat, 50)),
+            "p99": float(np.percentile(lat, 99)),
+            "max": float(lat.max()),
+            "over_100ms": int((lat > 100).sum()),
+        },
+        "floor": {
+            "lowest_foot_max_m": float(low.max()),
+            "frames_both_feet_over_0.25m": float((low > 0.25).mean()),
+            "pelvis_max_m": float(motion.root_pos[:, 1].max()),
+            "library_lowest_foot_max_m": float(lib_low.max()),
+            "library_pelvis_max_m": float(lib_root.max()),
+        },
+        "junctions": {
+            "count": int(at.size),
+            "joint_change_p99_deg": float(np.percentile(syn_jumps[at], 99)) if at.size else None,
+            "library_joint_change_p99_deg": float(np.percentile(lib_jj, 99)),
+        },
+    }
+
+
 def fold(
     root: Path,
     test: str,
@@ -144,14 +256,21 @@ def fold(
     descriptor: str = DEFAULT_DESCRIPTOR,
     stay: float = 0.0,
     views: int = 18,
+    match: dict[str, Any] | None = None,
+    off_floor: bool = False,
 ) -> dict[str, Any]:
     everything = load_library(root, clips=list(clips) if clips else None)
     train = [c for c in everything.clips if c.name != test and c.motion.skeleton.n_joints == 31]
+    dropped: dict[str, float] = {}
+    if not off_floor:  # as mimic perform does by default
+        train, dropped = on_the_floor(train)
     g = build_graph(train, options)
     # trees need reach no further than the longest look-ahead (dense graphs make 15 s
     # trees slow to build)
     t0 = time.perf_counter()
-    layer = build_higher_layer(g, train, bound_seconds=max(a for _, a in settings))
+    layer, _, _ = cached_higher_layer(
+        g, train, bound_seconds=max(2.0, max(a for _, a in settings) + 0.5)
+    )
     took = time.perf_counter() - t0
     print(f"{test}: graph {g.n_edges} edges, layer built in {took:.0f} s", flush=True)
     base = BankSettings(CameraRing(n_views=views), descriptor=descriptor)
@@ -186,6 +305,7 @@ def fold(
         },
         "clusters": layer.clustering.k,
         "bank_views": bank.features.shape[1],
+        "left_out_off_floor": sorted(dropped),
         "nearest_error": float(nearest.mean()),
         "random_error": random_err,
         "runs": [],
@@ -200,45 +320,26 @@ def fold(
         out["label_ceiling"] = float(np.mean([lab_i in known for lab_i in labelled]))
         out["recognition"] = _recognition(layer, bank, video, perf_labels, lib_labels, known)
         for window, lookahead in settings:
+            ms = MatchSettings(window=window, lookahead=lookahead, stay=stay, **(match or {}))
             r = perform(
-                VideoSource(video, silhouette=True),
-                layer,
-                bank,
-                train,
-                PerformSettings(match=MatchSettings(window=window, lookahead=lookahead, stay=stay)),
+                VideoSource(video, silhouette=True), layer, bank, train, PerformSettings(match=ms)
             )
-            frames = [d["frame"] for d in r.decisions]
-            times = np.array([d["t"] for d in r.decisions])
-            made = sum(d["decision"] is not None for d in r.decisions)
-            curve = []
-            for lag in LAGS:
-                k = np.round((times - lag) * perf_clip.motion.fps).astype(int)
-                ok = (k >= 0) & (k < truth_q.shape[0])
-                err = _pose_dist(lib_q[np.array(frames)[ok]], truth_q[k[ok]]).mean()
-                score = (random_err - err) / max(random_err - float(nearest.mean()), 1e-9)
-                lab = [perf_labels[i] for i in k[ok]]
-                have = [lab_i is not None for lab_i in lab]
-                agree = [
-                    lib_labels[f] == lab_i
-                    for f, lab_i, h in zip(np.array(frames)[ok], lab, have, strict=True)
-                    if h
-                ]
-                curve.append(
-                    {
-                        "lag": lag,
-                        "pose_error": float(err),
-                        "score": float(score),
-                        "label_agreement": float(np.mean(agree)) if agree else None,
-                    }
-                )
             out["runs"].append(
-                {
-                    "window": window,
-                    "lookahead": lookahead,
-                    "decisions": len(r.decisions),
-                    "decisions_made": made,
-                    "curve": curve,
-                }
+                _run_figures(
+                    r,
+                    window,
+                    lookahead,
+                    perf_clip.motion.fps,
+                    perf_labels,
+                    lib_labels,
+                    lib_q,
+                    truth_q,
+                    known,
+                    random_err,
+                    float(nearest.mean()),
+                    walk_frames,
+                    train,
+                )
             )
     return out
 
@@ -271,6 +372,16 @@ def main() -> None:
     ap.add_argument("--stay", type=float, default=0.0, help="temporal prior (MatchSettings.stay)")
     ap.add_argument("--views", type=int, default=18, help="cameras on the bank's ring")
     ap.add_argument(
+        "--match",
+        default="",
+        help="more MatchSettings, e.g. jumps=False,jump_ratio=0.9 (Python literals)",
+    )
+    ap.add_argument(
+        "--off-floor",
+        action="store_true",
+        help="keep clips that leave the floor (perform's --off-floor)",
+    )
+    ap.add_argument(
         "--settings",
         default=",".join(f"{w}:{a}" for w, a in SETTINGS),
         help="window:lookahead pairs in seconds, comma separated",
@@ -286,6 +397,10 @@ def main() -> None:
     settings = tuple(
         (float(w), float(a)) for w, a in (s.split(":") for s in args.settings.split(","))
     )
+    match: dict[str, Any] = {}
+    for item in filter(None, args.match.split(",")):
+        key, _, value = item.partition("=")
+        match[key.strip()] = ast.literal_eval(value.strip())
     result = {
         "machine": machine(),
         "date": time.strftime("%Y-%m-%d"),
@@ -294,6 +409,8 @@ def main() -> None:
         "descriptor": args.descriptor,
         "stay": args.stay,
         "views": args.views,
+        "match": match,
+        "off_floor": args.off_floor,
         "folds": [
             fold(
                 root,
@@ -305,6 +422,8 @@ def main() -> None:
                 args.descriptor,
                 args.stay,
                 args.views,
+                match,
+                args.off_floor,
             )
             for t in args.folds.split(",")
         ],

@@ -5,6 +5,12 @@ along a path it was told to take, or, with nothing to do, by eq. 1 (the random w
 It keeps its history, so its motion, blended as in Lee et al. §4.1.1 with planted feet,
 can be produced at any time, and it tracks the root transform that its transitions
 have composed (fixed coordinates: the identity).
+
+Besides the graph's transitions it can take a *direct blended jump* (``JUMP`` in a
+path) to any frame of the component: the motion-matching move of the vision interface
+(Clavet 2016). A jump is blended exactly like a transition, with the alignment and
+distance the graph's own rule gives the pair (``jump_costs``), so it may go where no
+transition was kept.
 """
 
 from __future__ import annotations
@@ -15,12 +21,66 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from .graph import MotionGraph, Synthesis, compose, random_step, synthesize
+from .graph import (
+    FrameFeatures,
+    MotionGraph,
+    Synthesis,
+    compose,
+    frame_features,
+    pair_distances,
+    random_step,
+    synthesize,
+)
 from .motion import Clip
 
-__all__ = ["Avatar"]
+__all__ = ["JUMP", "Avatar", "JumpCosts"]
 
 IntArray = NDArray[np.int64]
+
+#: an edge code in a path given to ``Avatar.take``: a direct blended jump
+JUMP = -2
+
+
+class JumpCosts:
+    """What a direct jump between two frames of ``graph`` costs: the graph's frame
+    distance ``D(a, b - 1)`` (as for a transition ``a -> b``) and the alignment placing
+    ``b``'s motion onto ``a``'s (``pair_distances``), computed on demand."""
+
+    def __init__(self, graph: MotionGraph, clips: Sequence[Clip], anywhere: bool = False) -> None:
+        self.graph = graph
+        by_name = {c.name: c for c in clips}
+        self._clips = [by_name[n] for n in graph.clip_names]
+        self._feat: FrameFeatures | None = None
+        first = np.zeros(graph.n_frames, dtype=bool)
+        first[graph.clip_start[:-1]] = True
+        #: frames a jump may land on: not the first of a clip (it has no predecessor to
+        #: blend from), and in the component unless ``anywhere``
+        self.landing = ~first if anywhere else graph.in_scc & ~first
+
+    @property
+    def features(self) -> FrameFeatures:
+        if self._feat is None:
+            self._feat = frame_features(self._clips, self.graph.options.coords)
+        return self._feat
+
+    def __call__(
+        self, frame: int, targets: IntArray
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(D (K,), align (K, 4))`` of jumps from ``frame`` to each of ``targets``."""
+        targets = np.asarray(targets, dtype=np.int64)
+        if targets.size and not self.landing[targets].all():
+            bad = int(targets[~self.landing[targets]][0])
+            raise ValueError(
+                f"frame {bad} cannot be jumped to (outside the component, or a clip's first)"
+            )
+        o = self.graph.options
+        return pair_distances(
+            self.features,
+            np.full(targets.size, frame, dtype=np.int64),
+            targets - 1,
+            o.nu,
+            **o.terrain_args(),
+        )
 
 
 class Avatar:
@@ -32,6 +92,9 @@ class Avatar:
     start : first graph frame (default: drawn from the component with ``seed``).
     seed : seeds the probabilistic moves.
     blend : blend interval b in seconds; ``ik`` keeps planted feet in place.
+    anywhere : direct jumps (and ``start``) may go to any frame of the library, not only
+        the graph's component; outside it the avatar plays on, and where its clip ends
+        it jumps to the component frame nearest by the graph's distance.
     """
 
     def __init__(
@@ -42,6 +105,7 @@ class Avatar:
         seed: int = 0,
         blend: float = 1.0,
         ik: bool = True,
+        anywhere: bool = False,
     ) -> None:
         self.graph = graph
         self.clips = list(clips)
@@ -53,7 +117,7 @@ class Avatar:
             raise ValueError("the graph has no component to move in")
         if start is None:
             start = int(self._rng.choice(scc))
-        elif not (0 <= start < graph.n_frames and graph.in_scc[start]):
+        elif not (0 <= start < graph.n_frames and (anywhere or graph.in_scc[start])):
             raise ValueError(f"start frame {start} is not in the graph's component")
         self._frames = [int(start)]
         self._jumps: list[int] = []
@@ -65,7 +129,16 @@ class Avatar:
         self._indptr = graph.indptr
         self._like = graph.likelihood()
         self._plays = graph.plays_on()
+        # playing on inside a clip, in the component or not (the moves of ``anywhere``)
+        self._next = np.ones(graph.n_frames, dtype=bool)
+        self._next[graph.clip_start[1:] - 1] = False
+        self.anywhere = anywhere
         self._blend_frames = max(1, round(blend * graph.fps))
+        self.jump_costs = JumpCosts(graph, clips, anywhere)
+        # direct jumps taken: edge graph.n_edges + k is jump k
+        self._jump_src: list[int] = []
+        self._jump_dst: list[int] = []
+        self._jump_align: list[NDArray[np.float64]] = []
 
     # --- state ---------------------------------------------------------------------------
 
@@ -97,6 +170,10 @@ class Avatar:
         """``(yaw, translation)`` placing the current clip's frames in the avatar's world."""
         return self._yaw, self._trans.copy()
 
+    def recent(self, n: int) -> IntArray:
+        """The last ``n`` graph frames shown (fewer at the start)."""
+        return np.array(self._frames[-n:], dtype=np.int64)
+
     def history(self) -> tuple[IntArray, IntArray, IntArray]:
         """``(frames, jumps, edges)`` so far, as ``synthesize`` takes them."""
         return (
@@ -109,17 +186,20 @@ class Avatar:
 
     def take(self, frames: Sequence[int] | IntArray, edges: Sequence[int] | IntArray) -> None:
         """Perform a path: ``frames[0]`` must be the current frame; ``edges[i]`` is the
-        transition into ``frames[i + 1]`` (-1 for playback). Replaces any path in progress."""
+        transition into ``frames[i + 1]`` (-1 for playback, ``JUMP`` for a direct blended
+        jump to a frame of the component). Replaces any path in progress."""
         frames = [int(f) for f in frames]
         edges = [int(e) for e in edges]
         if not frames or frames[0] != self.frame:
             raise ValueError(f"a path must start at the avatar's frame {self.frame}")
         if len(edges) != len(frames) - 1:
             raise ValueError("a path needs one edge (or -1) per step")
-        plays = self._plays
+        plays = self._next if self.anywhere else self._plays
         for f, g, e in zip(frames[:-1], frames[1:], edges, strict=True):
             ok = (
-                (e < 0 and g == f + 1 and plays[f])
+                bool(self.jump_costs.landing[g])
+                if e == JUMP
+                else (e == -1 and g == f + 1 and plays[f])
                 if e < 0
                 else (
                     0 <= e < self.graph.n_edges
@@ -131,6 +211,31 @@ class Avatar:
                 raise ValueError(f"step {f} -> {g} (edge {e}) is not in the graph")
         self._plan = deque(zip(frames[1:], edges, strict=True))
 
+    def _way_back(self) -> int:
+        """The frame of the component nearest (graph distance) to the current one."""
+        targets = np.flatnonzero(self.graph.in_scc & self.jump_costs.landing)
+        d, _ = self.jump_costs(self.frame, targets)
+        return int(targets[int(np.argmin(d))])
+
+    def _align(self, e: int) -> NDArray[np.float64]:
+        if e >= self.graph.n_edges:
+            return self._jump_align[e - self.graph.n_edges]
+        return self.graph.align[e].astype(np.float64)
+
+    @property
+    def n_jumps(self) -> int:
+        """Direct blended jumps taken so far."""
+        return len(self._jump_src)
+
+    def jumps(self) -> tuple[IntArray, IntArray, NDArray[np.float64]]:
+        """``(src, dst, align)`` of the direct jumps taken: history edge
+        ``graph.n_edges + k`` is jump ``k`` (``synthesize``'s ``extra``)."""
+        return (
+            np.array(self._jump_src, dtype=np.int64),
+            np.array(self._jump_dst, dtype=np.int64),
+            np.array(self._jump_align, dtype=np.float64).reshape(-1, 4),
+        )
+
     def clear(self) -> None:
         """Drop the path in progress; the avatar moves on by itself."""
         self._plan.clear()
@@ -139,6 +244,8 @@ class Avatar:
         """Move one frame; return the new frame."""
         if self._plan:
             g, e = self._plan.popleft()
+        elif not self.graph.in_scc[self.frame]:  # reached by a jump: play on, or come back
+            g, e = (self.frame + 1, -1) if self._next[self.frame] else (self._way_back(), JUMP)
         else:
             g, e = random_step(
                 self.graph,
@@ -148,8 +255,14 @@ class Avatar:
                 self._like,
                 self._plays,
             )
+        if e == JUMP:
+            _, al = self.jump_costs(self.frame, np.array([g]))
+            self._jump_src.append(self.frame)
+            self._jump_dst.append(g)
+            self._jump_align.append(al[0])
+            e = self.graph.n_edges + len(self._jump_src) - 1
         if e >= 0:
-            a = self.graph.align[e].astype(np.float64)
+            a = self._align(e)
             self._yaw, self._trans = compose(self._yaw, self._trans, float(a[0]), a[1:])
             self._jumps.append(len(self._frames))
             self._edges.append(e)
@@ -173,5 +286,12 @@ class Avatar:
         """The motion so far, blended, with feet planted."""
         frames, jumps, edges = self.history()
         return synthesize(
-            self.graph, self.clips, frames, jumps, edges, blend=self.blend, ik=self.ik
+            self.graph,
+            self.clips,
+            frames,
+            jumps,
+            edges,
+            blend=self.blend,
+            ik=self.ik,
+            extra=self.jumps() if self._jump_src else None,
         )

@@ -12,7 +12,7 @@ import numpy as np
 
 from .avatar import Avatar
 from .choice import Option, offer
-from .clusters import DEFAULT_KS, HigherLayer, build_higher_layer
+from .clusters import DEFAULT_KS, HigherLayer, cached_higher_layer
 from .graph import FrameData, MotionGraph
 from .motion import Library, write_bvh
 
@@ -212,7 +212,7 @@ def _choose(args: argparse.Namespace, graph_for: Any) -> int:
         raise ValueError("--seconds must be positive and --options at least 1")
     ks = parse_ks(args.ks) if args.k is None else list(DEFAULT_KS)
     library, graph, _, _ = graph_for(args)
-    layer = build_higher_layer(
+    layer, _, _ = cached_higher_layer(
         graph,
         library.clips,
         k=args.k,

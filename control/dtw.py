@@ -20,7 +20,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["dtw", "dtw_batch", "dtw_best_window", "dtw_reference"]
+__all__ = ["dtw", "dtw_batch", "dtw_best_window", "dtw_reference", "dtw_windows"]
 
 FloatArray = NDArray[np.float64]
 
@@ -164,6 +164,62 @@ def dtw_best_window(
         raise ValueError("every window must lie inside the sequence")
     s, v, cost = _best_window_kernel(q, h, c, st, int(length), int(window))
     return int(s), int(v), math.sqrt(cost)
+
+
+@numba.njit(cache=True, nogil=True)
+def _windows_kernel(
+    query: np.ndarray,
+    shape: np.ndarray,
+    centre: np.ndarray,
+    starts: np.ndarray,
+    views: np.ndarray,
+    m: int,
+    window: int,
+    out: np.ndarray,
+) -> None:
+    n_shape = shape.shape[2]
+    d = query.shape[1]
+    row = np.empty(m + 1)
+    prev = np.empty(m + 1)
+    b = np.empty((m, d))
+    for r in range(starts.size):
+        s = starts[r]
+        v = views[r]
+        for i in range(m):
+            for k in range(n_shape):
+                b[i, k] = shape[s + i, v, k]
+            for k in range(d - n_shape):
+                b[i, n_shape + k] = centre[s + i, v, k] - centre[s, v, k]
+        out[r] = _dtw_sq(query, b, window, np.inf, row, prev)
+
+
+def dtw_windows(
+    query: FloatArray,
+    shape: FloatArray,
+    centre: FloatArray,
+    starts: NDArray[np.int64],
+    views: NDArray[np.int64],
+    length: int,
+    window: int = 0,
+) -> FloatArray:
+    """Exact DTW costs ``(K,)`` of ``query (n, S + 2)`` against the windows
+    ``(starts[k], views[k])`` of the tables ``dtw_best_window`` takes."""
+    q = np.ascontiguousarray(query, dtype=np.float64)
+    st = np.ascontiguousarray(starts, dtype=np.int64)
+    vw = np.ascontiguousarray(views, dtype=np.int64)
+    if q.ndim != 2 or shape.ndim != 3 or q.shape[1] != shape.shape[2] + 2:
+        raise ValueError("query must be (n, S + 2) and shape (N, V, S)")
+    if st.shape != vw.shape or st.ndim != 1:
+        raise ValueError("starts and views must be 1-D arrays of one length")
+    if st.size and (st.min() < 0 or st.max() + length > shape.shape[0]):
+        raise ValueError("every window must lie inside the sequence")
+    if vw.size and (vw.min() < 0 or vw.max() >= shape.shape[1]):
+        raise ValueError("views must lie in 0..V - 1")
+    out = np.empty(st.size)
+    h = np.ascontiguousarray(shape, dtype=np.float64)
+    c = np.ascontiguousarray(centre, dtype=np.float64)
+    _windows_kernel(q, h, c, st, vw, int(length), int(window), out)
+    return np.sqrt(out)
 
 
 def dtw(a: FloatArray, b: FloatArray, window: int = 0) -> float:

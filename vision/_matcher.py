@@ -19,6 +19,7 @@ costing more than ``reject`` per frame is no match: ``why`` says so.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import time
 from dataclasses import dataclass, field
@@ -26,9 +27,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from control.avatar import JUMP, JumpCosts
 from control.clusters import HigherLayer
 from control.dtw import dtw_batch, dtw_best_window
 from silhouette_bank import DEFAULT_DESCRIPTOR, Bank, Descriptor, get_descriptor
+
+from ._index import WindowIndex
 
 __all__ = [
     "Decision",
@@ -73,10 +77,32 @@ class MatchSettings:
     #: per-frame cost above which a window matches nothing real and no decision is made
     #: (``None``: the descriptor's own threshold, ``Descriptor.reject``)
     reject: float | None = None
+    #: motion matching: at every decision the ``top`` best windows of the whole library
+    #: (the fast index) are candidates too, as direct blended jumps to the frame after
+    #: each window (where the performer is now). A jump's score is its DTW cost times
+    #: ``1 + blend_weight * D / (D + D_max)`` (``D``: the graph's distance from the
+    #: avatar's frame, ``D_max`` the largest a transition may have); it is taken when
+    #: that is below ``jump_ratio`` times the cost of the avatar's own last ``window``
+    #: seconds (always at the end of a clip)
+    jumps: bool = True
+    top: int = 8
+    blend_weight: float = 0.3
+    jump_ratio: float = 0.9
+    #: no jump until the avatar has played ``hold`` seconds on since its last move (it
+    #: would flicker between windows of near cost); at a clip's end it jumps anyway
+    hold: float = 1.0
+    #: with jumps, when no jump is taken: ``True``, the paper's cluster paths (their
+    #: future against the performer's past); ``False`` (default: as accurate on the
+    #: folds, and three times faster), the avatar plays on
+    cluster_paths: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.stay < 1.0:
             raise ValueError(f"stay must lie in [0, 1), got {self.stay}")
+        if not (
+            self.top >= 1 and self.blend_weight >= 0 and self.jump_ratio > 0 and self.hold >= 0
+        ):
+            raise ValueError("top must be >= 1, blend_weight, hold >= 0 and jump_ratio > 0")
         if self.reject is not None and not self.reject > 0:
             raise ValueError(f"reject must be positive, got {self.reject}")
 
@@ -239,9 +265,22 @@ class Matcher:
         self.why = ""
         # the bank may hold several variants (bodies, shadows) of the ring's views
         self.ring_views = bank.settings.ring.n_views
+        # playing on: inside the component, or with jumps (which reach any frame) inside
+        # a clip
         self.plays = self.graph.plays_on()
+        if self.settings.jumps:
+            self.plays = np.ones(self.graph.n_frames, dtype=bool)
+            self.plays[self.graph.clip_start[1:] - 1] = False
         self._cache: dict[tuple[int, int], tuple[IntArray, IntArray] | None] = {}
         self._tables: tuple[FloatArray, FloatArray, IntArray] | None = None
+        self._index: WindowIndex | None = None
+        self._runs: IntArray | None = None
+        #: the avatar's own recent cost at the last ``jump`` (``inf`` before a window),
+        #: and the best jump's target and score then
+        self.last_own = float("inf")
+        self.last_jump = (-1, float("inf"))
+        d_max = layer.graph.report.get("max_distance") if layer.graph.report else None
+        self.d_max = float(d_max) if d_max else 1.0
 
     def _check(self, performer: FloatArray) -> None:
         if performer.ndim != 2 or performer.shape[1] != self.n_features:
@@ -264,7 +303,9 @@ class Matcher:
                 self.proj,
                 self.settings.centre_weight,
             )
-            ok = self.graph.in_scc.copy()
+            # with jumps the avatar reaches any frame; without, only the component
+            n = self.graph.n_frames
+            ok = np.ones(n, dtype=bool) if self.settings.jumps else self.graph.in_scc.copy()
             runs = np.cumsum(np.concatenate(([0], ~self.plays)))  # breaks before each frame
             n = self.graph.n_frames
             end = np.arange(n) + self.n - 1
@@ -272,6 +313,13 @@ class Matcher:
             ok[ok] &= runs[end[ok]] == runs[np.flatnonzero(ok)]
             self._tables = (shape, centre, np.flatnonzero(ok).astype(np.int64))
         return self._tables
+
+    def index(self) -> WindowIndex:
+        """The fast whole-library window search (built on first use)."""
+        if self._index is None:
+            shape, centre, starts = self._global_tables()
+            self._index = WindowIndex(shape, centre, starts, self.n)
+        return self._index
 
     def queries(self, performer: FloatArray) -> list[FloatArray] | None:
         """The DTW queries ``(m, F)`` of the performer's last features ``(n, F)``: NaN rows
@@ -303,24 +351,40 @@ class Matcher:
             return True
         return False
 
-    def locate(self, performer: FloatArray) -> tuple[int, int, float] | None:
+    def locate(self, performer: FloatArray, exact: bool = False) -> tuple[int, int, float] | None:
         """``(frame, view, cost)``: the library window (any frame of the component, any
         view and variant, the performer as seen or mirrored) that looks most like the
         performer's last features; ``frame`` is where the window starts, ``view`` the
-        ring's view. ``None`` without enough silhouette, or when even the best window
-        costs more than ``reject`` (``why`` says which)."""
+        ring's view. By the fast index (``index``), or with ``exact`` by brute force.
+        ``None`` without enough silhouette, or when even the best window costs more than
+        ``reject`` (``why`` says which)."""
+        got = self.search(performer, 1, exact)
+        if not got:
+            return None
+        s, v, c = got[0]
+        return s, v % self.ring_views, c
+
+    def search(
+        self, performer: FloatArray, top: int = 1, exact: bool = False
+    ) -> list[tuple[int, int, float]]:
+        """The ``top`` library windows ``(start, view, cost)`` most like the performer's
+        last features, cheapest first, one per start; ``view`` counts the bank's variants
+        too. Empty (and ``why``) without enough silhouette or when the best is rejected."""
         queries = self.queries(performer)
         if queries is None:
-            return None
+            return []
         shape, centre, starts = self._global_tables()
         if starts.size == 0:
             self.why = "no window in the component"
-            return None
-        best = best_window(queries, shape, centre, starts, self.n, self.settings.band)
-        if self._rejected(best[2], queries[0]):
-            return None
+            return []
+        if exact:
+            got = [best_window(queries, shape, centre, starts, self.n, self.settings.band)]
+        else:
+            got = self.index().search(queries, self.settings.band, top)
+        if not got or self._rejected(got[0][2], queries[0]):
+            return []
         self.why = ""
-        return best[0], best[1] % self.ring_views, best[2]
+        return got
 
     def route(self, frame: int, target: int) -> tuple[IntArray, IntArray] | None:
         """The shortest way ``(frames, edges)`` from ``frame`` to ``target`` through the
@@ -403,6 +467,8 @@ class Matcher:
         """``(node, frames, edges)`` of the candidate paths from ``frame``: nodes reached
         within the look-ahead, earliest first, at most ``max_candidates`` whose first
         ``window`` seconds differ (paths that part only later look the same to DTW)."""
+        if self.layer.forest.tree_of[frame] < 0:  # outside the component (after a jump)
+            return []
         tree = self.layer.forest.tree(frame)
         lead = tree.root_frame - frame
         reach = tree.arrival + lead <= self.bound
@@ -424,13 +490,127 @@ class Matcher:
                 break
         return out
 
-    def decide(self, frame: int, performer: FloatArray) -> Decision | None:
+    def own_cost(self, queries: list[FloatArray], recent: IntArray) -> float:
+        """DTW cost of the avatar's own last frames ``recent`` (graph frames shown, best
+        view) against the performer: how well the avatar follows now (``inf`` before it
+        has shown a whole window)."""
+        if recent.size < self.n:
+            return float("inf")
+        refs = self._bank_sequences(recent[-self.n :])
+        return float(min(dtw_batch(q, refs, window=self.settings.band).min() for q in queries))
+
+    def jump(
+        self,
+        frame: int,
+        performer: FloatArray,
+        recent: IntArray,
+        costs: JumpCosts,
+        queries: list[FloatArray] | None = None,
+    ) -> Decision | None:
+        """The best direct blended jump from ``frame`` (motion matching): into the frame
+        after one of the ``top`` best library windows, scored by its match cost and the
+        blend from ``frame``, or ``None`` when none beats ``jump_ratio`` times the
+        avatar's own recent cost (the avatar already follows)."""
+        t0 = time.perf_counter()
+        st = self.settings
+        if queries is None:
+            queries = self.queries(performer)
+            if queries is None:
+                return None
+        got = self.index().search(queries, st.band, st.top)
+        self.last_own = float("inf")
+        self.last_jump = (-1, float("inf"))
+        if not got or self._rejected(got[0][2], queries[0]):
+            return None  # (why says so when the best was rejected)
+        self.why = ""
+        starts = np.array([g[0] for g in got], dtype=np.int64)
+        target = starts + self.n  # where the performer is now
+        n = self.graph.n_frames
+        ok = target < n
+        ok[ok] &= costs.landing[target[ok]] & self.plays[target[ok] - 1]
+        # a jump to where the avatar is about to be anyway is no jump
+        ok &= ~((target >= frame - 2) & (target <= frame + self.n) & self._same_run(frame, target))
+        if not ok.any():
+            return None
+        idx = np.flatnonzero(ok)
+        dist, _ = costs(frame, target[idx])
+        match = np.array([got[i][2] for i in idx])
+        # the blend's share saturates: a far jump costs at most ``blend_weight`` more
+        score = match * (1.0 + st.blend_weight * dist / (dist + self.d_max))
+        b = int(np.argmin(score))
+        # at its clip's end the avatar must go somewhere: the best jump, whatever it costs
+        own = self.own_cost(queries, recent) if self.plays[frame] else float("inf")
+        m = max(1, round(st.hold * self.graph.fps))
+        settled = recent.size < m or bool(np.all(np.diff(recent[-m:]) == 1))
+        if not settled and np.isfinite(own):
+            self.last_own = own
+            self.last_jump = (-1, float("inf"))
+            return None
+        self.last_own = own
+        self.last_jump = (int(target[idx[b]]), float(score[b]))
+        if not score[b] < st.jump_ratio * own:
+            return None
+        i = int(idx[b])
+        j = int(target[i])
+        frames = [frame, j]
+        while len(frames) <= self.n and self.plays[frames[-1]]:
+            frames.append(frames[-1] + 1)
+        return Decision(
+            frames=np.array(frames, dtype=np.int64),
+            edges=np.array([JUMP] + [-1] * (len(frames) - 2), dtype=np.int64),
+            cluster_path=np.zeros(0, dtype=np.int64),
+            cost=float(match[b]),
+            runner_up=float(np.sort(score)[1]) if score.size > 1 else float("inf"),
+            view=int(got[i][1]) % self.ring_views,
+            candidates=int(idx.size),
+            latency_ms=(time.perf_counter() - t0) * 1e3,
+            extra={"jump": j, "own": own, "blend": float(dist[b])},
+        )
+
+    def _same_run(self, frame: int, target: IntArray) -> NDArray[np.bool_]:
+        """Whether ``frame`` plays on to each of ``target`` (or back from it)."""
+        if self._runs is None:
+            self._runs = np.cumsum(np.concatenate(([0], ~self.plays[:-1])))
+        return self._runs[np.clip(target, 0, self.graph.n_frames - 1)] == self._runs[frame]
+
+    def decide(
+        self,
+        frame: int,
+        performer: FloatArray,
+        recent: IntArray | None = None,
+        jump_costs: JumpCosts | None = None,
+    ) -> Decision | None:
         """The best path from ``frame`` for the performer's last features ``(n, F)``
-        (NaN rows, frames without a silhouette, are dropped); ``None`` without enough."""
+        (NaN rows, frames without a silhouette, are dropped); ``None`` without enough.
+        With the avatar's ``recent`` frames and its ``jump_costs`` (and
+        ``settings.jumps``), a direct blended jump (``jump``) when one is clearly better
+        than what the avatar is doing."""
         t0 = time.perf_counter()
         queries = self.queries(performer)
         if queries is None:
             return None
+        if self.settings.jumps and recent is not None and jump_costs is not None:
+            j = self.jump(frame, performer, recent, jump_costs, queries)
+            if j is not None:
+                return dataclasses.replace(j, latency_ms=(time.perf_counter() - t0) * 1e3)
+            if self.why:  # the best window was rejected: nothing real matches
+                return None
+            on = [frame]
+            while len(on) <= self.n and self.plays[on[-1]]:
+                on.append(on[-1] + 1)
+            lee = self.settings.cluster_paths and self.layer.forest.tree_of[frame] >= 0
+            if not lee and len(on) > 1:
+                return Decision(
+                    frames=np.array(on, dtype=np.int64),
+                    edges=np.full(len(on) - 1, -1, dtype=np.int64),
+                    cluster_path=np.zeros(0, dtype=np.int64),
+                    cost=self.last_own,
+                    runner_up=float("inf"),
+                    view=-1,  # as before
+                    candidates=1,
+                    latency_ms=(time.perf_counter() - t0) * 1e3,
+                    extra={"plays_on": 1.0},
+                )
         cands = self.candidates(frame)
         if not cands:
             self.why = "no candidate path"

@@ -78,7 +78,8 @@ def perform(
     settings = settings or PerformSettings()
     graph = layer.graph
     matcher = Matcher(layer, bank, settings.match)
-    avatar = Avatar(graph, clips, start=start, seed=seed)
+    jumps = settings.match.jumps  # motion matching: relocation is every decision's
+    avatar = Avatar(graph, clips, start=start, seed=seed, anywhere=jumps)
     segmenter: Any = None
     landmarks = matcher.desc.kind == "pose"
     reader = PoseReader() if landmarks else None
@@ -101,7 +102,13 @@ def perform(
     background = settings.background_search
     if background is None:
         background = isinstance(source, CameraSource) or bool(getattr(source, "realtime", False))
-    searcher = ThreadPoolExecutor(1, thread_name_prefix="mimic-search") if background else None
+    # with jumps the fast index answers within the decision; without, relocation's brute
+    # force search may run in a thread
+    searcher = (
+        ThreadPoolExecutor(1, thread_name_prefix="mimic-search")
+        if background and not jumps
+        else None
+    )
     pending: Future[tuple[int, int, float] | None] | None = None
     n_read = 0
     t = 0.0
@@ -170,14 +177,27 @@ def perform(
                     if got is not None:
                         located = True
                         last_relocate = t  # that was this second's global search
-                        avatar = Avatar(graph, clips, start=got[0], seed=seed)
+                        # with jumps, where the performer is now: the window's last frame
+                        at = got[0] + matcher.n - 1 if jumps else got[0]
+                        avatar = Avatar(graph, clips, start=at, seed=seed, anywhere=jumps)
                         masks, views, view = [latest_mask if keep_masks else None], [got[1]], got[1]
                         entry.update(frame=avatar.frame, located=round(got[2], 4))
                         entry["clip"], entry["clip_frame"] = graph.locate(avatar.frame)
                 # on the way to a relocation's window: no decision may turn it aside
                 routing = t < en_route - 1e-9
-                d = matcher.decide(avatar.frame, np.array(buffer)) if full and not routing else None
-                every = settings.match.relocate
+                d = None
+                if full and not routing:
+                    d = (
+                        matcher.decide(
+                            avatar.frame,
+                            np.array(buffer),
+                            avatar.recent(matcher.n),
+                            avatar.jump_costs,
+                        )
+                        if jumps
+                        else matcher.decide(avatar.frame, np.array(buffer))
+                    )
+                every = 0.0 if jumps else settings.match.relocate
                 got = None
                 if d is not None and every > 0:
                     due = t - last_relocate >= every - 1e-9
@@ -223,7 +243,15 @@ def perform(
                         entry["en_route"] = True
                 else:
                     avatar.take(d.frames, d.edges)
-                    view = d.view
+                    view = d.view if d.view >= 0 else view
+                    if "jump" in d.extra:
+                        entry.update(
+                            jump=int(d.extra["jump"]),
+                            own_cost=round(d.extra["own"], 4)
+                            if np.isfinite(d.extra["own"])
+                            else None,
+                            blend=round(d.extra["blend"], 4),
+                        )
                     entry.update(
                         decision=[int(c) for c in d.cluster_path],
                         cost=round(d.cost, 4),

@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import itertools
 import sys
+import time
 from typing import Any
 
 import numpy as np
 
-from control.cli import _add_graph_args, _add_library_args, _graph_for, start_frame
-from control.clusters import build_higher_layer
+from control.cli import _add_graph_args, _add_library_args, _options, start_frame
+from control.clusters import cached_higher_layer
+from control.graph import cached_graph
 from control.motion import load_library, write_bvh
 from silhouette_bank import (
     DEFAULT_DESCRIPTOR,
@@ -21,6 +24,7 @@ from silhouette_bank import (
     robust_settings,
 )
 
+from ._library import FLOOR_ABOVE, FLOOR_SECONDS, VISION_COORDS, on_the_floor
 from ._live import LiveView
 from ._matcher import MatchSettings
 from ._perform import PerformSettings, perform, write_video
@@ -45,6 +49,22 @@ def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
     src.add_argument("--masks", help="a folder of mask images")
     _add_library_args(p)
     _add_graph_args(p)
+    # the vision interface's graph: relative coordinates, so that takes recorded in
+    # different places reach each other
+    p.set_defaults(coords=VISION_COORDS)
+    p.add_argument(
+        "--off-floor",
+        action="store_true",
+        help=f"keep clips whose feet leave the floor (over {FLOOR_ABOVE:g} m for more than "
+        f"{FLOOR_SECONDS:g} s: climbing, sitting on things); by default they are left out, "
+        "as the avatar would float",
+    )
+    p.add_argument(
+        "--no-jumps",
+        action="store_true",
+        help="only the paper's cluster paths (and a relocation through the graph once a "
+        "second), no direct blended jumps into the best-matching windows",
+    )
     p.add_argument("--realtime", action="store_true", help="pace a file like a camera")
     p.add_argument("--seconds", type=float, help="stop after this much media time")
     p.add_argument("--window", type=float, default=1.0, help="seconds of performer matched")
@@ -197,18 +217,62 @@ def _perform(args: argparse.Namespace) -> int:
             "step out of view for two seconds so that the background can be learned",
             file=sys.stderr,
         )
-    library, graph, _, _ = _graph_for(args)
-    layer = build_higher_layer(graph, library.clips, k=args.k)
+    if args.fps is None or args.fps <= 0:
+        raise ValueError("--fps must be positive")
+    library = load_library(args.dir, fps=args.fps, mirror=args.mirror, clips=args.clips)
+    clips = list(library.clips)
+    if not args.off_floor:
+        clips, dropped = on_the_floor(clips)
+        if dropped:
+            print(
+                f"left out {len(dropped)} clips whose feet leave the floor (--off-floor "
+                f"keeps them): {', '.join(sorted(dropped))}",
+                file=sys.stderr,
+            )
+        if not clips:
+            raise SystemExit("mimic perform: every clip leaves the floor (use --off-floor)")
+    t0 = time.perf_counter()
+    graph, _, _ = cached_graph(clips, _options(args), rebuild=args.rebuild)
+    unreachable = [
+        f"{name} ({graph.in_scc[a:b].mean():.0%} reachable)"
+        for name, a, b in zip(
+            graph.clip_names, graph.clip_start[:-1], graph.clip_start[1:], strict=True
+        )
+        if graph.in_scc[a:b].mean() < 0.5
+    ]
+    if unreachable and args.no_jumps:
+        print(
+            "warning: these clips are mostly outside the graph's connected component, and "
+            f"without jumps the avatar cannot reach them: {', '.join(unreachable)}",
+            file=sys.stderr,
+        )
+    elif unreachable:
+        print(
+            "note: these clips are mostly outside the graph's connected component; the "
+            f"avatar reaches them by direct jumps only: {', '.join(unreachable)}",
+            file=sys.stderr,
+        )
+    # the matcher looks no further ahead than the look-ahead: trees that reach that far
+    # (the paper's 15 s trees of a dense graph are truncated, and slow to build)
+    bound = max(2.0, args.lookahead + 0.5)
+    layer, _, layer_built = cached_higher_layer(graph, clips, k=args.k, bound_seconds=bound)
+    print(
+        f"library: {len(graph.clip_names)} clips, {graph.n_frames} frames "
+        f"({int(graph.in_scc.sum())} reachable); graph coords {graph.options.coords}; "
+        f"{layer.clustering.k} clusters ({'built' if layer_built else 'cached'}); "
+        f"{time.perf_counter() - t0:.1f} s",
+        file=sys.stderr,
+    )
     base = BankSettings(descriptor=descriptor)
     if args.variants and descriptor == "pose":
         print("--variants: body variants do not apply to the pose descriptor", file=sys.stderr)
     bank_settings = robust_settings(base) if args.variants and descriptor != "pose" else base
-    bank, built = ensure_bank(library.clips, bank_settings, progress=None)
+    bank, built = ensure_bank(clips, bank_settings, progress=None)
     start = start_frame(graph, args.start)
     settings = PerformSettings(
         segmentation=args.segmentation,
         learn_frames=args.learn_frames,
-        match=MatchSettings(window=args.window, lookahead=args.lookahead),
+        match=MatchSettings(window=args.window, lookahead=args.lookahead, jumps=not args.no_jumps),
         seconds=args.seconds,
     )
     with contextlib.ExitStack() as stack:
@@ -218,7 +282,7 @@ def _perform(args: argparse.Namespace) -> int:
                 source,
                 layer,
                 bank,
-                library.clips,
+                clips,
                 settings,
                 start=start,
                 seed=args.seed,
@@ -245,6 +309,14 @@ def _perform(args: argparse.Namespace) -> int:
             else ""
         )
         + ("; bank built" if built else "")
+    )
+    jumps = sum("jump" in c for c in made)
+    clips_seen = [c["clip"] for c in result.decisions]
+    changes = sum(a != b for a, b in itertools.pairwise(clips_seen))
+    minutes = max(result.media_seconds, 1e-9) / 60.0
+    print(
+        f"the avatar: {result.avatar.time:.1f} s of motion, {jumps} direct jumps, "
+        f"{changes / minutes:.1f} clip changes a minute"
     )
     for name in ("out", "video_out", "log"):
         if getattr(args, name):

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from control.cli import _add_graph_args, _add_library_args, _graph_for, _options, start_frame
-from control.clusters import HigherLayer, build_higher_layer
+from control.clusters import HigherLayer, cached_higher_layer
 from control.graph import CapturedTerrain, MotionGraph, cached_graph, terrain_options
 from control.motion import Library, load_library, write_bvh
 from control.sketch import (
@@ -92,7 +92,7 @@ def _sketch(args: argparse.Namespace) -> int:
     if args.approach == "actions":
         if captured is not None:
             raise ValueError("--approach actions does not handle block terrain")
-        layer = build_higher_layer(
+        layer, _, _ = cached_higher_layer(
             graph, library.clips, k=args.k, bound_seconds=args.bound, max_nodes=args.tree_nodes
         )
     # (name, c, layer): the chosen approach first; --baseline adds its comparison (eq. 8

@@ -1,6 +1,7 @@
 """Higher layer (Lee et al. §4.2): motion states, spherical Gaussian mixture by BIC, the
 cluster forest, cluster paths and their most probable motions."""
 
+from ._cache import LAYER_VERSION, LayerFileError, cached_higher_layer, load_layer, save_layer
 from ._forest import ClusterForest, ClusterTree, build_forest
 from ._gmm import (
     SEEDINGS,
@@ -17,21 +18,26 @@ from ._state import orientation_distance, reference_orientation, state_vectors
 
 __all__ = [
     "DEFAULT_KS",
+    "LAYER_VERSION",
     "SEEDINGS",
     "ClusterForest",
     "ClusterTree",
     "Clustering",
     "HigherLayer",
+    "LayerFileError",
     "ProbableMotion",
     "build_forest",
     "build_higher_layer",
+    "cached_higher_layer",
     "decorrelation_frames",
     "effective_bic",
     "fit_mixture",
     "keyframe_seeds",
+    "load_layer",
     "most_probable_motion",
     "orientation_distance",
     "reference_orientation",
+    "save_layer",
     "select_by_bic",
     "state_vectors",
     "transition_log_probs",

@@ -22,7 +22,15 @@ from ._graph import (
 )
 from ._ik import knee_hinge, leg_chain, solve_leg, two_bone_ik
 from ._prune import CONTACT_RULES, case4, contact_groups, largest_scc, local_maxima
-from ._quality import foot_slide, jerk, joint_jumps, quality_summary, sole_speed
+from ._quality import (
+    foot_slide,
+    jerk,
+    joint_jumps,
+    lowest_foot,
+    off_floor_seconds,
+    quality_summary,
+    sole_speed,
+)
 from ._synth import FrameData, Synthesis, compose, synthesize
 from ._terrain import CapturedTerrain, FootTrack, captured_terrain, foot_track, terrain_options
 from ._walk import random_step, random_walk
@@ -59,6 +67,8 @@ __all__ = [
     "load_graph",
     "local_maxima",
     "lower_bound_features",
+    "lowest_foot",
+    "off_floor_seconds",
     "pair_distances",
     "q_embed",
     "quality_summary",

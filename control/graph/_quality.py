@@ -6,6 +6,8 @@
   of the root orientation) from the previous frame.
 - jerk: the third time derivative of world joint positions (m/s^3), averaged over
   joints and frames.
+- floor: the height of the lowest foot point (ankle or toe of either foot) per frame,
+  and the longest stretch a motion spends with both feet off the floor.
 """
 
 from __future__ import annotations
@@ -19,7 +21,15 @@ from ..motion import Motion, foot_points, forward_kinematics, qconj, qlog, qmul
 from ..motion._quat import FloatArray
 from ._features import weighted_joints
 
-__all__ = ["foot_slide", "jerk", "joint_jumps", "quality_summary", "sole_speed"]
+__all__ = [
+    "foot_slide",
+    "jerk",
+    "joint_jumps",
+    "lowest_foot",
+    "off_floor_seconds",
+    "quality_summary",
+    "sole_speed",
+]
 
 
 def sole_speed(motion: Motion, states: NDArray[np.bool_]) -> FloatArray:
@@ -50,6 +60,24 @@ def joint_jumps(motion: Motion) -> FloatArray:
     q = motion.quats[:, joints]
     d = qlog(qmul(qconj(q[:-1]), q[1:]))
     return np.degrees(np.linalg.norm(d, axis=-1).max(axis=1))
+
+
+def lowest_foot(motion: Motion) -> FloatArray:
+    """(F,) height (m, +Y up) of the lowest of the four foot points (ankles, toes)."""
+    ankle, toe = foot_points(motion)
+    return np.minimum(ankle[..., 1].min(axis=1), toe[..., 1].min(axis=1))
+
+
+def off_floor_seconds(motion: Motion, floor: float = 0.0, above: float = 0.25) -> float:
+    """The longest stretch (seconds) with every foot point more than ``above`` metres
+    over ``floor``: a jump's flight is a fraction of a second, climbing or sitting on
+    something (that the avatar's world lacks) is longer."""
+    off = lowest_foot(motion) > floor + above
+    if not off.any():
+        return 0.0
+    edges = np.diff(np.concatenate(([0], off.astype(np.int8), [0])))
+    runs = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
+    return float(runs.max()) / motion.fps
 
 
 def jerk(motion: Motion) -> FloatArray:

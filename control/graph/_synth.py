@@ -7,7 +7,9 @@ translation) decays to zero over ``b`` frames along a cubic Hermite curve. It is
 against the frames actually shown, so a transition inside a blend starts from the
 blended motion: that is the overlap buffer.
 
-Feet: a foot in contact is kept where it touched down (or where it was at the jump) and
+Feet: over a blend the root's height is set so that the lowest foot point is as high as
+in the source frame (a blend between a squat and a stance keeps its feet on the floor).
+A foot in contact is kept where it touched down (or where it was at the jump) and
 then follows only the source clip's own foot motion; when it lifts, the correction fades
 over the swing. This covers the four cases of the paper: a contact that runs into a blend
 keeps the trajectory before the transition (case 1), one that starts inside a blend is
@@ -38,6 +40,7 @@ from ..motion._quat import FloatArray
 from ._features import root_scales, rotate_y, yaw_q
 from ._graph import MotionGraph
 from ._ik import knee_hinge, leg_chain, solve_leg
+from ._quality import lowest_foot
 
 __all__ = ["FrameData", "Synthesis", "compose", "synthesize"]
 
@@ -118,6 +121,7 @@ def synthesize(
     fade: float = 0.25,
     max_offset: float = 0.2,
     anchor: str = "output",
+    extra: tuple[IntArray, IntArray, FloatArray] | None = None,
 ) -> Synthesis:
     """Turn a path through the graph into motion.
 
@@ -135,13 +139,17 @@ def synthesize(
     anchor : where a planted foot is held: ``"output"`` (default) where it touched down in
         the blended motion; ``"source"`` where its source frame puts it under the path's
         alignment (on terrain, the block top the path was checked against).
+    extra : ``(src, dst, align)`` of direct jumps that are not graph transitions (the
+        vision interface's blended jumps, ``control.Avatar.jump``): edge ``e >=
+        graph.n_edges`` is jump ``e - graph.n_edges``, blended like any transition.
     """
     data = FrameData(graph, clips)
     frames = np.asarray(frames, dtype=np.int64)
     jumps = np.asarray(jumps, dtype=np.int64)
     edges = np.asarray(edges, dtype=np.int64)
     n_out = frames.size
-    _check_path(graph, frames, jumps, edges)
+    src_of, dst_of, align_of = _edge_tables(graph, extra)
+    _check_path(graph, frames, jumps, edges, src_of, dst_of)
     if not blend > 0 or not fade >= 0 or not max_offset >= 0:
         raise ValueError("blend must be positive, fade and max_offset not negative")
     if anchor not in ("output", "source"):
@@ -153,7 +161,7 @@ def synthesize(
     seg_yaw = np.zeros(n_seg)
     seg_trans = np.zeros((n_seg, 3))
     for m, e in enumerate(edges):
-        a = graph.align[e].astype(np.float64)
+        a = align_of[e]
         seg_yaw[m + 1], seg_trans[m + 1] = compose(seg_yaw[m], seg_trans[m], a[0], a[1:])
     seg = np.searchsorted(jumps, np.arange(n_out), side="right")
 
@@ -204,11 +212,67 @@ def synthesize(
             max_offset,
             anchor == "source",
         )
+    if ik and blended.any():
+        # feet at the source's height: blending the root's height between a squat and a
+        # stance would otherwise lift both feet off the floor for the whole blend (after
+        # the leg IK, so that planted feet only move up or down with the body)
+        out_p = out_p.copy()
+        out_p[blended, 1] += _sole_lift(
+            data.skeleton, graph.fps, src_p, src_q, out_p, out_q, blended
+        )
     motion = Motion(data.skeleton, out_p, out_q, graph.fps, name="walk", source="graph")
     return Synthesis(motion, frames, jumps, edges, states, blended, unreachable)
 
 
-def _check_path(graph: MotionGraph, frames: IntArray, jumps: IntArray, edges: IntArray) -> None:
+def _edge_tables(
+    graph: MotionGraph, extra: tuple[IntArray, IntArray, FloatArray] | None
+) -> tuple[IntArray, IntArray, FloatArray]:
+    """``(src, dst, align)`` of the graph's transitions, then of ``extra``'s jumps."""
+    src, dst = graph.src.astype(np.int64), graph.dst.astype(np.int64)
+    align = graph.align.astype(np.float64)
+    if extra is None:
+        return src, dst, align
+    e_src, e_dst, e_align = (np.asarray(x) for x in extra)
+    e_align = e_align.astype(np.float64).reshape(-1, 4)
+    if not (e_src.shape == e_dst.shape == (e_align.shape[0],)):
+        raise ValueError("extra jumps need one src, dst and (yaw, dx, dy, dz) each")
+    if e_src.size and (
+        min(e_src.min(), e_dst.min()) < 0 or max(e_src.max(), e_dst.max()) >= graph.n_frames
+    ):
+        raise ValueError(f"extra jumps' frames must lie in 0..{graph.n_frames - 1}")
+    if not np.isfinite(e_align).all():
+        raise ValueError("extra jumps' alignments must be finite")
+    return (
+        np.concatenate((src, e_src.astype(np.int64))),
+        np.concatenate((dst, e_dst.astype(np.int64))),
+        np.concatenate((align, e_align)),
+    )
+
+
+def _sole_lift(
+    skeleton: Skeleton,
+    fps: float,
+    src_p: FloatArray,
+    src_q: FloatArray,
+    out_p: FloatArray,
+    out_q: FloatArray,
+    rows: NDArray[np.bool_],
+) -> FloatArray:
+    """Per frame of ``rows``, how far to raise the output's root so that its lowest foot
+    point is as high as the source frame's."""
+    src = lowest_foot(Motion(skeleton, src_p[rows], src_q[rows], fps))
+    out = lowest_foot(Motion(skeleton, out_p[rows], out_q[rows], fps))
+    return src - out
+
+
+def _check_path(
+    graph: MotionGraph,
+    frames: IntArray,
+    jumps: IntArray,
+    edges: IntArray,
+    src: IntArray,
+    dst: IntArray,
+) -> None:
     n = graph.n_frames
     if frames.ndim != 1 or frames.size == 0:
         raise ValueError("frames must be a non-empty 1-D array")
@@ -219,9 +283,9 @@ def _check_path(graph: MotionGraph, frames: IntArray, jumps: IntArray, edges: In
     if jumps.size:
         if jumps.min() < 1 or jumps.max() >= frames.size or np.any(np.diff(jumps) <= 0):
             raise ValueError("jumps must be increasing output frames in 1..len(frames) - 1")
-        if edges.min() < 0 or edges.max() >= graph.n_edges:
-            raise ValueError(f"edges must lie in 0..{graph.n_edges - 1}")
-        bad = (graph.src[edges] != frames[jumps - 1]) | (graph.dst[edges] != frames[jumps])
+        if edges.min() < 0 or edges.max() >= src.size:
+            raise ValueError(f"edges must lie in 0..{src.size - 1}")
+        bad = (src[edges] != frames[jumps - 1]) | (dst[edges] != frames[jumps])
         if bad.any():
             t = int(jumps[np.argmax(bad)])
             raise ValueError(f"output frame {t}: edge does not lead from frame {frames[t - 1]}")

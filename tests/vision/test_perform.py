@@ -11,28 +11,13 @@ import cv2
 import numpy as np
 import pytest
 
-from control.clusters import HigherLayer, build_higher_layer
-from control.graph import GraphOptions, build_graph
-from control.motion import Library, load_library, read_bvh
+from control.motion import read_bvh
 from silhouette_bank import Bank, BankSettings, build_bank, silhouette_features
-from tests.conftest import REPO
+from tests.vision.conftest import RECORDING
 from vision._matcher import Matcher, MatchSettings
 from vision._perform import PerformSettings, perform
 from vision._sources import CameraSource, MaskFolderSource, VideoSource
 from vision.cli import main
-
-RECORDING = REPO / "recordings" / "13_29_first12s_160x120.mkv"
-
-
-@pytest.fixture(scope="module")
-def setup(
-    mocap: Path, tmp_path_factory: pytest.TempPathFactory
-) -> tuple[Library, HigherLayer, Bank]:
-    lib = load_library(mocap, clips=["13_30"], cache_dir=tmp_path_factory.mktemp("c"))
-    g = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.03))
-    layer = build_higher_layer(g, lib.clips, k=12)
-    bank = build_bank(lib.clips, BankSettings(), tmp_path_factory.mktemp("bank"), workers=1)
-    return lib, layer, bank
 
 
 @pytest.fixture(scope="module")
@@ -183,7 +168,7 @@ def test_the_avatar_does_what_the_performer_does(setup) -> None:
 
 def test_a_relocation_is_followed_to_its_window(setup) -> None:
     # relocate whenever the whole component has a better window than the candidates
-    match = MatchSettings(relocate_ratio=1.0)
+    match = MatchSettings(relocate_ratio=1.0, jumps=False)
     a = _run(setup, VideoSource(RECORDING, silhouette=True), match=match)
     # the decisions on the way leave it alone
     hist = a.avatar.history()[0]
@@ -334,7 +319,7 @@ def test_the_stay_prior_keeps_the_action_unless_another_fits_clearly_better(setu
 
 def test_a_live_source_searches_in_the_background(setup) -> None:
     sync = _run(setup, VideoSource(RECORDING, silhouette=True))
-    match = MatchSettings(relocate_ratio=1.0)  # relocate whenever the search finds better
+    match = MatchSettings(relocate_ratio=1.0, jumps=False)  # relocate whenever it finds better
     bg = _run(setup, VideoSource(RECORDING, silhouette=True), background_search=True, match=match)
     # the same decision points; the search's answers come at later ones, so the avatar
     # may differ, but it is matched and relocated all the same
@@ -388,6 +373,8 @@ def test_the_pose_descriptor_finds_a_skeletons_own_frame_and_view(setup, tmp_pat
     matcher = Matcher(layer, bank, MatchSettings(window=1.0))
     desc = get_descriptor("pose")
     _, _, starts = matcher._global_tables()
+    # windows inside the graph's component (the sample this test was written with)
+    starts = np.array([s for s in starts if layer.graph.in_scc[s : s + matcher.n].all()])
     clip = lib.clip("13_30")
     ring = CameraRing()
     rng = np.random.default_rng(11)

@@ -1,0 +1,233 @@
+"""The higher layer on disk, beside the graph it was built on: one ``.npz`` (no pickle)
+with a JSON manifest, written atomically.
+
+The file name hashes the layer version, the graph's own content (its transitions and
+clips' digest) and the build settings, so a changed graph or setting never reuses a
+stale layer; a file that cannot be used is rebuilt with a warning naming it. Only the
+chosen mixture is stored (``fits`` holds just it after loading; ``curve`` keeps the
+whole BIC curve).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import zlib
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..graph import MotionGraph, graph_cache_dir
+from ..motion import Clip
+from ..motion._text import atomic_write, read_npz
+from ._forest import ClusterForest, ClusterTree
+from ._gmm import Clustering
+from ._layer import DEFAULT_KS, HigherLayer, build_higher_layer
+from ._paths import transition_log_probs
+
+__all__ = ["LAYER_VERSION", "LayerFileError", "cached_higher_layer", "load_layer", "save_layer"]
+
+log = logging.getLogger(__name__)
+
+#: bump when the layer's construction changes, so that stale files are never used
+LAYER_VERSION = 1
+
+_CLUSTERING = ("labels", "posterior", "means", "variances", "weights", "seeds")
+_TREES = ("root_frame", "parent", "cluster", "arrival", "truncated", "horizon", "offset")
+
+
+class LayerFileError(ValueError):
+    """A higher-layer file that cannot be used; the message names the file."""
+
+    def __init__(self, path: str | Path, problem: str) -> None:
+        self.path = str(path)
+        self.problem = problem
+        super().__init__(f"{path}: {problem}")
+
+
+def graph_digest(graph: MotionGraph) -> str:
+    """A hash of what the higher layer is built from: the graph's clips and transitions."""
+    h = hashlib.sha256(graph.library_digest.encode())
+    h.update(json.dumps(graph.options.to_dict(), sort_keys=True).encode())
+    for a in (graph.clip_start, graph.src, graph.dst, graph.dist, graph.in_scc):
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
+def _key(graph: MotionGraph, settings: dict[str, Any]) -> str:
+    blob = json.dumps(
+        {"v": LAYER_VERSION, "graph": graph_digest(graph), **settings}, sort_keys=True
+    )
+    return hashlib.sha256(blob.encode()).hexdigest()[:24]
+
+
+def save_layer(layer: HigherLayer, path: str | Path, key: str = "") -> Path:
+    """Write ``layer`` to ``path`` (``.npz``) atomically."""
+    path = Path(path)
+    c = layer.clustering
+    trees = layer.forest.trees
+    sizes = np.array([t.size for t in trees], dtype=np.int64)
+    manifest = {
+        "format": "mimic-layer",
+        "version": LAYER_VERSION,
+        "key": key,
+        "graph": graph_digest(layer.graph),
+        "log_likelihood": c.log_likelihood,
+        "bic": c.bic,
+        "n_params": c.n_params,
+        "seeding": c.seeding,
+        "curve": layer.curve,
+        "bound": layer.forest.bound,
+        "report": layer.forest.report,
+    }
+    arrays: dict[str, np.ndarray] = {
+        "manifest": np.array(json.dumps(manifest)),
+        "states": layer.states,
+        "q_hat": layer.q_hat,
+        "tree_of": layer.forest.tree_of,
+        **{f"c_{name}": getattr(c, name) for name in _CLUSTERING},
+        "t_root_frame": np.array([t.root_frame for t in trees], dtype=np.int64),
+        "t_parent": np.concatenate([t.parent for t in trees]) if trees else np.zeros(0, int),
+        "t_cluster": np.concatenate([t.cluster for t in trees]) if trees else np.zeros(0, int),
+        "t_arrival": np.concatenate([t.arrival for t in trees]) if trees else np.zeros(0, int),
+        "t_truncated": np.array([t.truncated for t in trees], dtype=bool),
+        "t_horizon": np.array([t.horizon for t in trees], dtype=np.int64),
+        "t_offset": np.concatenate(([0], np.cumsum(sizes))).astype(np.int64),
+    }
+    with atomic_write(path, "wb") as fh:
+        np.savez_compressed(fh, **arrays)  # type: ignore[arg-type]
+    return path
+
+
+def load_layer(path: str | Path, graph: MotionGraph) -> HigherLayer:
+    """Read a layer written by ``save_layer`` for ``graph``; ``LayerFileError`` when the
+    file is not one, is damaged, or belongs to another graph."""
+    path = Path(path)
+    keys = (
+        "manifest",
+        "states",
+        "q_hat",
+        "tree_of",
+        *(f"c_{n}" for n in _CLUSTERING),
+        *(f"t_{n}" for n in _TREES),
+    )
+    try:
+        a = read_npz(path, keys, LayerFileError, "mimic higher layer")
+        manifest: dict[str, Any] = json.loads(str(a.pop("manifest")))
+    except LayerFileError:
+        raise
+    except (zlib.error, json.JSONDecodeError, UnicodeDecodeError, ValueError) as exc:
+        raise LayerFileError(path, f"damaged file ({exc})") from exc
+    if not isinstance(manifest, dict) or manifest.get("format") != "mimic-layer":
+        raise LayerFileError(path, "not a mimic higher-layer file")
+    if manifest.get("version") != LAYER_VERSION:
+        raise LayerFileError(path, f"layer version {manifest.get('version')}, not {LAYER_VERSION}")
+    if manifest.get("graph") != graph_digest(graph):
+        raise LayerFileError(path, "built on another graph")
+    n = graph.n_frames
+    off = a["t_offset"].astype(np.int64)
+    n_trees = a["t_root_frame"].size
+    labels = a["c_labels"].astype(np.int64)
+    try:
+        ok = (
+            labels.shape == (n,)
+            and a["c_posterior"].shape == (n,)
+            and a["states"].shape[0] == n
+            and a["tree_of"].shape == (n,)
+            and off.shape == (n_trees + 1,)
+            and off[0] == 0
+            and bool(np.all(np.diff(off) >= 1))
+            and off[-1] == a["t_parent"].size == a["t_cluster"].size == a["t_arrival"].size
+            and a["t_truncated"].shape == a["t_horizon"].shape == (n_trees,)
+            and int(a["tree_of"].max(initial=-1)) < n_trees
+            and int(a["t_root_frame"].max(initial=0)) < n
+            and labels.min(initial=0) >= 0
+            and labels.max(initial=0) < a["c_means"].shape[0]
+            and all(np.isfinite(a[k]).all() for k in ("states", "c_posterior", "c_means"))
+        )
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise LayerFileError(path, "arrays of inconsistent shapes or values")
+    trees = tuple(
+        ClusterTree(
+            root_frame=int(a["t_root_frame"][i]),
+            parent=a["t_parent"][off[i] : off[i + 1]].astype(np.int64),
+            cluster=a["t_cluster"][off[i] : off[i + 1]].astype(np.int64),
+            arrival=a["t_arrival"][off[i] : off[i + 1]].astype(np.int64),
+            truncated=bool(a["t_truncated"][i]),
+            horizon=int(a["t_horizon"][i]),
+        )
+        for i in range(n_trees)
+    )
+    clustering = Clustering(
+        labels=labels,
+        posterior=a["c_posterior"].astype(np.float64),
+        means=a["c_means"].astype(np.float64),
+        variances=a["c_variances"].astype(np.float64),
+        weights=a["c_weights"].astype(np.float64),
+        log_likelihood=float(manifest["log_likelihood"]),
+        bic=float(manifest["bic"]),
+        n_params=int(manifest["n_params"]),
+        seeding=str(manifest["seeding"]),
+        seeds=a["c_seeds"].astype(np.int64),
+    )
+    forest = ClusterForest(
+        trees,
+        a["tree_of"].astype(np.int64),
+        int(manifest["bound"]),
+        dict(manifest.get("report", {})),
+    )
+    return HigherLayer(
+        graph,
+        a["states"].astype(np.float64),
+        a["q_hat"].astype(np.float64),
+        clustering,
+        (clustering,),
+        dict(manifest.get("curve", {})),
+        forest,
+        transition_log_probs(graph),
+    )
+
+
+def cached_higher_layer(
+    graph: MotionGraph,
+    clips: Sequence[Clip],
+    k: int | None = None,
+    ks: Sequence[int] = DEFAULT_KS,
+    seeding: str = "keyframes",
+    seed: int = 0,
+    bound_seconds: float = 15.0,
+    max_nodes: int = 4096,
+    max_states: int = 200_000,
+    cache_dir: str | Path | None = None,
+    rebuild: bool = False,
+) -> tuple[HigherLayer, Path, bool]:
+    """The higher layer of ``graph`` from the cache (beside the graphs), built and stored
+    when missing, stale or unreadable (with a warning naming the file). Returns
+    ``(layer, path, built)``."""
+    settings = {
+        "k": k,
+        "ks": list(ks),
+        "seeding": seeding,
+        "seed": seed,
+        "bound_seconds": bound_seconds,
+        "max_nodes": max_nodes,
+        "max_states": max_states,
+    }
+    key = _key(graph, settings)
+    folder = Path(cache_dir) if cache_dir is not None else graph_cache_dir()
+    path = folder / f"layer-{key}.npz"
+    if path.is_file() and not rebuild:
+        try:
+            return load_layer(path, graph), path, False
+        except LayerFileError as exc:
+            log.warning("rebuilding the higher layer: %s", exc)
+    layer = build_higher_layer(
+        graph, clips, k, ks, seeding, seed, bound_seconds, max_nodes, max_states
+    )
+    save_layer(layer, path, key)
+    return layer, path, True

@@ -1,0 +1,61 @@
+"""The higher layer cached beside the graph: round trip, stale and damaged files."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pytest
+
+from control.clusters import LayerFileError, cached_higher_layer, load_layer
+from control.graph import GraphOptions, build_graph
+
+
+@pytest.fixture(scope="module")
+def graph(walk_lib):
+    return build_graph(walk_lib.clips, GraphOptions(coords="relative", threshold=0.2))
+
+
+def test_a_cached_layer_is_the_built_one(graph, walk_lib, tmp_path) -> None:
+    built, path, was_built = cached_higher_layer(graph, walk_lib.clips, k=4, cache_dir=tmp_path)
+    assert was_built and path.is_file()
+    again, path2, was_built2 = cached_higher_layer(graph, walk_lib.clips, k=4, cache_dir=tmp_path)
+    assert path2 == path and not was_built2
+    assert np.array_equal(again.labels, built.labels)
+    assert np.array_equal(again.states, built.states)
+    assert np.array_equal(again.forest.tree_of, built.forest.tree_of)
+    assert len(again.forest.trees) == len(built.forest.trees)
+    for a, b in zip(again.forest.trees, built.forest.trees, strict=True):
+        assert a.root_frame == b.root_frame and a.truncated == b.truncated
+        assert np.array_equal(a.parent, b.parent) and np.array_equal(a.cluster, b.cluster)
+        assert np.array_equal(a.arrival, b.arrival)
+    f = int(np.flatnonzero(graph.in_scc)[0])
+    node = again.forest.tree(f).size - 1
+    m1, m2 = again.motion_to(f, node), built.motion_to(f, node)
+    assert (m1 is None) == (m2 is None)
+    if m1 is not None and m2 is not None:
+        assert np.array_equal(m1.frames, m2.frames)
+    # another setting is another file
+    _, path3, built3 = cached_higher_layer(graph, walk_lib.clips, k=5, cache_dir=tmp_path)
+    assert built3 and path3 != path
+
+
+def test_a_damaged_or_foreign_layer_is_rebuilt_with_a_warning(
+    graph, walk_lib, tmp_path, caplog
+) -> None:
+    _, path, _ = cached_higher_layer(graph, walk_lib.clips, k=4, cache_dir=tmp_path)
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    path.write_bytes(bytes(data))
+    with pytest.raises(LayerFileError, match=str(path)):
+        load_layer(path, graph)
+    with caplog.at_level(logging.WARNING):
+        layer, _, built = cached_higher_layer(graph, walk_lib.clips, k=4, cache_dir=tmp_path)
+    assert built and str(path) in caplog.text
+    assert load_layer(path, graph).clustering.k == layer.clustering.k
+    other = build_graph(walk_lib.clips, GraphOptions(coords="relative", threshold=0.3))
+    with pytest.raises(LayerFileError, match="another graph"):
+        load_layer(path, other)
+    path.write_text("not a zip")
+    with pytest.raises(LayerFileError, match=str(path)):
+        load_layer(path, graph)

@@ -1,0 +1,77 @@
+"""The avatar's direct blended jumps (the vision interface's motion-matching move)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from control.avatar import JUMP, Avatar
+from control.graph import (
+    GraphOptions,
+    MotionGraph,
+    build_graph,
+    joint_jumps,
+    lowest_foot,
+    pair_distances,
+    synthesize,
+)
+from control.motion import Library
+
+
+@pytest.fixture(scope="module")
+def graph(medium_lib: Library) -> MotionGraph:
+    return build_graph(medium_lib.clips, GraphOptions(coords="relative"))
+
+
+def test_a_jump_is_blended_like_a_transition(graph: MotionGraph, medium_lib: Library) -> None:
+    scc = np.flatnonzero(graph.in_scc)
+    a = Avatar(graph, medium_lib.clips, start=int(scc[10]), seed=0)
+    for _ in range(20):
+        a.step()
+    landing = np.flatnonzero(a.jump_costs.landing)
+    # far away in the library, and no transition leads there
+    target = int(landing[len(landing) // 2])
+    assert not np.any((graph.src == a.frame) & (graph.dst == target))
+    d, align = a.jump_costs(a.frame, np.array([target]))
+    d2, align2 = pair_distances(
+        a.jump_costs.features, np.array([a.frame]), np.array([target - 1]), graph.options.nu
+    )
+    assert d[0] == pytest.approx(d2[0]) and np.allclose(align, align2)
+    src = a.frame
+    a.take([src, target, target + 1, target + 2], [JUMP, -1, -1])
+    for _ in range(30):
+        a.step()
+    assert a.n_jumps == 1
+    s, t, al = a.jumps()
+    assert s.tolist() == [src] and t.tolist() == [target] and np.allclose(al[0], align[0])
+    frames, jumps, edges = a.history()
+    assert edges[-1] >= graph.n_edges or graph.n_edges in edges
+    syn = a.motion()
+    k = int(jumps[np.flatnonzero(edges == graph.n_edges)[0]])
+    assert syn.blended[k]
+    # the junction moves joints no more than the library's own largest per-frame change
+    lib_jumps = np.concatenate([joint_jumps(c.motion) for c in medium_lib.clips])
+    assert joint_jumps(syn.motion)[k - 1] <= np.percentile(lib_jumps, 99.9)
+    # the same motion as synthesize given the jump as an extra edge
+    again = synthesize(graph, medium_lib.clips, frames, jumps, edges, extra=a.jumps())
+    assert np.allclose(again.motion.quats, syn.motion.quats)
+    # the feet stay where the library's feet are
+    assert lowest_foot(syn.motion).max() <= max(
+        lowest_foot(c.motion).max() for c in medium_lib.clips
+    )
+
+
+def test_bad_jumps_are_refused(graph: MotionGraph, medium_lib: Library) -> None:
+    scc = np.flatnonzero(graph.in_scc)
+    a = Avatar(graph, medium_lib.clips, start=int(scc[0]), seed=0)
+    first = int(graph.clip_start[1])  # a clip's first frame has no predecessor to blend from
+    with pytest.raises(ValueError, match="not in the graph"):
+        a.take([a.frame, first], [JUMP])
+    with pytest.raises(ValueError, match="cannot be jumped to"):
+        a.jump_costs(a.frame, np.array([first]))
+    frames, jumps, edges = np.array([0, 5]), np.array([1]), np.array([graph.n_edges])
+    with pytest.raises(ValueError, match="edges must lie"):
+        synthesize(graph, medium_lib.clips, frames, jumps, edges)
+    extra = (np.array([0]), np.array([6]), np.zeros((1, 4)))
+    with pytest.raises(ValueError, match="does not lead"):
+        synthesize(graph, medium_lib.clips, frames, jumps, edges, extra=extra)

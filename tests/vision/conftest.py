@@ -1,0 +1,27 @@
+"""Fixtures shared by the vision tests: a small real library (13_30), its graph, layer
+and default bank, built once per session."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from control.clusters import HigherLayer, build_higher_layer
+from control.graph import GraphOptions, build_graph
+from control.motion import Library, load_library
+from silhouette_bank import Bank, BankSettings, build_bank
+from tests.conftest import REPO
+
+RECORDING = REPO / "recordings" / "13_29_first12s_160x120.mkv"
+
+
+@pytest.fixture(scope="session")
+def setup(
+    mocap: Path, tmp_path_factory: pytest.TempPathFactory
+) -> tuple[Library, HigherLayer, Bank]:
+    lib = load_library(mocap, clips=["13_30"], cache_dir=tmp_path_factory.mktemp("c"))
+    g = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.03))
+    layer = build_higher_layer(g, lib.clips, k=12)
+    bank = build_bank(lib.clips, BankSettings(), tmp_path_factory.mktemp("bank"), workers=1)
+    return lib, layer, bank

@@ -1,0 +1,111 @@
+"""Following with the defaults (issue 17): direct jumps, the floor, the cached layer."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from control.graph import off_floor_seconds
+from control.motion import load_library, read_bvh
+from tests.vision.conftest import RECORDING
+from vision._library import FLOOR_ABOVE, floor_level, on_the_floor
+from vision._matcher import MatchSettings
+from vision._perform import PerformSettings, perform
+from vision._record import RecordSettings, record_clip
+from vision._sources import VideoSource
+from vision.cli import main
+
+
+def test_clips_that_leave_the_floor_are_found(mocap: Path) -> None:
+    lib = load_library(mocap, clips=["01_08", "01_01", "13_30", "02_04"])
+    kept, out = on_the_floor(lib.clips)
+    # sitting on the climbing frame, dangling the legs: left out; jumps and a balance on
+    # one leg stay
+    assert set(out) == {"01_08"} and out["01_08"] > 2.0
+    assert {c.name for c in kept} == {"01_01", "13_30", "02_04"}
+    assert abs(floor_level(lib.clips)) < 0.1
+
+
+def test_the_defaults_keep_the_avatar_on_the_floor(mocap: Path, tmp_path: Path, capsys) -> None:
+    """A performer sitting up on something (01_08's climbing frame, which the avatar's
+    world lacks): the avatar must not follow them into the air."""
+    clip = load_library(mocap, fps=30, clips=["01_08"]).clip("01_08")
+    video = tmp_path / "sitting.mkv"
+    record_clip(clip, video, RecordSettings(), 180, 480)
+    out = tmp_path / "avatar.bvh"
+    args = ["perform", "--video", str(video), str(mocap), "--clips", "13_30", "--clips", "01_08"]
+    assert main([*args, "--out", str(out), "--log", str(tmp_path / "log.jsonl")]) == 0
+    err = capsys.readouterr().err
+    assert "01_08" in err and "leave the floor" in err
+    motion = read_bvh(out)
+    floor = floor_level(load_library(mocap, clips=["13_30"]).clips)
+    assert off_floor_seconds(motion, floor, FLOOR_ABOVE) <= 0.5
+
+
+def _agreement(decisions: list[dict], side: dict, labels_of, lag: float) -> float:
+    fps = float(side.get("fps", 30.0))
+    truth = side["labels"]
+    hits = []
+    for d in decisions:
+        k = round((d["t"] - lag) * fps)
+        if 0 <= k < len(truth) and truth[k] is not None:
+            hits.append(labels_of(d["clip"], d["clip_frame"]) == truth[k])
+    return float(np.mean(hits))
+
+
+def test_the_defaults_follow_a_recording_of_a_library_clip(
+    mocap: Path, tmp_path: Path, capsys
+) -> None:
+    """The committed recording (13_29, another body and camera) with 13_29 itself in the
+    library: the avatar does what the performer does."""
+    log = tmp_path / "log.jsonl"
+    args = [
+        "perform",
+        "--video",
+        str(RECORDING),
+        str(mocap),
+        "--clips",
+        "13_29",
+        "--clips",
+        "13_30",
+    ]
+    assert main([*args, "--log", str(log)]) == 0
+    decisions = [json.loads(line) for line in log.read_text().splitlines()]
+    side = json.loads(Path(f"{RECORDING}.json").read_text())
+    lib = load_library(mocap, clips=["13_29", "13_30"])
+
+    def label(clip: str, frame: int) -> str | None:
+        return lib.clip(clip).label_at(frame)
+
+    assert max(_agreement(decisions, side, label, lag) for lag in (0.0, 0.5, 1.0)) >= 0.8
+    assert any("jump" in d for d in decisions)
+    out = capsys.readouterr().out
+    assert "direct jumps" in out
+
+
+def test_jumps_keep_feet_on_the_floor(setup) -> None:
+    lib, layer, bank = setup
+    r = perform(VideoSource(RECORDING, silhouette=True), layer, bank, lib.clips, PerformSettings())
+    assert r.avatar.n_jumps >= 1
+    assert any("jump" in d for d in r.decisions)
+    syn = r.avatar.motion()
+    floor = floor_level(lib.clips)
+    assert off_floor_seconds(syn.motion, floor, FLOOR_ABOVE) <= 0.5
+    # without jumps: the paper's loop, no direct jump
+    r2 = perform(
+        VideoSource(RECORDING, silhouette=True),
+        layer,
+        bank,
+        lib.clips,
+        PerformSettings(match=MatchSettings(jumps=False)),
+    )
+    assert r2.avatar.n_jumps == 0 and not any("jump" in d for d in r2.decisions)
+
+
+@pytest.mark.parametrize("bad", [{"top": 0}, {"jump_ratio": 0.0}, {"blend_weight": -1.0}])
+def test_bad_jump_settings_are_refused(bad) -> None:
+    with pytest.raises(ValueError, match="top must be"):
+        MatchSettings(**bad)

@@ -1,0 +1,82 @@
+"""The fast whole-library window search against brute force."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from control.dtw import dtw, dtw_windows
+from silhouette_bank import silhouette_features
+from tests.vision.conftest import RECORDING
+from vision._index import WindowIndex
+from vision._matcher import Matcher, MatchSettings, best_window
+from vision._sources import VideoSource
+
+
+def _performer(bank) -> np.ndarray:
+    """Features of the committed recording (13_29: another take than the library's)."""
+    src = VideoSource(RECORDING, silhouette=True)
+    out = []
+    while (f := src.read()) is not None:
+        if f.index % 2 == 0:  # 30 -> 15 frames/s
+            out.append(
+                silhouette_features(
+                    np.asarray(f.mask, np.uint8), descriptor=bank.settings.descriptor
+                )
+            )
+    src.close()
+    return np.array(out)
+
+
+def test_dtw_windows_is_dtw_of_each_window(setup, rng) -> None:
+    _, layer, bank = setup
+    m = Matcher(layer, bank)
+    shape, centre, starts = m._global_tables()
+    s = rng.choice(starts, 20)
+    v = rng.integers(0, shape.shape[1], 20)
+    q = rng.normal(size=(m.n - 3, shape.shape[2] + 2))
+    got = dtw_windows(q, shape, centre, s, v, m.n, 4)
+    for k in range(20):
+        w = np.concatenate(
+            (shape[s[k] : s[k] + m.n, v[k]], centre[s[k] : s[k] + m.n, v[k]] - centre[s[k], v[k]]),
+            axis=1,
+        )
+        assert got[k] == pytest.approx(dtw(q, w, 4), rel=1e-12)
+    with pytest.raises(ValueError, match="inside"):
+        dtw_windows(q, shape, centre, np.array([shape.shape[0]]), np.array([0]), m.n, 4)
+
+
+@pytest.mark.parametrize("flat_below", [100_000, 0])  # a flat scan; an inverted file
+def test_index_finds_the_brute_force_best(setup, flat_below) -> None:
+    _, layer, bank = setup
+    m = Matcher(layer, bank, MatchSettings())
+    shape, centre, starts = m._global_tables()
+    index = WindowIndex(shape, centre, starts, m.n, flat_below=flat_below)
+    assert index.size == starts.size * shape.shape[1]
+    assert (index.nprobe == 0) == (flat_below > index.size)
+    perf = _performer(bank)
+    rng = np.random.default_rng(5)
+    hits = total = 0
+    for end in range(m.n, perf.shape[0] + 1, 2):
+        window = perf[end - m.n : end].copy()
+        if end % 6 == 0:  # some frames without a silhouette: a shorter query
+            window[rng.choice(m.n, 4, replace=False)] = np.nan
+        queries = m.queries(window)
+        assert queries is not None
+        c = index.search(queries, m.settings.band)[0][2]
+        b = best_window(queries, shape, centre, starts, m.n, m.settings.band)
+        total += 1
+        hits += c <= b[2] + 1e-9
+        assert c >= b[2] - 1e-9  # never better than the exact best: the cost is exact DTW
+    assert total >= 80 and hits >= 0.99 * total
+
+
+def test_index_top_windows_are_distinct_and_sorted(setup) -> None:
+    _, layer, bank = setup
+    m = Matcher(layer, bank)
+    perf = _performer(bank)
+    got = m.search(perf[:15], top=6)
+    assert 1 <= len(got) <= 6
+    assert len({g[0] for g in got}) == len(got)
+    assert [g[2] for g in got] == sorted(g[2] for g in got)
+    assert m.locate(perf[:15]) == (got[0][0], got[0][1] % 18, got[0][2])

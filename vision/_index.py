@@ -1,0 +1,183 @@
+"""A fast whole-library window search: a nearest-neighbour broad phase (faiss), exact DTW
+on its short list.
+
+Every window of ``length`` frames in every bank view is summarised by its piecewise
+aggregate (the mean of each of ``segments`` stretches of frames: Keogh's PAA, which DTW's
+band barely changes) of the same numbers DTW compares (mapped shape numbers, the centre
+relative to the window's first frame), reduced by PCA to ``dims`` numbers. A query (a
+performer's window, of any length: it is resampled to ``length`` frames) is summarised
+the same way; faiss returns the ``shortlist`` nearest summaries (an inverted-file index
+for large banks, exact for small ones), and exact DTW ranks them, with each window's two
+neighbours in time (the band lets DTW shift). ``tests/vision/test_index.py`` checks that
+the best window found is the brute-force best in >= 99% of queries.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from control.dtw import dtw_windows
+
+__all__ = ["WindowIndex"]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+def _bounds(length: int, segments: int) -> IntArray:
+    p = max(1, min(segments, length))
+    return np.round(np.linspace(0, length, p + 1)).astype(np.int64)
+
+
+def _summaries(
+    shape: FloatArray, centre: FloatArray, starts: IntArray, length: int, bounds: IntArray
+) -> NDArray[np.float32]:
+    """PAA summaries ``(len(starts), V, P * D)`` of the windows at ``starts``."""
+    v = shape.shape[1]
+    # prefix sums along time make each segment mean two lookups
+    feat = np.concatenate((shape, centre), axis=2)
+    csum = np.concatenate((np.zeros((1, v, feat.shape[2])), np.cumsum(feat, axis=0)))
+    parts = []
+    for a, b in itertools.pairwise(bounds):
+        mean = (csum[starts + b] - csum[starts + a]) / float(b - a)
+        mean[..., shape.shape[2] :] -= centre[starts]  # the centre relative to the start
+        parts.append(mean)
+    return np.concatenate(parts, axis=2).astype(np.float32)
+
+
+def _resample(query: FloatArray, length: int) -> FloatArray:
+    m = query.shape[0]
+    if m == length:
+        return query
+    t = np.linspace(0.0, m - 1.0, length)
+    lo = np.floor(t).astype(np.int64)
+    hi = np.minimum(lo + 1, m - 1)
+    w = (t - lo)[:, None]
+    return query[lo] * (1.0 - w) + query[hi] * w
+
+
+class WindowIndex:
+    """Nearest windows of a multi-view feature table to a query, by DTW.
+
+    Parameters
+    ----------
+    shape, centre : ``(N, V, S)`` and ``(N, V, 2)``, as ``vision._matcher.window_tables``
+        makes them (a window's centre is taken relative to its first frame).
+    starts : the frames a window may start at (each with ``length`` frames ahead).
+    length : window length in frames.
+    dims, segments : PCA dimensions and PAA segments of the summaries.
+    shortlist : summaries taken from the broad phase per query.
+    flat_below : fewer windows than this are scanned exactly (faiss ``IndexFlatL2``);
+        more go into an inverted-file index (``IndexIVFFlat``, ``nprobe`` lists searched).
+    """
+
+    def __init__(
+        self,
+        shape: FloatArray,
+        centre: FloatArray,
+        starts: IntArray,
+        length: int,
+        dims: int = 32,
+        segments: int = 5,
+        shortlist: int = 96,
+        seed: int = 0,
+        flat_below: int = 100_000,
+    ) -> None:
+        import faiss
+
+        if shape.ndim != 3 or centre.shape != (*shape.shape[:2], 2):
+            raise ValueError("shape must be (N, V, S) and centre (N, V, 2)")
+        starts = np.ascontiguousarray(starts, dtype=np.int64)
+        if starts.size and (starts.min() < 0 or starts.max() + length > shape.shape[0]):
+            raise ValueError("every window must lie inside the table")
+        self.shape = np.ascontiguousarray(shape, dtype=np.float64)
+        self.centre = np.ascontiguousarray(centre, dtype=np.float64)
+        self.starts = starts
+        self.length = int(length)
+        self.n_views = shape.shape[1]
+        self.shortlist = int(shortlist)
+        self.bounds = _bounds(self.length, segments)
+        self._ok = np.zeros(shape.shape[0], dtype=bool)
+        self._ok[starts] = True
+        faiss.omp_set_num_threads(1)  # one core, and the same index on every run
+        x = _summaries(self.shape, self.centre, starts, self.length, self.bounds)
+        x = x.reshape(-1, x.shape[2])  # row r: start r // V, view r % V
+        rng = np.random.default_rng(seed)
+        sample = x[rng.choice(x.shape[0], min(x.shape[0], 50_000), replace=False)]
+        self.mean = sample.mean(axis=0)
+        k = max(1, min(dims, x.shape[1], sample.shape[0]))
+        _, _, vt = np.linalg.svd(sample - self.mean, full_matrices=False)
+        self.basis = np.ascontiguousarray(vt[:k].T, dtype=np.float32)
+        z = np.ascontiguousarray((x - self.mean) @ self.basis, dtype=np.float32)
+        n = z.shape[0]
+        self.index: Any
+        if n < flat_below:  # exact broad phase: a flat scan is fast enough
+            self.index = faiss.IndexFlatL2(k)
+            self.nprobe = 0
+        else:
+            nlist = int(min(4096, max(16, 2 * math.sqrt(n))))
+            quantizer = faiss.IndexFlatL2(k)
+            self.index = faiss.IndexIVFFlat(quantizer, k, nlist)
+            train = z[rng.choice(n, min(n, 64 * nlist), replace=False)]
+            self.index.cp.seed = seed
+            self.index.train(train)
+            self.nprobe = max(32, nlist // 8)  # about 1/8 of the windows are scanned
+            self.index.nprobe = self.nprobe
+        self.index.add(z)
+
+    @property
+    def size(self) -> int:
+        """Windows indexed (starts x views)."""
+        return int(self.index.ntotal)
+
+    def summary(self, query: FloatArray) -> NDArray[np.float32]:
+        """The PCA'd PAA summary of a query ``(m, S + 2)``."""
+        q = _resample(np.asarray(query, dtype=np.float64), self.length)
+        s = q.shape[1] - 2
+        csum = np.concatenate((np.zeros((1, q.shape[1])), np.cumsum(q, axis=0)))
+        parts = []
+        for a, b in itertools.pairwise(self.bounds):
+            mean = (csum[b] - csum[a]) / float(b - a)
+            mean[s:] -= q[0, s:]
+            parts.append(mean)
+        x = np.concatenate(parts).astype(np.float32)
+        return np.ascontiguousarray(((x - self.mean) @ self.basis)[None], dtype=np.float32)
+
+    def shortlisted(self, query: FloatArray) -> tuple[IntArray, IntArray]:
+        """``(starts, views)`` of the broad phase's windows for ``query``, each with its
+        neighbours one frame earlier and later (where those may start a window)."""
+        _, ids = self.index.search(self.summary(query), self.shortlist)
+        ids = ids[0][ids[0] >= 0]
+        s = self.starts[ids // self.n_views]
+        v = ids % self.n_views
+        s = np.concatenate((s, s - 1, s + 1))
+        v = np.concatenate((v, v, v))
+        keep = (s >= 0) & (s < self._ok.size)
+        s, v = s[keep], v[keep]
+        keep = self._ok[s]
+        key = np.unique(s[keep] * self.n_views + v[keep])
+        return (key // self.n_views).astype(np.int64), (key % self.n_views).astype(np.int64)
+
+    def search(
+        self, queries: list[FloatArray], band: int, top: int = 1
+    ) -> list[tuple[int, int, float]]:
+        """The ``top`` windows ``(start, view, cost)`` nearest any of ``queries`` by
+        exact DTW (band ``band``) among the broad phase's short lists, cheapest first,
+        at most one per start."""
+        best: dict[int, tuple[int, int, float]] = {}
+        for q in queries:
+            q = np.ascontiguousarray(q, dtype=np.float64)
+            s, v = self.shortlisted(q)
+            if s.size == 0:
+                continue
+            cost = dtw_windows(q, self.shape, self.centre, s, v, self.length, band)
+            for i in np.argsort(cost, kind="stable")[: max(top * 4, top)]:
+                si = int(s[i])
+                if si not in best or cost[i] < best[si][2]:
+                    best[si] = (si, int(v[i]), float(cost[i]))
+        return sorted(best.values(), key=lambda r: (r[2], r[0]))[:top]
