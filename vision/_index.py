@@ -126,7 +126,7 @@ class WindowIndex:
             train = z[rng.choice(n, min(n, 64 * nlist), replace=False)]
             self.index.cp.seed = seed
             self.index.train(train)
-            self.nprobe = max(32, nlist // 8)  # about 1/8 of the windows are scanned
+            self.nprobe = max(32, nlist // 32)  # 1/32 of the lists (and at least 32) are scanned
             self.index.nprobe = self.nprobe
         self.index.add(z)
 

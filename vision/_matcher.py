@@ -492,12 +492,27 @@ class Matcher:
 
     def own_cost(self, queries: list[FloatArray], recent: IntArray) -> float:
         """DTW cost of the avatar's own last frames ``recent`` (graph frames shown, best
-        view) against the performer: how well the avatar follows now (``inf`` before it
-        has shown a whole window)."""
+        view) against the performer: how well the avatar follows now. Before it has
+        shown a whole window (it has just started), the library frames that lead to its
+        first one stand in for the rest; ``inf`` where its clip has none."""
+        recent = self._lead_in(recent)
         if recent.size < self.n:
             return float("inf")
         refs = self._bank_sequences(recent[-self.n :])
         return float(min(dtw_batch(q, refs, window=self.settings.band).min() for q in queries))
+
+    def _lead_in(self, recent: IntArray) -> IntArray:
+        """``recent``, preceded by the frames that play on into its first one, up to a
+        window in all."""
+        need = self.n - recent.size
+        if need <= 0 or recent.size == 0:
+            return recent
+        f = int(recent[0])
+        lead: list[int] = []
+        while len(lead) < need and f > 0 and self.plays[f - 1]:
+            f -= 1
+            lead.append(f)
+        return np.concatenate((np.array(lead[::-1], dtype=np.int64), recent))
 
     def jump(
         self,
@@ -541,7 +556,8 @@ class Matcher:
         # at its clip's end the avatar must go somewhere: the best jump, whatever it costs
         own = self.own_cost(queries, recent) if self.plays[frame] else float("inf")
         m = max(1, round(st.hold * self.graph.fps))
-        settled = recent.size < m or bool(np.all(np.diff(recent[-m:]) == 1))
+        lead = self._lead_in(recent)
+        settled = lead.size < m or bool(np.all(np.diff(lead[-m:]) == 1))
         if not settled and np.isfinite(own):
             self.last_own = own
             self.last_jump = (-1, float("inf"))
