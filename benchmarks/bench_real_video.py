@@ -17,7 +17,8 @@ Usage: python -m benchmarks.bench_real_video [--videos DIR] [--labels CSV]
   times in seconds; ``file`` relative to ``--videos``; default
   ``benchmarks/videos/shared_labels.csv``, our own labels of the shared clips): each
   video is replayed through ``mimic perform``'s loop (person segmentation) against the
-  library (default: the clips that carry action labels, 13_29 and 13_30), and at every
+  library (default: every shared clip that stays on the floor, as ``mimic perform``
+  takes it, with its defaults: the pose descriptor with MediaPipe), and at every
   decision the avatar's current frame's label is compared with the video's label
   ``lag`` seconds earlier. Agreement per video and overall, for lags 0-3 s, and the
   loop's frames per second with person segmentation: replayed (waiting for every global
@@ -39,7 +40,7 @@ import cv2
 import numpy as np
 
 from benchmarks._report import machine, save
-from control.clusters import build_higher_layer
+from control.clusters import cached_higher_layer
 from control.graph import GraphOptions, build_graph
 from control.motion import default_library_path, load_library
 from silhouette_bank import (
@@ -49,9 +50,10 @@ from silhouette_bank import (
     ensure_bank,
     robust_settings,
 )
+from vision._library import on_the_floor
 from vision._matcher import MatchSettings
 from vision._perform import PerformSettings, perform
-from vision._person import PersonSegmenter
+from vision._person import PersonSegmenter, person_segmentation_available
 from vision._segment import Segmenter
 from vision._sources import VideoSource
 
@@ -190,14 +192,19 @@ def agreement(
 ) -> dict[str, Any]:
     rows = read_labels(labels)
     lib = load_library(root, clips=list(clips) if clips else None)
-    if clips is None:  # the clips that carry action labels
-        keep = [c.name for c in lib.clips if (c.labels >= 0).any()]
-        lib = load_library(root, clips=keep)
-    graph = build_graph(lib.clips, options)
-    # trees need reach no further than the matcher's look-ahead
-    layer = build_higher_layer(graph, lib.clips, bound_seconds=MatchSettings().lookahead)
+    # as mimic perform does by default: the clips that stay on the floor
+    train, _ = on_the_floor([c for c in lib.clips if c.motion.skeleton.n_joints == 31])
+    graph = build_graph(train, options)
+    # trees need reach no further than the matcher's look-ahead (as perform builds them)
+    layer, _, _ = cached_higher_layer(
+        graph, train, bound_seconds=max(2.0, MatchSettings().lookahead + 0.5)
+    )
+    if descriptor == "auto":
+        descriptor = "pose" if person_segmentation_available() else DEFAULT_DESCRIPTOR
     base = BankSettings(descriptor=descriptor)
-    bank, _ = ensure_bank(lib.clips, robust_settings(base) if variants else base)
+    use_variants = variants and descriptor != "pose"
+    bank, _ = ensure_bank(train, robust_settings(base) if use_variants else base)
+    segmentation = "auto" if descriptor == "pose" else "selfie"
     by_name = {c.name: c for c in lib.clips}
     names = sorted({r[0] for r in rows})
     per_video: dict[str, Any] = {}
@@ -209,7 +216,7 @@ def agreement(
         spans = [(a, b, lab.lower()) for f, a, b, lab in rows if f == name]
         source = VideoSource(path)
         t0 = time.perf_counter()
-        result = perform(source, layer, bank, lib.clips, PerformSettings(segmentation="selfie"))
+        result = perform(source, layer, bank, train, PerformSettings(segmentation=segmentation))
         wall = time.perf_counter() - t0
         source.close()
         # the loop as a camera runs it: relocation's search in a thread (the agreement
@@ -220,16 +227,14 @@ def agreement(
             source,
             layer,
             bank,
-            lib.clips,
-            PerformSettings(segmentation="selfie", background_search=True),
+            train,
+            PerformSettings(segmentation=segmentation, background_search=True),
         )
         live_wall = time.perf_counter() - t0
         source.close()
         hits: dict[float, list[bool]] = {lag: [] for lag in LAGS}
         for d in result.decisions:
-            clip = by_name[d["clip"]]
-            k = int(clip.labels[d["clip_frame"]])
-            avatar = clip.label_names[k].lower() if k >= 0 else ""
+            avatar = (by_name[d["clip"]].label_at(d["clip_frame"]) or "").lower()
             for lag in LAGS:
                 t = d["t"] - lag
                 truth = [lab for a, b, lab in spans if a <= t < b]
@@ -250,7 +255,7 @@ def agreement(
     overall = {str(lag): round(float(np.mean(h)), 3) if h else None for lag, h in pooled.items()}
     return {
         "labels": str(labels),
-        "library": [c.name for c in lib.clips],
+        "library": [c.name for c in train],
         "frames": graph.n_frames,
         "graph": {
             "coords": options.coords,
@@ -278,18 +283,14 @@ def main() -> None:
     ap.add_argument("--no-segmentation", action="store_true", help="skip the mask sheets")
     ap.add_argument("--coords", default="relative", choices=("fixed", "relative"))
     ap.add_argument(
-        "--sigma-scale",
-        type=float,
-        default=6.0,
-        help="graph sigma scale (default 6: two exercise clips need loose transitions to "
-        "form one component; the default graph's holds only knee raises)",
+        "--sigma-scale", type=float, default=GraphOptions.sigma_scale, help="graph sigma scale"
     )
     ap.add_argument("--variants", action="store_true", help="bank with other bodies, shadows")
     ap.add_argument(
         "--descriptor",
-        default=DEFAULT_DESCRIPTOR,
-        choices=[d for d in DESCRIPTORS if d != "pose"],  # (pose: bench_recognition)
-        help="silhouette descriptor",
+        default="auto",
+        choices=("auto", *DESCRIPTORS),
+        help="auto (default, as mimic perform): pose with MediaPipe, else multigrid",
     )
     ap.add_argument("--out", default="benchmarks/results/real_video.json")
     args = ap.parse_args()
