@@ -548,21 +548,22 @@ class Matcher:
         if not ok.any():
             return None
         idx = np.flatnonzero(ok)
-        dist, _ = costs(frame, target[idx])
         match = np.array([got[i][2] for i in idx])
-        # the blend's share saturates: a far jump costs at most ``blend_weight`` more
-        score = match * (1.0 + st.blend_weight * dist / (dist + self.d_max))
-        b = int(np.argmin(score))
         # at its clip's end the avatar must go somewhere: the best jump, whatever it costs
         own = self.own_cost(queries, recent) if self.plays[frame] else float("inf")
+        self.last_own = own
+        self.last_jump = (-1, float("inf"))
         m = max(1, round(st.hold * self.graph.fps))
         lead = self._lead_in(recent)
         settled = lead.size < m or bool(np.all(np.diff(lead[-m:]) == 1))
-        if not settled and np.isfinite(own):
-            self.last_own = own
-            self.last_jump = (-1, float("inf"))
+        # the blend only adds to a match's cost: when even the best match cannot win,
+        # the (slower) distances are not needed
+        if (not settled or not match.min() < st.jump_ratio * own) and np.isfinite(own):
             return None
-        self.last_own = own
+        dist, _ = costs(frame, target[idx])
+        # the blend's share saturates: a far jump costs at most ``blend_weight`` more
+        score = match * (1.0 + st.blend_weight * dist / (dist + self.d_max))
+        b = int(np.argmin(score))
         self.last_jump = (int(target[idx[b]]), float(score[b]))
         if not score[b] < st.jump_ratio * own:
             return None

@@ -135,6 +135,10 @@ def _pair_kernel(
         out_d[t] = s + best
 
 
+#: the same kernel on one thread (``prange`` runs as ``range``)
+_pair_kernel_serial = numba.njit(cache=True)(_pair_kernel.py_func)
+
+
 def pair_distances(
     feat: FrameFeatures,
     a: IntArray,
@@ -173,7 +177,10 @@ def pair_distances(
         raise ValueError("block must be positive and rise not negative")
     out_d = np.empty(a.size)
     out_align = np.empty((a.size, 4))
-    _pair_kernel(
+    # a few pairs (the vision interface's jumps, every decision): threads cost more than
+    # they save
+    kernel = _pair_kernel if a.size >= 256 else _pair_kernel_serial
+    kernel(
         a,
         b,
         feat.joint_q,

@@ -218,3 +218,15 @@ def test_blocked_search_finds_every_close_pair(walk_lib: Library, coords: str) -
     truth = {(int(i), int(j)) for i, j, v in zip(a, b, d, strict=True) if v <= dmax and i != j}
     assert truth <= found
     assert len(found) < 0.2 * n * n  # and it actually prunes
+
+
+@pytest.mark.parametrize("coords", ["fixed", "relative", "terrain"])
+def test_a_few_pairs_match_a_large_batch(walk_lib: Library, coords: str) -> None:
+    """Under 256 pairs the kernel runs on one thread: the same numbers."""
+    feat = frame_features(walk_lib.clips, coords)
+    rng = np.random.default_rng(4)
+    a = rng.integers(0, feat.n, 300)
+    b = rng.integers(0, feat.n, 300)
+    d_all, al_all = pair_distances(feat, a, b, 0.01)
+    d_few, al_few = pair_distances(feat, a[:8], b[:8], 0.01)
+    assert np.array_equal(d_few, d_all[:8]) and np.array_equal(al_few, al_all[:8])

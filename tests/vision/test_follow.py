@@ -81,7 +81,6 @@ def test_the_defaults_follow_a_recording_of_a_library_clip(
         return lib.clip(clip).label_at(frame)
 
     assert max(_agreement(decisions, side, label, lag) for lag in (0.0, 0.5, 1.0)) >= 0.8
-    assert any("jump" in d for d in decisions)
     out = capsys.readouterr().out
     assert "direct jumps" in out
 
