@@ -2,8 +2,12 @@
 
 Media time drives everything (a file runs as fast as it can unless paced; a camera runs
 on the clock). The performer's features are sampled into a buffer at the library's rate;
-every ``decide_every`` seconds the matcher picks the best candidate path from the avatar's
-current frame and the avatar takes it (blending into it). Without a usable silhouette
+every ``decide_every`` seconds the matcher decides from the avatar's current frame and
+the avatar takes what it chose (blending into it). With ``MatchSettings.jumps`` (the
+default) that is motion matching: a direct blended jump into the frame after one of the
+library's best windows when it fits the performer clearly better than the avatar's own
+last second, else playing on; without, the paper's best cluster path, and now and then
+the way through the graph to a better window (relocation). Without a usable silhouette
 (nobody in view, a dark frame, a camera that is reconnecting) the avatar simply keeps
 moving: along its current path, then on its own.
 """
@@ -244,6 +248,8 @@ def perform(
                 else:
                     avatar.take(d.frames, d.edges)
                     view = d.view if d.view >= 0 else view
+                    if "plays_on" in d.extra:
+                        entry["plays_on"] = True
                     if "jump" in d.extra:
                         entry.update(
                             jump=int(d.extra["jump"]),
@@ -256,7 +262,7 @@ def perform(
                         decision=[int(c) for c in d.cluster_path],
                         cost=round(d.cost, 4),
                         runner_up=round(d.runner_up, 4) if np.isfinite(d.runner_up) else None,
-                        view=d.view,
+                        view=view,
                         candidates=d.candidates,
                         latency_ms=round(d.latency_ms, 3),
                     )
