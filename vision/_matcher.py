@@ -275,6 +275,10 @@ class Matcher:
         self._tables: tuple[FloatArray, FloatArray, IntArray] | None = None
         self._index: WindowIndex | None = None
         self._runs: IntArray | None = None
+        #: frames the avatar must have played on before it may jump again; ``decide``
+        #: needs at least this many (and a window's) ``recent`` frames
+        self.hold_frames = max(1, round(self.settings.hold * self.graph.fps))
+        self.recent_frames = max(self.n, self.hold_frames + 1)
         #: the avatar's own recent cost at the last ``jump`` (``inf`` before a window),
         #: and the best jump's target and score then
         self.last_own = float("inf")
@@ -502,9 +506,9 @@ class Matcher:
         return float(min(dtw_batch(q, refs, window=self.settings.band).min() for q in queries))
 
     def _lead_in(self, recent: IntArray) -> IntArray:
-        """``recent``, preceded by the frames that play on into its first one, up to a
-        window in all."""
-        need = self.n - recent.size
+        """``recent``, preceded by the frames that play on into its first one, up to
+        ``recent_frames`` in all."""
+        need = self.recent_frames - recent.size
         if need <= 0 or recent.size == 0:
             return recent
         f = int(recent[0])
@@ -553,7 +557,7 @@ class Matcher:
         own = self.own_cost(queries, recent) if self.plays[frame] else float("inf")
         self.last_own = own
         self.last_jump = (-1, float("inf"))
-        m = max(1, round(st.hold * self.graph.fps))
+        m = self.hold_frames
         lead = self._lead_in(recent)
         settled = lead.size < m or bool(np.all(np.diff(lead[-m:]) == 1))
         # the blend only adds to a match's cost: when even the best match cannot win,

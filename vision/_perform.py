@@ -195,7 +195,7 @@ def perform(
                         matcher.decide(
                             avatar.frame,
                             np.array(buffer),
-                            avatar.recent(matcher.n),
+                            avatar.recent(matcher.recent_frames),
                             avatar.jump_costs,
                         )
                         if jumps
