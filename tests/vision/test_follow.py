@@ -108,3 +108,12 @@ def test_jumps_keep_feet_on_the_floor(setup) -> None:
 def test_bad_jump_settings_are_refused(bad) -> None:
     with pytest.raises(ValueError, match="top must be"):
         MatchSettings(**bad)
+
+
+def test_the_default_library_does_not_float(mocap: Path, tmp_path: Path) -> None:
+    """``mimic perform`` with no flags on the whole shared library: before issue 17 the
+    avatar played the playground's climbs here (both feet 0.3-0.8 m up for seconds)."""
+    out = tmp_path / "avatar.bvh"
+    assert main(["perform", "--video", str(RECORDING), str(mocap), "--out", str(out)]) == 0
+    motion = read_bvh(out)
+    assert off_floor_seconds(motion, floor_level(load_library(mocap).clips), FLOOR_ABOVE) <= 0.5
