@@ -260,7 +260,7 @@ def perform(
                         )
                     entry.update(
                         decision=[int(c) for c in d.cluster_path],
-                        cost=round(d.cost, 4),
+                        cost=round(d.cost, 4) if np.isfinite(d.cost) else None,
                         runner_up=round(d.runner_up, 4) if np.isfinite(d.runner_up) else None,
                         view=view,
                         candidates=d.candidates,
