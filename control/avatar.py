@@ -7,10 +7,10 @@ can be produced at any time, and it tracks the root transform that its transitio
 have composed (fixed coordinates: the identity).
 
 Besides the graph's transitions it can take a *direct blended jump* (``JUMP`` in a
-path) to any frame of the component: the motion-matching move of the vision interface
-(Clavet 2016). A jump is blended exactly like a transition, with the alignment and
-distance the graph's own rule gives the pair (``jump_costs``), so it may go where no
-transition was kept.
+path) to any frame of the component (with ``anywhere``, of the library): the
+motion-matching move of the vision interface (Clavet 2016). A jump is blended exactly
+like a transition, with the alignment and distance the graph's own rule gives the pair
+(``jump_costs``), so it may go where no transition was kept.
 """
 
 from __future__ import annotations
