@@ -48,6 +48,7 @@ class JumpCosts:
 
     def __init__(self, graph: MotionGraph, clips: Sequence[Clip], anywhere: bool = False) -> None:
         self.graph = graph
+        self.anywhere = anywhere
         by_name = {c.name: c for c in clips}
         self._clips = [by_name[n] for n in graph.clip_names]
         self._feat: FrameFeatures | None = None
@@ -95,6 +96,8 @@ class Avatar:
     anywhere : direct jumps (and ``start``) may go to any frame of the library, not only
         the graph's component; outside it the avatar plays on, and where its clip ends
         it jumps to the component frame nearest by the graph's distance.
+    jump_costs : the ``JumpCosts`` of ``graph`` to use (shared by avatars of one graph,
+        so its frame features are computed once); by default its own.
     """
 
     def __init__(
@@ -106,6 +109,7 @@ class Avatar:
         blend: float = 1.0,
         ik: bool = True,
         anywhere: bool = False,
+        jump_costs: JumpCosts | None = None,
     ) -> None:
         self.graph = graph
         self.clips = list(clips)
@@ -134,7 +138,11 @@ class Avatar:
         self._next[graph.clip_start[1:] - 1] = False
         self.anywhere = anywhere
         self._blend_frames = max(1, round(blend * graph.fps))
-        self.jump_costs = JumpCosts(graph, clips, anywhere)
+        if jump_costs is not None and (
+            jump_costs.graph is not graph or jump_costs.anywhere != anywhere
+        ):
+            raise ValueError("jump_costs belong to another graph, or another anywhere")
+        self.jump_costs = jump_costs or JumpCosts(graph, clips, anywhere)
         # direct jumps taken: edge graph.n_edges + k is jump k
         self._jump_src: list[int] = []
         self._jump_dst: list[int] = []

@@ -274,15 +274,14 @@ class Matcher:
         self._cache: dict[tuple[int, int], tuple[IntArray, IntArray] | None] = {}
         self._tables: tuple[FloatArray, FloatArray, IntArray] | None = None
         self._index: WindowIndex | None = None
-        self._runs: IntArray | None = None
+        #: the run of playback each frame belongs to (a run breaks where playing on cannot)
+        self._runs = np.cumsum(np.concatenate(([0], ~self.plays[:-1])))
         #: frames the avatar must have played on before it may jump again; ``decide``
         #: needs at least this many (and a window's) ``recent`` frames
         self.hold_frames = max(1, round(self.settings.hold * self.graph.fps))
         self.recent_frames = max(self.n, self.hold_frames + 1)
-        #: the avatar's own recent cost at the last ``jump`` (``inf`` before a window),
-        #: and the best jump's target and score then
+        #: the avatar's own recent cost at the last ``jump`` (``inf`` before a window)
         self.last_own = float("inf")
-        self.last_jump = (-1, float("inf"))
         d_max = layer.graph.report.get("max_distance") if layer.graph.report else None
         self.d_max = float(d_max) if d_max else 1.0
 
@@ -310,11 +309,9 @@ class Matcher:
             # with jumps the avatar reaches any frame; without, only the component
             n = self.graph.n_frames
             ok = np.ones(n, dtype=bool) if self.settings.jumps else self.graph.in_scc.copy()
-            runs = np.cumsum(np.concatenate(([0], ~self.plays)))  # breaks before each frame
-            n = self.graph.n_frames
             end = np.arange(n) + self.n - 1
             ok &= end < n
-            ok[ok] &= runs[end[ok]] == runs[np.flatnonzero(ok)]
+            ok[ok] &= self._runs[end[ok]] == self._runs[np.flatnonzero(ok)]
             self._tables = (shape, centre, np.flatnonzero(ok).astype(np.int64))
         return self._tables
 
@@ -538,7 +535,6 @@ class Matcher:
                 return None
         got = self.index().search(queries, st.band, st.top)
         self.last_own = float("inf")
-        self.last_jump = (-1, float("inf"))
         if not got or self._rejected(got[0][2], queries[0]):
             return None  # (why says so when the best was rejected)
         self.why = ""
@@ -556,7 +552,6 @@ class Matcher:
         # at its clip's end the avatar must go somewhere: the best jump, whatever it costs
         own = self.own_cost(queries, recent) if self.plays[frame] else float("inf")
         self.last_own = own
-        self.last_jump = (-1, float("inf"))
         m = self.hold_frames
         lead = self._lead_in(recent)
         settled = lead.size < m or bool(np.all(np.diff(lead[-m:]) == 1))
@@ -568,17 +563,14 @@ class Matcher:
         # the blend's share saturates: a far jump costs at most ``blend_weight`` more
         score = match * (1.0 + st.blend_weight * dist / (dist + self.d_max))
         b = int(np.argmin(score))
-        self.last_jump = (int(target[idx[b]]), float(score[b]))
         if not score[b] < st.jump_ratio * own:
             return None
         i = int(idx[b])
         j = int(target[i])
-        frames = [frame, j]
-        while len(frames) <= self.n and self.plays[frames[-1]]:
-            frames.append(frames[-1] + 1)
+        frames = np.concatenate(([frame], self._playback(j)))
         return Decision(
-            frames=np.array(frames, dtype=np.int64),
-            edges=np.array([JUMP] + [-1] * (len(frames) - 2), dtype=np.int64),
+            frames=frames,
+            edges=np.array([JUMP] + [-1] * (frames.size - 2), dtype=np.int64),
             cluster_path=np.zeros(0, dtype=np.int64),
             cost=float(match[b]),
             runner_up=float(np.sort(score)[1]) if score.size > 1 else float("inf"),
@@ -588,10 +580,15 @@ class Matcher:
             extra={"jump": j, "own": own, "blend": float(dist[b])},
         )
 
+    def _playback(self, frame: int) -> IntArray:
+        """``frame`` and up to a window of frames playing on from it."""
+        out = [frame]
+        while len(out) <= self.n and self.plays[out[-1]]:
+            out.append(out[-1] + 1)
+        return np.array(out, dtype=np.int64)
+
     def _same_run(self, frame: int, target: IntArray) -> NDArray[np.bool_]:
         """Whether ``frame`` plays on to each of ``target`` (or back from it)."""
-        if self._runs is None:
-            self._runs = np.cumsum(np.concatenate(([0], ~self.plays[:-1])))
         return self._runs[np.clip(target, 0, self.graph.n_frames - 1)] == self._runs[frame]
 
     def decide(
@@ -616,14 +613,12 @@ class Matcher:
                 return dataclasses.replace(j, latency_ms=(time.perf_counter() - t0) * 1e3)
             if self.why:  # the best window was rejected: nothing real matches
                 return None
-            on = [frame]
-            while len(on) <= self.n and self.plays[on[-1]]:
-                on.append(on[-1] + 1)
+            on = self._playback(frame)
             lee = self.settings.cluster_paths and self.layer.forest.tree_of[frame] >= 0
-            if not lee and len(on) > 1:
+            if not lee and on.size > 1:
                 return Decision(
-                    frames=np.array(on, dtype=np.int64),
-                    edges=np.full(len(on) - 1, -1, dtype=np.int64),
+                    frames=on,
+                    edges=np.full(on.size - 1, -1, dtype=np.int64),
                     cluster_path=np.zeros(0, dtype=np.int64),
                     cost=self.last_own,
                     runner_up=float("inf"),

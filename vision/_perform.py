@@ -26,7 +26,7 @@ from typing import IO, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from control.avatar import Avatar
+from control.avatar import Avatar, JumpCosts
 from control.clusters import HigherLayer
 from control.motion import Clip
 from silhouette_bank import Bank, silhouette_features
@@ -83,7 +83,12 @@ def perform(
     graph = layer.graph
     matcher = Matcher(layer, bank, settings.match)
     jumps = settings.match.jumps  # motion matching: relocation is every decision's
-    avatar = Avatar(graph, clips, start=start, seed=seed, anywhere=jumps)
+    # one set of jump costs for every avatar of the run, its frame features computed
+    # before the first frame rather than at the first jump
+    costs = JumpCosts(graph, clips, anywhere=jumps)
+    if jumps:
+        _ = costs.features
+    avatar = Avatar(graph, clips, start=start, seed=seed, anywhere=jumps, jump_costs=costs)
     segmenter: Any = None
     landmarks = matcher.desc.kind == "pose"
     reader = PoseReader() if landmarks else None
@@ -183,7 +188,9 @@ def perform(
                         last_relocate = t  # that was this second's global search
                         # with jumps, where the performer is now: the window's last frame
                         at = got[0] + matcher.n - 1 if jumps else got[0]
-                        avatar = Avatar(graph, clips, start=at, seed=seed, anywhere=jumps)
+                        avatar = Avatar(
+                            graph, clips, start=at, seed=seed, anywhere=jumps, jump_costs=costs
+                        )
                         masks, views, view = [latest_mask if keep_masks else None], [got[1]], got[1]
                         entry.update(frame=avatar.frame, located=round(got[2], 4))
                         entry["clip"], entry["clip_frame"] = graph.locate(avatar.frame)
