@@ -23,7 +23,15 @@ from .graph import (
     sole_speed,
     synthesize,
 )
-from .motion import Library, load_library, write_bvh
+from .motion import (
+    EMBEDDED_CLIPS,
+    EMBEDDED_LIBRARY,
+    EMBEDDED_MAX_BYTES,
+    Library,
+    embed_library,
+    load_library,
+    write_bvh,
+)
 
 __all__ = [
     "add_graph_commands",
@@ -59,6 +67,34 @@ def add_library_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
     info.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
     info.add_argument("--json", action="store_true", help="print the summary as JSON")
     info.set_defaults(func=_info)
+    embed = lib_sub.add_parser(
+        "embed",
+        help="convert a few clips into the package's embedded default library",
+        description=(
+            "Convert clips of a full library into compact motion arrays at 30 frames/s, "
+            "with their labels and the CMU acknowledgement: the library used when neither "
+            "$MIMIC_MOCAP nor ../shared/mocap exists."
+        ),
+    )
+    embed.add_argument("dir", help="the full library folder (e.g. ../shared/mocap)")
+    embed.add_argument(
+        "--out", default=str(EMBEDDED_LIBRARY), help=f"output folder (default {EMBEDDED_LIBRARY})"
+    )
+    embed.add_argument(
+        "--clips",
+        default=",".join(EMBEDDED_CLIPS),
+        help=f"comma-separated clip names (default {','.join(EMBEDDED_CLIPS)})",
+    )
+    embed.set_defaults(func=_embed)
+
+
+def _embed(args: argparse.Namespace) -> int:
+    sizes = embed_library(args.dir, args.out, [c for c in args.clips.split(",") if c])
+    total = sum(sizes.values())
+    print(f"wrote {len(sizes)} files to {args.out}: {total / 1e6:.2f} MB")
+    if total > EMBEDDED_MAX_BYTES:
+        print(f"warning: over the {EMBEDDED_MAX_BYTES / 1e6:g} MB the embedded library may use")
+    return 0
 
 
 def library_summary(library: Library) -> dict[str, Any]:

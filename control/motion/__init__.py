@@ -5,9 +5,16 @@ glossary and ``_types`` for the joint conventions.
 """
 
 from ._amc import read_amc
+from ._arrays import read_motion_arrays, write_motion_arrays
 from ._asf import AsfSkeleton, read_asf
 from ._bvh import UNITS, read_bvh, write_bvh
 from ._contacts import FEET, Contacts, contact_events, detect_contacts, foot_points
+from ._embedded import (
+    EMBEDDED_CLIPS,
+    EMBEDDED_LIBRARY,
+    EMBEDDED_MAX_BYTES,
+    embed_library,
+)
 from ._errors import MotionFormatError
 from ._fk import Pose, forward_kinematics, rest_positions
 from ._library import (
@@ -24,6 +31,9 @@ from ._quat import euler_to_q, q_to_euler, q_to_R, qconj, qexp, qlog, qmul, qnor
 from ._types import Motion, Skeleton
 
 __all__ = [
+    "EMBEDDED_CLIPS",
+    "EMBEDDED_LIBRARY",
+    "EMBEDDED_MAX_BYTES",
     "FEET",
     "ROLE_ALIASES",
     "UNITS",
@@ -40,6 +50,7 @@ __all__ = [
     "default_cache_dir",
     "default_library_path",
     "detect_contacts",
+    "embed_library",
     "euler_to_q",
     "find_role",
     "foot_points",
@@ -59,10 +70,12 @@ __all__ = [
     "read_asf",
     "read_bvh",
     "read_labels",
+    "read_motion_arrays",
     "resample",
     "resample_positions",
     "rest_positions",
     "role_point",
     "slerp",
     "write_bvh",
+    "write_motion_arrays",
 ]

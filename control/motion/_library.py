@@ -1,8 +1,10 @@
 """A motion library: a directory of clips (ASF/AMC, BVH or both) with metadata, cached.
 
 Discovery: every ``*.amc`` (paired with the ``*.asf`` in its folder: the only one, or the
-one whose name is the longest prefix of the AMC's) and every ``*.bvh`` under the root.
-A take present in both formats is loaded once, from ``prefer``. Metadata:
+one whose name is the longest prefix of the AMC's), every ``*.bvh`` and every
+``*.motion.npz`` (motion arrays, the embedded default library's format) under the root.
+A take present in both formats is loaded once, from ``prefer`` (motion arrays only when
+neither exists). Metadata:
 
 - descriptions from ``descriptions.csv`` (``clip,description``) or from a Markdown table
   with ``clip`` and ``description`` columns in a ``README.md`` under the root;
@@ -34,9 +36,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._amc import read_amc
+from ._arrays import ARRAYS_SUFFIX, read_motion_arrays
 from ._asf import read_asf
 from ._bvh import read_bvh
 from ._contacts import Contacts, detect_contacts
+from ._embedded import EMBEDDED_LIBRARY
 from ._errors import MotionFormatError
 from ._fk import forward_kinematics
 from ._ops import mirror as mirror_motion
@@ -127,18 +131,27 @@ class Library:
         return out
 
 
+def shared_library_candidates() -> tuple[Path, ...]:
+    """Where a full library is looked for: ``../shared/mocap`` beside the checkout, then
+    beside the working directory."""
+    here = Path(__file__).resolve()
+    return (here.parents[3] / "shared" / "mocap", Path.cwd().parent / "shared" / "mocap")
+
+
 def default_library_path() -> Path:
-    """``$MIMIC_MOCAP``, else ``../shared/mocap`` beside the checkout, else from the cwd."""
+    """``$MIMIC_MOCAP``, else ``../shared/mocap`` beside the checkout (or the working
+    directory), else the embedded default library shipped in the package."""
     env = os.environ.get(ENV_LIBRARY)
     if env:
         return Path(env)
-    here = Path(__file__).resolve()
-    for candidate in (here.parents[3] / "shared" / "mocap", Path.cwd().parent / "shared" / "mocap"):
+    for candidate in shared_library_candidates():
         if candidate.is_dir():
             return candidate
+    if EMBEDDED_LIBRARY.is_dir():
+        return EMBEDDED_LIBRARY
     raise FileNotFoundError(
         f"no motion library found: set {ENV_LIBRARY} or pass a directory "
-        "(the default is ../shared/mocap beside the repository)"
+        f"(the default is ../shared/mocap beside the repository, then {EMBEDDED_LIBRARY})"
     )
 
 
@@ -177,9 +190,16 @@ def _discover(root: Path, prefer: str) -> list[_Source]:
             asf = max(matches, key=lambda q: len(q.stem))
         amc.append(_Source(p.stem, p, asf))
     bvh = [_Source(p.stem, p, None) for p in by_suffix.get(".bvh", [])]
+    arrays = [
+        _Source(p.name[: -len(ARRAYS_SUFFIX)], p, None)
+        for p in by_suffix.get(".npz", [])
+        if p.name.endswith(ARRAYS_SUFFIX) and len(p.name) > len(ARRAYS_SUFFIX)
+    ]
     first, second = (amc, bvh) if prefer == "amc" else (bvh, amc)
     taken = {s.name for s in first}
     sources = first + [s for s in second if s.name not in taken]
+    taken |= {s.name for s in sources}
+    sources += [s for s in arrays if s.name not in taken]
     names = [s.name for s in sources]
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
@@ -330,7 +350,13 @@ def _load(path: Path) -> Motion | None:
         return None
 
 
+def _is_arrays(src: _Source) -> bool:
+    return src.path.name.endswith(ARRAYS_SUFFIX)
+
+
 def _parse(src: _Source, bvh_units: str | float) -> Motion:
+    if _is_arrays(src):
+        return read_motion_arrays(src.path, name=src.name)
     if src.asf is not None:
         return read_amc(src.path, read_asf(src.asf), name=src.name)
     return read_bvh(src.path, units=bvh_units, name=src.name)
@@ -391,7 +417,7 @@ def load_library(
         raise FileNotFoundError(f"motion library {root} is not a directory")
     sources = _discover(root, prefer)
     if not sources:
-        raise MotionFormatError(root, "no .amc or .bvh clips found")
+        raise MotionFormatError(root, "no .amc, .bvh or .motion.npz clips found")
     if clips is not None:
         patterns = list(clips)
         sources = [s for s in sources if any(fnmatch.fnmatchcase(s.name, p) for p in patterns)]
@@ -402,6 +428,9 @@ def load_library(
     todo: list[tuple[_Source, str | float, str | None]] = []
     asf_digests: dict[Path, bytes] = {}
     for src in sources:
+        if _is_arrays(src):  # already compact arrays: read directly, never cached
+            motions[src.name] = _parse(src, bvh_units)
+            continue
         if not use_cache:
             todo.append((src, bvh_units, None))
             continue

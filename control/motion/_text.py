@@ -20,6 +20,7 @@ from ._quat import FloatArray
 __all__ = [
     "MAX_ABS",
     "atomic_write",
+    "current_umask",
     "decode",
     "is_int",
     "parse_floats",
@@ -90,6 +91,19 @@ def parse_floats_fast(text: str) -> FloatArray | None:
     return values
 
 
+def current_umask() -> int:
+    """The process's file-mode creation mask (read without changing it where Linux allows)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 @contextmanager
 def atomic_write(path: str | Path, mode: str = "w") -> Iterator[IO[Any]]:
     """Open a temporary file beside ``path``; on success it replaces ``path`` in one step,
@@ -98,6 +112,7 @@ def atomic_write(path: str | Path, mode: str = "w") -> Iterator[IO[Any]]:
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        os.chmod(fd, 0o666 & ~current_umask())  # as open() would make it, not mkstemp's 0600
         newline = None if "b" in mode else "\n"
         with os.fdopen(fd, mode, newline=newline) as fh:
             yield fh

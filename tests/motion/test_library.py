@@ -116,7 +116,7 @@ def test_parallel_cold_load_matches_serial(small_lib: Path, tmp_path: Path) -> N
 
 def test_bad_library_inputs(tmp_path: Path, small_lib: Path) -> None:
     (tmp_path / "empty").mkdir()
-    with pytest.raises(MotionFormatError, match=r"no \.amc or \.bvh clips"):
+    with pytest.raises(MotionFormatError, match=r"no \.amc, \.bvh or \.motion\.npz clips"):
         load_library(tmp_path / "empty")
     (small_lib / "asf" / "02.asf").unlink()
     with pytest.raises(MotionFormatError, match="no ASF skeleton"):
