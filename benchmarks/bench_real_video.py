@@ -29,8 +29,6 @@ Usage: python -m benchmarks.bench_real_video [--videos DIR] [--labels CSV]
 from __future__ import annotations
 
 import argparse
-import csv
-import math
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -56,45 +54,11 @@ from vision._perform import PerformSettings, perform
 from vision._person import PersonSegmenter, person_segmentation_available
 from vision._segment import Segmenter
 from vision._sources import VideoSource
+from vision._truth import LabelFileError
+from vision._truth import read_span_labels as read_labels
 
 HERE = Path(__file__).resolve().parent
 LAGS = tuple(np.round(np.arange(0.0, 3.01, 0.25), 2))
-
-
-class LabelFileError(ValueError):
-    """A labels CSV that cannot be used; the message names the file and line."""
-
-
-def read_labels(path: Path) -> list[tuple[str, float, float, str]]:
-    """Rows ``(file, start, end, label)`` of a labels CSV (a ``file,start,end,label``
-    header line and ``#`` comments allowed)."""
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise LabelFileError(f"{path}: no such file") from None
-    rows = []
-    for no, raw in enumerate(text.splitlines(), 1):
-        line = raw.split("#", 1)[0].strip()
-        if not line:
-            continue
-        parts = next(csv.reader([line]))
-        if [p.strip().lower() for p in parts] == ["file", "start", "end", "label"]:
-            continue
-        if len(parts) != 4:
-            raise LabelFileError(f"{path}:{no}: expected file,start,end,label, got {raw!r}")
-        name, a, b, label = (p.strip() for p in parts)
-        try:
-            start, end = float(a), float(b)
-        except ValueError:
-            raise LabelFileError(f"{path}:{no}: start and end must be seconds") from None
-        if not (math.isfinite(start) and math.isfinite(end) and 0 <= start < end):
-            raise LabelFileError(f"{path}:{no}: need 0 <= start < end, got {a}, {b}")
-        if not label:
-            raise LabelFileError(f"{path}:{no}: empty label")
-        rows.append((name, start, end, label))
-    if not rows:
-        raise LabelFileError(f"{path}: no labelled spans")
-    return rows
 
 
 def _frames(path: Path, size: tuple[int, int] | None = None) -> list[np.ndarray]:

@@ -179,22 +179,30 @@ def shaded_frames(
     views: Sequence[int] | int = 0,
     body: CapsuleBody | None = None,
     scenery: tuple[NDArray[np.float64], NDArray[np.int64]] | None = None,
+    camera_poses: FloatArray | None = None,
 ) -> Iterator[NDArray[np.uint8]]:
     """BGR images ``(H, W, 3)`` of the shaded capsule body, one per frame, each seen by
-    the camera ``views[i]`` (or one view for all) of ``ring``, which follows the root;
-    ``scenery`` ``(vertices, faces)`` is a static mesh shown with it (obstacles, blocks)."""
+    the camera ``views[i]`` (or one view for all) of ``ring``, which follows the root, or
+    by ``camera_poses[i]`` (``(F, 4, 4)`` camera-to-world) when given; ``scenery``
+    ``(vertices, faces)`` is a static mesh shown with it (obstacles, blocks). The
+    background is black."""
     from ._body import capsule_body
 
     body = body or capsule_body(motion.skeleton)
     seg = capsule_segments(motion, body)
-    poses = ring.poses(motion.root_pos)
+    poses = ring.poses(motion.root_pos) if camera_poses is None else None
     with GLRenderer(ring) as gl:
         if scenery is not None:
             gl.set_scenery(*scenery)
         for i in range(motion.n_frames):
-            v = views if isinstance(views, int) else views[min(i, len(views) - 1)]
             gl.set_body(seg[i], body.radius)
-            yield np.ascontiguousarray(gl.render_shaded(poses[i, v])[..., ::-1])
+            if camera_poses is not None:
+                pose = camera_poses[min(i, len(camera_poses) - 1)]
+            else:
+                assert poses is not None
+                v = views if isinstance(views, int) else views[min(i, len(views) - 1)]
+                pose = poses[i, v]
+            yield np.ascontiguousarray(gl.render_shaded(pose)[..., ::-1])
 
 
 def write_mp4(path: str | Path, frames: Iterable[NDArray[np.uint8]], fps: float) -> None:

@@ -17,10 +17,9 @@ from __future__ import annotations
 import dataclasses
 import json
 from collections import deque
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
@@ -36,6 +35,7 @@ from ._matcher import Matcher, MatchSettings
 from ._person import make_segmenter, resolve_segmentation
 from ._segment import clean_mask
 from ._sources import CameraSource, Source
+from ._video import MaskTape
 
 __all__ = ["PerformResult", "PerformSettings", "perform"]
 
@@ -60,7 +60,6 @@ class PerformSettings:
 class PerformResult:
     avatar: Avatar
     decisions: list[dict[str, Any]]
-    masks: list[NDArray[np.bool_] | None]  # the performer's mask per avatar frame (for video)
     views: list[int]  # the best-matching view per avatar frame
     media_seconds: float
     frames_read: int
@@ -75,10 +74,13 @@ def perform(
     start: int | None = None,
     seed: int = 0,
     log: IO[str] | None = None,
-    keep_masks: bool = False,
+    tape: MaskTape | None = None,
     on_frame: Callable[[float, NDArray[np.bool_] | None, Avatar], None] | None = None,
 ) -> PerformResult:
-    """Run the loop until the source ends (or ``settings.seconds`` of media time)."""
+    """Run the loop until the source ends (or ``settings.seconds`` of media time).
+
+    ``tape``: the performer's mask at every avatar frame is appended to it (for the
+    side-by-side video, ``vision._video.write_video``)."""
     settings = settings or PerformSettings()
     graph = layer.graph
     matcher = Matcher(layer, bank, settings.match)
@@ -102,7 +104,8 @@ def perform(
     next_decision = settings.decide_every
     t_avatar = 0.0
     decisions: list[dict[str, Any]] = []
-    masks: list[NDArray[np.bool_] | None] = [None]
+    if tape is not None:
+        tape.append(None)  # the avatar's first frame comes before any media
     views: list[int] = [0]
     view = 0
     located = False
@@ -167,7 +170,8 @@ def perform(
             while t_avatar + period <= t + 1e-9:
                 avatar.step()
                 t_avatar += period
-                masks.append(latest_mask if keep_masks else None)
+                if tape is not None:
+                    tape.append(latest_mask)
                 views.append(view)
             while next_decision <= t + 1e-9:
                 next_decision += settings.decide_every
@@ -191,7 +195,10 @@ def perform(
                         avatar = Avatar(
                             graph, clips, start=at, seed=seed, anywhere=jumps, jump_costs=costs
                         )
-                        masks, views, view = [latest_mask if keep_masks else None], [got[1]], got[1]
+                        views, view = [got[1]], got[1]
+                        if tape is not None:  # the avatar restarts: so does its video
+                            tape.reset()
+                            tape.append(latest_mask)
                         entry.update(frame=avatar.frame, located=round(got[2], 4))
                         entry["clip"], entry["clip_frame"] = graph.locate(avatar.frame)
                 # on the way to a relocation's window: no decision may turn it aside
@@ -279,34 +286,4 @@ def perform(
     finally:
         if searcher is not None:  # a search still running is left to finish alone
             searcher.shutdown(wait=False, cancel_futures=True)
-    return PerformResult(avatar, decisions, masks, views, t, n_read)
-
-
-def write_video(result: PerformResult, bank: Bank, path: str | Path, height: int = 240) -> None:
-    """An MP4: the performer's silhouette beside the shaded avatar, seen from the view
-    that matched best, one frame per avatar frame."""
-    import cv2
-
-    from silhouette_bank import capsule_body, shaded_frames, write_mp4
-
-    motion = result.avatar.motion().motion
-    ring = dataclasses.replace(bank.settings.ring, width=round(height * 4 / 3), height_px=height)
-    w = ring.width
-    avatar = shaded_frames(
-        motion, ring, result.views, capsule_body(motion.skeleton, bank.settings.body)
-    )
-
-    def frames() -> Iterator[np.ndarray]:
-        for i, right in enumerate(avatar):
-            left = np.zeros((height, w, 3), dtype=np.uint8)
-            m = result.masks[i] if i < len(result.masks) else None
-            if m is not None:
-                mh, mw = m.shape
-                size = (max(1, round(mw * height / mh)), height)
-                small = cv2.resize(m.astype(np.uint8) * 255, size, interpolation=cv2.INTER_NEAREST)
-                x0 = max(0, (small.shape[1] - w) // 2)
-                crop = small[:, x0 : x0 + w]
-                left[:, : crop.shape[1]] = crop[..., None]
-            yield np.ascontiguousarray(np.concatenate((left, right), axis=1))
-
-    write_mp4(path, frames(), motion.fps)
+    return PerformResult(avatar, decisions, views, t, n_read)

@@ -20,8 +20,11 @@ The probability map is thresholded and cleaned like a subtractor's mask
 
 from __future__ import annotations
 
+import contextlib
+import os
 import sys
 import warnings
+from collections.abc import Iterator
 from typing import Any
 
 import cv2
@@ -46,7 +49,33 @@ INSTALL = (
 )
 
 
+@contextlib.contextmanager
+def quiet_native_stderr() -> Iterator[None]:
+    """Send what native code writes to the process's stderr (file descriptor 2) to
+    /dev/null meanwhile: MediaPipe's TFLite and glog lines ("Created TensorFlow Lite
+    XNNPACK delegate", "Feedback manager requires ...") that no Python setting
+    silences. Python's own errors still reach the user: they are raised, and printed
+    after this returns."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):  # no descriptor 2 (an embedding host): nothing to do
+        yield
+        return
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+            try:
+                yield
+            finally:
+                os.dup2(saved, 2)
+    finally:
+        os.close(saved)
+
+
 def _mediapipe() -> Any:
+    # glog: warnings and worse only (MediaPipe logs every graph start at INFO)
+    os.environ.setdefault("GLOG_minloglevel", "2")
     try:
         import mediapipe as mp
     except ImportError as exc:
@@ -84,19 +113,23 @@ class PersonSegmenter:
         #: the pose model's 33 landmarks ``(33, 3)`` (x, y as image fractions,
         #: visibility) of the last frame, ``None`` when nobody was found (pose only)
         self.landmarks: NDArray[np.float64] | None = None
-        if method == "selfie":
-            self._model = mp.solutions.selfie_segmentation.SelfieSegmentation(model_selection=0)
-        else:
-            self._model = mp.solutions.pose.Pose(
-                static_image_mode=False, model_complexity=1, enable_segmentation=True
-            )
+        self._quiet_calls = 2  # the first frames start the graph and the TFLite delegate
+        with quiet_native_stderr():
+            if method == "selfie":
+                self._model = mp.solutions.selfie_segmentation.SelfieSegmentation(model_selection=0)
+            else:
+                self._model = mp.solutions.pose.Pose(
+                    static_image_mode=False, model_complexity=1, enable_segmentation=True
+                )
 
     def probability(self, image: NDArray[np.uint8]) -> NDArray[np.float32] | None:
         """The model's person probability per pixel ``(H, W)``, or ``None`` (the pose
         model finds no person)."""
         if image.ndim != 3 or image.shape[2] != 3:
             raise ValueError(f"expected a BGR image (H, W, 3), got shape {image.shape}")
-        with warnings.catch_warnings():  # MediaPipe 0.10.14 on a newer protobuf
+        quiet = quiet_native_stderr() if self._quiet_calls > 0 else contextlib.nullcontext()
+        self._quiet_calls -= 1
+        with warnings.catch_warnings(), quiet:  # MediaPipe 0.10.14 on a newer protobuf
             warnings.filterwarnings("ignore", "SymbolDatabase.GetPrototype", UserWarning)
             result = self._model.process(cv2.cvtColor(image, cv2.COLOR_BGR2RGB))
         if self.method == "pose":

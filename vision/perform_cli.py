@@ -7,6 +7,7 @@ import contextlib
 import itertools
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -27,11 +28,13 @@ from silhouette_bank import (
 from ._library import FLOOR_ABOVE, FLOOR_SECONDS, VISION_COORDS, on_the_floor
 from ._live import LiveView
 from ._matcher import MatchSettings
-from ._perform import PerformSettings, perform, write_video
+from ._perform import PerformSettings, perform
 from ._person import INSTALL, PERSON_METHODS, person_segmentation_available
 from ._record import RecordSettings, record_clip
 from ._segment import METHODS
 from ._sources import MaskFolderSource, open_source
+from ._truth import Truth, action_runs, agreement, truth_for
+from ._video import MaskTape, write_video
 
 __all__ = ["add_perform_commands"]
 
@@ -100,6 +103,12 @@ def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
     p.add_argument("--out", help="BVH of the avatar's motion")
     p.add_argument("--video-out", help="MP4: performer silhouette beside the avatar")
     p.add_argument("--log", help="JSON-lines decision log")
+    p.add_argument(
+        "--labels",
+        help="a labels CSV (file,start,end,label; times in seconds) with the performer's "
+        "actions in --video: the summary then gives the avatar's agreement with them "
+        "(a recording's own sidecar is used without it)",
+    )
     p.add_argument(
         "--live-port",
         type=int,
@@ -206,6 +215,12 @@ def choose_descriptor(name: str, source: Any) -> str:
 
 
 def _perform(args: argparse.Namespace) -> int:
+    if args.labels and not args.video:
+        raise ValueError("--labels needs --video (the labels name its file)")
+    truth = truth_for(args.video, args.labels) if args.video else None  # bad: LabelFileError
+    for name in ("out", "video_out", "log"):  # outputs into a missing folder work alike
+        if getattr(args, name):
+            Path(getattr(args, name)).expanduser().parent.mkdir(parents=True, exist_ok=True)
     source = open_source(args.camera, args.video, args.masks, realtime=args.realtime)
     if args.camera is not None and args.seconds is None:
         print("a camera never ends: stop with Ctrl-C (or give --seconds)", file=sys.stderr)
@@ -277,6 +292,7 @@ def _perform(args: argparse.Namespace) -> int:
     )
     with contextlib.ExitStack() as stack:
         log: Any = stack.enter_context(open(args.log, "w")) if args.log else None
+        tape = stack.enter_context(MaskTape(fps=graph.fps)) if args.video_out else None
         try:
             result = perform(
                 source,
@@ -287,18 +303,18 @@ def _perform(args: argparse.Namespace) -> int:
                 start=start,
                 seed=args.seed,
                 log=log,
-                keep_masks=bool(args.video_out),
+                tape=tape,
             )
         except KeyboardInterrupt:
             print("stopped", file=sys.stderr)
             return 130
         finally:
             source.close()
-    made = [c for c in result.decisions if c.get("decision") is not None]
-    if args.out:
-        write_bvh(result.avatar.motion().motion, args.out)
-    if args.video_out:
-        write_video(result, bank, args.video_out)
+        made = [c for c in result.decisions if c.get("decision") is not None]
+        if args.out:
+            write_bvh(result.avatar.motion().motion, args.out)
+        if tape is not None:
+            write_video(result, bank, clips, args.video_out, tape)
     lat = [c["latency_ms"] for c in made]
     print(
         f"{result.frames_read} frames, {result.media_seconds:.1f} s of media; "
@@ -318,7 +334,39 @@ def _perform(args: argparse.Namespace) -> int:
         f"the avatar: {result.avatar.time:.1f} s of motion, {jumps} direct jumps, "
         f"{changes / minutes:.1f} clip changes a minute"
     )
+    _print_actions(result.decisions, clips)
+    if truth is not None:
+        _print_agreement(result.decisions, clips, truth)
     for name in ("out", "video_out", "log"):
         if getattr(args, name):
             print(f"wrote {getattr(args, name)}")
     return 0
+
+
+def _print_actions(decisions: list[dict[str, Any]], clips: list[Any], most: int = 10) -> None:
+    """What the avatar did: its actions over media time (an unlabelled clip by name)."""
+    runs = action_runs(decisions, clips, min_seconds=0.5)
+    if not runs:
+        return
+    shown = [f"{a:.1f}-{b:.1f} s {name}" for a, b, name in runs[:most]]
+    more = f" ... and {len(runs) - most} more" if len(runs) > most else ""
+    print("the avatar did: " + ", ".join(shown) + more)
+
+
+def _print_agreement(decisions: list[dict[str, Any]], clips: list[Any], truth: Truth) -> None:
+    known = {(c.label_at(i) or "").lower() for c in clips for i in np.flatnonzero(c.labels >= 0)}
+    got = agreement(decisions, clips, truth, known=known)
+    if got["best_at_lag_le_1s"] is None:
+        print(f"agreement: no decision falls on an action of {truth.source} the library has")
+        return
+    curve = ", ".join(
+        f"{lag} s {got['by_lag_s'][lag]:.2f}"
+        for lag in ("0", "0.5", "1")
+        if got["by_lag_s"][lag] is not None
+    )
+    n = got["decisions_by_lag_s"][f"{got['best_lag_s']:g}"]
+    print(
+        f"agreement with {truth.source}: {got['best_at_lag_le_1s']:.2f} of the decisions "
+        f"do the performer's action (best lag within 1 s: {got['best_lag_s']:g} s; "
+        f"by lag {curve}; {n} decisions)"
+    )

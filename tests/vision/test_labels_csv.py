@@ -6,8 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from benchmarks.bench_real_video import LabelFileError, read_labels
 from tests.conftest import REPO
+from vision._truth import LabelFileError
+from vision._truth import read_span_labels as read_labels
 
 
 def test_reads_spans_with_header_and_comments(tmp_path: Path) -> None:

@@ -233,7 +233,8 @@ def test_a_camera_that_fails_mid_run_does_not_stop_the_avatar(setup) -> None:
 
 
 def test_cli_perform_writes_bvh_log_and_video(mocap: Path, tmp_path: Path, capsys) -> None:
-    out, log, video = tmp_path / "a.bvh", tmp_path / "d.jsonl", tmp_path / "v.mp4"
+    # outputs into folders that do not exist yet
+    out, log, video = tmp_path / "a" / "a.bvh", tmp_path / "b" / "d.jsonl", tmp_path / "c" / "v.mp4"
     argv = [
         "perform",
         "--video",
@@ -258,11 +259,33 @@ def test_cli_perform_writes_bvh_log_and_video(mocap: Path, tmp_path: Path, capsy
     assert read_bvh(out).n_frames >= 40
     cap = cv2.VideoCapture(str(video))
     assert cap.isOpened() and int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) >= 40
+    assert (cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)) == (1280, 480)
+    frames = []
+    while (got := cap.read())[0]:
+        frames.append(got[1])
+    cap.release()
+    last = frames[-1].astype(int)
+    assert (last[:, :640] > 200).all(axis=2).mean() > 0.01  # the performer's silhouette
+    right = last[60:, 640:]
+    floor = np.abs(right - (52, 44, 40)).sum(axis=2) < 12  # the floor...
+    assert floor.mean() > 0.3
+    assert (np.abs(right - (96, 88, 82)).sum(axis=2) < 30).mean() > 0.005  # ...its grid
+    body = (right > 110).all(axis=2) & ~floor
+    assert body.mean() > 0.01  # and the avatar on it
+    said = capsys.readouterr().out
+    # the recording's sidecar is its truth: the summary says what the avatar did, and how
+    # well it agreed
+    assert "the avatar did: " in said and "agreement with " in said
     assert (
         main(["perform", "--video", str(tmp_path / "none.mp4"), str(mocap), "--clips", "13_30"])
         == 2
     )
     assert "no such video file" in capsys.readouterr().err
+    labels = tmp_path / "l.csv"
+    labels.write_text("file,start,end,label\nother.mp4,0,1,Squat\n")
+    argv = ["perform", "--video", str(RECORDING), str(mocap), "--labels", str(labels)]
+    assert main(argv) == 2
+    assert "l.csv: no labelled spans for 13_29_first12s_160x120.mkv" in capsys.readouterr().err
 
 
 def test_a_bank_with_variants_reports_ring_views(setup, tmp_path: Path) -> None:
@@ -445,3 +468,18 @@ def test_the_default_descriptor_follows_the_source(mocap: Path) -> None:
         choose_descriptor("pose", silhouettes)
     silhouettes.close()
     colour.close()
+
+
+def test_the_demo_runs_on_the_embedded_library_where_no_other_exists(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys
+) -> None:
+    from control.motion import _library
+
+    monkeypatch.delenv("MIMIC_MOCAP", raising=False)
+    monkeypatch.setattr(_library, "shared_library_candidates", lambda: (tmp_path / "none",))
+    out = tmp_path / "a.bvh"
+    argv = ["perform", "--video", str(RECORDING), "--seconds", "3", "--out", str(out)]
+    assert main(argv) == 0
+    said = capsys.readouterr()
+    assert "library: 9 clips" in said.err
+    assert read_bvh(out).n_frames >= 30

@@ -1,0 +1,108 @@
+"""Ground truth for a performance (sidecars, labels CSVs), what the avatar did against it,
+and the side-by-side video's mask tape."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.vision.conftest import RECORDING
+from vision._truth import LabelFileError, Truth, action_runs, agreement, truth_for
+from vision._video import PANE, MaskTape, _frame_decisions
+
+
+def test_a_recordings_sidecar_is_its_truth() -> None:
+    truth = truth_for(RECORDING)
+    assert truth is not None and truth.source.endswith(".mkv.json")
+    assert truth.label_at(0.5) == "jumpjack" and truth.label_at(6.0) == "twist"
+    assert truth.label_at(-1.0) is None and truth.label_at(60.0) is None
+
+
+def test_a_labels_csv_needs_rows_for_the_video(tmp_path: Path) -> None:
+    csv = tmp_path / "l.csv"
+    csv.write_text("file,start,end,label\nother.mp4,0,2,Squat\nclip.mp4,1,3,Jog\n")
+    truth = truth_for(tmp_path / "clip.mp4", csv)
+    assert truth is not None and truth.spans == ((1.0, 3.0, "jog"),)
+    with pytest.raises(LabelFileError, match=r"l\.csv: no labelled spans for none\.mp4"):
+        truth_for(tmp_path / "none.mp4", csv)
+    bad = tmp_path / "v.mkv"
+    (tmp_path / "v.mkv.json").write_text("[1, 2]")
+    with pytest.raises(LabelFileError, match=r"v\.mkv\.json: not a recording sidecar"):
+        truth_for(bad)
+    assert truth_for(tmp_path / "plain.mp4") is None
+
+
+def _decisions(clip, frames, times):
+    return [
+        {"t": t, "clip": clip.name, "clip_frame": int(f)}
+        for t, f in zip(times, frames, strict=True)
+    ]
+
+
+def test_agreement_counts_the_avatars_label_against_the_performers_lagged(setup) -> None:
+    lib, _, _ = setup
+    clip = lib.clips[0]
+    names = [clip.label_at(i) for i in range(clip.motion.n_frames)]
+    a = next(i for i, n in enumerate(names) if n == "JumpJack")
+    b = next(i for i, n in enumerate(names) if n == "Squat")
+    # the avatar does JumpJack for 2 s, then Squat for 2 s; the performer switched at 1.5 s
+    times = np.round(np.arange(0.1, 4.0, 0.1), 3)
+    frames = [a if t < 2.0 else b for t in times]
+    truth = Truth(((0.0, 1.5, "jumpjack"), (1.5, 4.0, "squat")), "test")
+    got = agreement(_decisions(clip, frames, times), lib.clips, truth, lags=(0.0, 0.5))
+    # at lag 0 the avatar is late by 0.5 s for five decisions; at lag 0.5 it is right
+    assert got["by_lag_s"]["0"] == pytest.approx(34 / 39, abs=1e-3)
+    assert got["by_lag_s"]["0.5"] == 1.0 and got["best_lag_s"] == 0.5
+    assert got["confusion_at_best_lag"] == {"jumpjack": {"jumpjack": 15}, "squat": {"squat": 20}}
+    # an action the library lacks is left out with known
+    only = agreement(
+        _decisions(clip, frames, times), lib.clips, truth, lags=(0.0,), known={"squat"}
+    )
+    assert only["decisions_by_lag_s"]["0"] == 25
+
+
+def test_what_the_avatar_did_merges_short_runs(setup) -> None:
+    lib, _, _ = setup
+    clip = lib.clips[0]
+    names = [clip.label_at(i) for i in range(clip.motion.n_frames)]
+    a = next(i for i, n in enumerate(names) if n == "JumpJack")
+    b = next(i for i, n in enumerate(names) if n == "Squat")
+    times = np.round(np.arange(0.0, 3.0, 0.1), 3)
+    frames = [b if 1.0 <= t < 1.2 else a for t in times]  # a 0.2 s blip of Squat
+    runs = action_runs(_decisions(clip, frames, times), lib.clips, min_seconds=0.5)
+    assert [r[2] for r in runs] == ["JumpJack"] and runs[0][:2] == (0.0, 2.9)
+    runs = action_runs(_decisions(clip, frames, times), lib.clips)
+    assert [r[2] for r in runs] == ["JumpJack", "Squat", "JumpJack"]
+
+
+def test_the_mask_tape_plays_back_what_was_written(rng: np.random.Generator) -> None:
+    with MaskTape() as tape:
+        masks = [rng.random((120, 160)) > 0.5 for _ in range(3)]
+        for m in masks:
+            tape.append(m)
+        tape.append(None)
+        got = list(tape.frames())
+    assert len(got) == 4 and all(g.shape == (PANE[1], PANE[0]) for g in got)
+    # letterboxed 4x: each mask pixel is a 4x4 block, lossless
+    np.testing.assert_array_equal(got[0][::4, ::4] > 127, masks[0])
+    assert not got[3].any()
+    with MaskTape() as tape:
+        tape.append(masks[0])
+        tape.reset()
+        tape.append(None)
+        assert len(tape) == 1 and len(list(tape.frames())) == 1
+
+
+def test_the_video_marks_jumps_and_starts() -> None:
+    ds = [
+        {"t": 0.5, "cost": 1.0},
+        {"t": 1.0, "located": 0.2, "cost": 2.0},
+        {"t": 1.1, "cost": 3.0, "jump": 5},
+        {"t": 1.2, "decision": None},
+    ]
+    t0, latest, marks = _frame_decisions(ds, 20, 10.0, mark_s=0.2)
+    assert t0 == 1.0
+    assert marks[:4] == ["START", "JUMP", "JUMP", ""]
+    assert latest[0]["cost"] == 2.0 and latest[5]["cost"] == 3.0  # the last one made

@@ -1,0 +1,247 @@
+"""The side-by-side video of a performance: the performer's silhouette beside the avatar.
+
+The performer's masks are streamed during the run onto a ``MaskTape`` (a lossless FFV1
+file in a temporary folder, at the pane's size), not kept in memory; at the end they are
+played back beside the avatar's synthesized motion, drawn by pyrender on a floor grid by
+one camera that follows the avatar's smoothed path (it never switches views). Each pane
+has a caption: media time; the avatar's clip:frame, its action label, the match cost,
+and a mark for a few frames after a jump or a relocation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import shutil
+import tempfile
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+from scipy.ndimage import gaussian_filter1d
+
+from control.motion import Clip
+from silhouette_bank import Bank, CameraRing
+
+__all__ = ["PANE", "MaskTape", "write_video"]
+
+#: width, height of each pane (the video is two panes side by side)
+PANE = (640, 480)
+_BACKGROUND = (52, 44, 40)  # BGR, a dark floor
+_GRID = (96, 88, 82)
+_TEXT = (235, 235, 235)
+_MARK = (60, 60, 230)
+
+
+class MaskTape:
+    """The performer's mask per avatar frame, written to a temporary lossless video as
+    they come (letterboxed into a ``PANE``-sized grey image; no mask: black)."""
+
+    def __init__(self, size: tuple[int, int] = PANE, fps: float = 15.0) -> None:
+        self.size = size
+        self.fps = fps
+        self._dir = Path(tempfile.mkdtemp(prefix="mimic-masks-"))
+        self._path = self._dir / "masks.mkv"
+        self._writer: Any = None
+        self._n = 0
+        self._open()
+
+    def _open(self) -> None:
+        if self._writer is not None:
+            self._writer.release()
+        fourcc = cv2.VideoWriter.fourcc(*"FFV1")
+        self._writer = cv2.VideoWriter(str(self._path), fourcc, self.fps, self.size, False)
+        if not self._writer.isOpened():
+            raise OSError(f"{self._path}: cannot write an FFV1 video here")
+        self._n = 0
+
+    def __len__(self) -> int:
+        return self._n
+
+    def append(self, mask: NDArray[np.bool_] | None) -> None:
+        w, h = self.size
+        img = np.zeros((h, w), dtype=np.uint8)
+        if mask is not None and mask.size:
+            mh, mw = mask.shape
+            scale = min(w / mw, h / mh)
+            size = (max(1, round(mw * scale)), max(1, round(mh * scale)))
+            small = cv2.resize(mask.astype(np.uint8) * 255, size, interpolation=cv2.INTER_NEAREST)
+            x0, y0 = (w - size[0]) // 2, (h - size[1]) // 2
+            img[y0 : y0 + size[1], x0 : x0 + size[0]] = small
+        self._writer.write(img)
+        self._n += 1
+
+    def reset(self) -> None:
+        """Drop what was written (the avatar restarted)."""
+        self._open()
+
+    def frames(self) -> Iterator[NDArray[np.uint8]]:
+        """The masks written, as grey images, in order (the tape is then closed for
+        writing)."""
+        if self._writer is not None:
+            self._writer.release()
+            self._writer = None
+        cap = cv2.VideoCapture(str(self._path))
+        try:
+            while True:
+                ok, img = cap.read()
+                if not ok:
+                    break
+                yield np.asarray(img[..., 0] if img.ndim == 3 else img, dtype=np.uint8)
+        finally:
+            cap.release()
+
+    def close(self) -> None:
+        if self._writer is not None:
+            self._writer.release()
+            self._writer = None
+        shutil.rmtree(self._dir, ignore_errors=True)
+
+    def __enter__(self) -> MaskTape:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _grid_lines(centre: NDArray[np.float64], extent: float = 6.0, step: float = 0.5) -> list:
+    """World line segments of a floor grid around ``centre`` (x, z), each as points."""
+    x0 = np.floor((centre[0] - extent) / step) * step
+    z0 = np.floor((centre[2] - extent) / step) * step
+    n = int(2 * extent / step) + 2
+    ts = np.linspace(0.0, 2 * extent + step, 48)
+    lines = []
+    for k in range(n):
+        x = x0 + k * step
+        lines.append(np.stack((np.full_like(ts, x), np.zeros_like(ts), z0 + ts), axis=1))
+        z = z0 + k * step
+        lines.append(np.stack((x0 + ts, np.zeros_like(ts), np.full_like(ts, z)), axis=1))
+    return lines
+
+
+def _floor(ring: CameraRing, pose: NDArray[np.float64], centre: NDArray[np.float64]) -> np.ndarray:
+    w, h = PANE
+    img = np.empty((h, w, 3), dtype=np.uint8)
+    img[:] = _BACKGROUND
+    for line in _grid_lines(centre):
+        cam = ring.to_camera(line, pose)
+        keep = cam[:, 2] < -0.2  # in front of the camera
+        if keep.sum() < 2:
+            continue
+        px = ring.project(cam[keep]).round().astype(np.int32)
+        cv2.polylines(img, [px.reshape(-1, 1, 2)], False, _GRID, 1, cv2.LINE_AA)
+    return img
+
+
+def _caption(img: np.ndarray, lines: Sequence[str], mark: str = "") -> None:
+    font = cv2.FONT_HERSHEY_SIMPLEX
+    width = max((cv2.getTextSize(t, font, 0.6, 1)[0][0] for t in lines), default=0)
+    if lines:  # a dark band behind the text, so that it reads on any pane
+        band = img[4 : 12 + 24 * len(lines), 4 : 20 + width]
+        band[:] = (band * 0.35).astype(np.uint8)
+    y = 24
+    for text in lines:
+        cv2.putText(img, text, (12, y), font, 0.6, _TEXT, 1, cv2.LINE_AA)
+        y += 24
+    if mark:
+        w = img.shape[1]
+        cv2.rectangle(img, (w - 150, 8), (w - 10, 40), _MARK, -1)
+        cv2.putText(img, mark, (w - 140, 32), cv2.FONT_HERSHEY_SIMPLEX, 0.7, (255, 255, 255), 2)
+
+
+def _frame_decisions(
+    decisions: Sequence[dict[str, Any]], n_frames: int, fps: float, mark_s: float = 0.4
+) -> tuple[float, list[dict[str, Any] | None], list[str]]:
+    """The media time of avatar frame 0, the latest decision made (with a cost) at each
+    avatar frame, and a mark (``JUMP``, ``RELOCATE``, ``START``) for ``mark_s`` after one."""
+    t0 = 0.0
+    for d in decisions:
+        if "located" in d:
+            t0 = float(d["t"])
+    latest: list[dict[str, Any] | None] = [None] * n_frames
+    marks = [""] * n_frames
+    k = 0
+    made: dict[str, Any] | None = None
+    ds = [d for d in decisions if float(d["t"]) >= t0 - 1e-9]
+    for i in range(n_frames):
+        t = t0 + i / fps
+        while k < len(ds) and float(ds[k]["t"]) <= t + 1e-9:
+            d = ds[k]
+            what = (
+                "START"
+                if "located" in d
+                else "JUMP"
+                if "jump" in d
+                else "RELOCATE"
+                if "relocated" in d
+                else ""
+            )
+            if what:
+                for j in range(i, min(n_frames, i + max(1, round(mark_s * fps)))):
+                    marks[j] = what
+            if d.get("cost") is not None:  # the latest decision that was made
+                made = d
+            k += 1
+        latest[i] = made
+    return t0, latest, marks
+
+
+def write_video(
+    result: Any, bank: Bank, clips: Sequence[Clip], path: str | Path, tape: MaskTape
+) -> int:
+    """Write the side-by-side MP4 of a performance (``result`` of ``perform`` run with
+    ``tape``): performer left, avatar right, ``2 * PANE[0]`` x ``PANE[1]``. Returns the
+    number of frames."""
+    from silhouette_bank import capsule_body, shaded_frames, write_mp4  # GL: imported late
+
+    synth = result.avatar.motion()
+    motion = synth.motion
+    graph = result.avatar.graph
+    fps = motion.fps
+    n = motion.n_frames
+    by_name = {c.name: c for c in clips}
+    history = result.avatar.history()[0]
+    where = [graph.locate(int(f)) for f in history[:n]]
+    t0, latest, marks = _frame_decisions(result.decisions, n, fps)
+    # one camera for the whole video: the view that matched most often, following the
+    # avatar's path smoothed over a second, so that it neither switches nor shakes
+    views = np.asarray(result.views[:n] or [0], dtype=np.int64)
+    view = int(np.bincount(views).argmax())
+    ring = dataclasses.replace(bank.settings.ring, width=PANE[0], height_px=PANE[1])
+    path_xz = gaussian_filter1d(motion.root_pos, sigma=max(1.0, fps), axis=0, mode="nearest")
+    poses = ring.poses(path_xz)[:, view]
+    body = capsule_body(motion.skeleton, bank.settings.body)
+    avatar_frames = shaded_frames(motion, ring, body=body, camera_poses=poses)
+
+    def frames() -> Iterator[np.ndarray]:
+        performer = tape.frames()
+        for i, shaded in enumerate(avatar_frames):
+            grey = next(performer, None)
+            left = (
+                np.zeros((PANE[1], PANE[0], 3), np.uint8)
+                if grey is None
+                else cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR)
+            )
+            t = t0 + i / fps
+            _caption(left, [f"performer  {t:6.2f} s"])
+            right = _floor(ring, poses[i], path_xz[i])
+            body_px = shaded.any(axis=2)
+            right[body_px] = shaded[body_px]
+            clip, f = where[min(i, len(where) - 1)]
+            label = by_name[clip].label_at(f) if clip in by_name else None
+            d = latest[i]
+            cost = d.get("cost") if d else None
+            _caption(
+                right,
+                [
+                    f"avatar  {clip}:{f}  {label or '(unlabelled)'}",
+                    "match cost " + (f"{cost:.3f}" if isinstance(cost, float) else "-"),
+                ],
+                marks[i],
+            )
+            yield np.ascontiguousarray(np.concatenate((left, right), axis=1))
+
+    write_mp4(path, frames(), fps)
+    return n
