@@ -76,11 +76,14 @@ def perform(
     log: IO[str] | None = None,
     tape: MaskTape | None = None,
     on_frame: Callable[[float, NDArray[np.bool_] | None, Avatar], None] | None = None,
+    on_decision: Callable[[dict[str, Any]], None] | None = None,
 ) -> PerformResult:
     """Run the loop until the source ends (or ``settings.seconds`` of media time).
 
     ``tape``: the performer's mask at every avatar frame is appended to it (for the
-    side-by-side video, ``vision._video.write_video``)."""
+    side-by-side video, ``vision._video.write_video``). ``on_frame(t, mask, avatar)`` is
+    called for every media frame, ``on_decision(entry)`` with every decision log entry
+    (the live view uses both)."""
     settings = settings or PerformSettings()
     graph = layer.graph
     matcher = Matcher(layer, bank, settings.match)
@@ -281,6 +284,8 @@ def perform(
                         latency_ms=round(d.latency_ms, 3),
                     )
                 decisions.append(entry)
+                if on_decision is not None:
+                    on_decision(entry)
                 if log is not None:
                     log.write(json.dumps(entry) + "\n")
     finally:

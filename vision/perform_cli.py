@@ -26,7 +26,7 @@ from silhouette_bank import (
 )
 
 from ._library import FLOOR_ABOVE, FLOOR_SECONDS, VISION_COORDS, on_the_floor
-from ._live import LiveView
+from ._live import LivePainter, LiveView
 from ._matcher import MatchSettings
 from ._perform import PerformSettings, perform
 from ._person import INSTALL, PERSON_METHODS, person_segmentation_available
@@ -113,7 +113,7 @@ def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
         "--live-port",
         type=int,
         default=8765,
-        help="with --camera, a live view at http://127.0.0.1:PORT/ (0: none)",
+        help="with --camera or --realtime, a live view at http://127.0.0.1:PORT/ (0: none)",
     )
     p.set_defaults(func=_perform)
 
@@ -165,32 +165,6 @@ def _record(args: argparse.Namespace) -> int:
     side = record_clip(clip, args.out, settings, start, stop)
     print(f"wrote {args.out} and {args.out}.json: {len(side['frames'])} frames of {args.clip}")
     return 0
-
-
-def _live_painter(view: LiveView, library: Any, graph: Any, bank: Any) -> Any:
-    """A callback drawing the performer's mask beside the avatar's current pose."""
-    import cv2
-
-    from silhouette_bank import capsule_body, motion_silhouettes
-
-    ring = bank.settings.ring
-    last = {"t": -1.0}
-
-    def paint(t: float, mask: np.ndarray | None, avatar: Any) -> None:
-        if t - last["t"] < 1.0 / 15.0:
-            return
-        last["t"] = t
-        h, w = ring.height_px * 2, ring.width * 2
-        left = np.zeros((h, w), dtype=np.uint8)
-        if mask is not None:
-            left = cv2.resize(mask.astype(np.uint8) * 255, (w, h), interpolation=cv2.INTER_NEAREST)
-        clip_name, f = graph.locate(avatar.frame)
-        motion = library.clip(clip_name).motion
-        sil = motion_silhouettes(motion, capsule_body(motion.skeleton), ring, np.array([f]))[0, 0]
-        right = cv2.resize(sil * 200, (w, h), interpolation=cv2.INTER_NEAREST)
-        view.update(np.concatenate((left, right), axis=1))
-
-    return paint
 
 
 def choose_descriptor(name: str, source: Any) -> str:
@@ -290,9 +264,20 @@ def _perform(args: argparse.Namespace) -> int:
         match=MatchSettings(window=args.window, lookahead=args.lookahead, jumps=not args.no_jumps),
         seconds=args.seconds,
     )
+    live = args.live_port != 0 and (args.camera is not None or args.realtime)
     with contextlib.ExitStack() as stack:
         log: Any = stack.enter_context(open(args.log, "w")) if args.log else None
         tape = stack.enter_context(MaskTape(fps=graph.fps)) if args.video_out else None
+        painter = None
+        if live:
+            try:
+                view = stack.enter_context(LiveView(port=args.live_port))
+            except OSError as exc:
+                raise OSError(
+                    f"--live-port {args.live_port}: cannot serve the live view ({exc})"
+                ) from None
+            painter = LivePainter(view, clips, graph, bank)
+            print(f"live view: {view.url} (this machine only)", file=sys.stderr, flush=True)
         try:
             result = perform(
                 source,
@@ -304,6 +289,8 @@ def _perform(args: argparse.Namespace) -> int:
                 seed=args.seed,
                 log=log,
                 tape=tape,
+                on_frame=painter.on_frame if painter else None,
+                on_decision=painter.on_decision if painter else None,
             )
         except KeyboardInterrupt:
             print("stopped", file=sys.stderr)
