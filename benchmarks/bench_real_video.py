@@ -48,17 +48,17 @@ from silhouette_bank import (
     ensure_bank,
     robust_settings,
 )
+from vision._evaluate import evaluation
 from vision._library import on_the_floor
 from vision._matcher import MatchSettings
 from vision._perform import PerformSettings, perform
 from vision._person import PersonSegmenter, person_segmentation_available
 from vision._segment import Segmenter
 from vision._sources import VideoSource
-from vision._truth import LabelFileError
+from vision._truth import LAGS, LabelFileError, Truth
 from vision._truth import read_span_labels as read_labels
 
 HERE = Path(__file__).resolve().parent
-LAGS = tuple(np.round(np.arange(0.0, 3.01, 0.25), 2))
 
 
 def _frames(path: Path, size: tuple[int, int] | None = None) -> list[np.ndarray]:
@@ -169,10 +169,9 @@ def agreement(
     use_variants = variants and descriptor != "pose"
     bank, _ = ensure_bank(train, robust_settings(base) if use_variants else base)
     segmentation = "auto" if descriptor == "pose" else "selfie"
-    by_name = {c.name: c for c in lib.clips}
     names = sorted({r[0] for r in rows})
     per_video: dict[str, Any] = {}
-    pooled: dict[float, list[bool]] = {lag: [] for lag in LAGS}
+    pooled: dict[float, list[tuple[float, int]]] = {lag: [] for lag in LAGS}
     for name in names:
         path = videos / name
         if not path.is_file():
@@ -196,27 +195,32 @@ def agreement(
         )
         live_wall = time.perf_counter() - t0
         source.close()
-        hits: dict[float, list[bool]] = {lag: [] for lag in LAGS}
-        for d in result.decisions:
-            avatar = (by_name[d["clip"]].label_at(d["clip_frame"]) or "").lower()
-            for lag in LAGS:
-                t = d["t"] - lag
-                truth = [lab for a, b, lab in spans if a <= t < b]
-                if truth:
-                    hits[lag].append(avatar == truth[0])
-        curve = {str(lag): round(float(np.mean(h)), 3) if h else None for lag, h in hits.items()}
-        best = max((v for k, v in curve.items() if float(k) <= 1.0 and v is not None), default=None)
+        # mimic evaluate's figures (vision._evaluate) for this video
+        truth = Truth(tuple(spans), str(labels))
+        report = evaluation(result.decisions, train, truth, result.media_seconds, LAGS)
+        curve = report["agreement_by_lag_s"]
         per_video[name] = {
             "agreement_by_lag_s": curve,
-            "best_at_lag_le_1s": best,
+            "best_at_lag_le_1s": max(
+                (v for k, v in curve.items() if float(k) <= 1.0 and v is not None), default=None
+            ),
+            "per_action_at_best_lag": report["per_action_at_best_lag"],
+            "confusion_at_best_lag": report["confusion_at_best_lag"],
+            "chance": report["chance"],
+            "switches_per_minute": report["switches_per_minute"],
             "decisions": len(result.decisions),
             "loop_frames_per_s": round(result.frames_read / wall, 1),
             "loop_frames_per_s_search_in_thread": round(live.frames_read / live_wall, 1),
         }
         for lag in LAGS:
-            pooled[lag] += hits[lag]
+            k = f"{lag:g}"
+            if curve[k] is not None:
+                pooled[lag].append((curve[k], report["decisions_by_lag_s"][k]))
         print(name, per_video[name])
-    overall = {str(lag): round(float(np.mean(h)), 3) if h else None for lag, h in pooled.items()}
+    overall = {
+        f"{lag:g}": round(sum(r * n for r, n in h) / sum(n for _, n in h), 3) if h else None
+        for lag, h in pooled.items()
+    }
     return {
         "labels": str(labels),
         "library": [c.name for c in train],

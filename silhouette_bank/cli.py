@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +12,7 @@ import numpy as np
 
 from control.cli import _add_library_args
 from control.motion import Library, load_library
+from control.progress import bar
 
 from ._bank import BankSettings, ensure_bank, load_bank
 from ._body import BodyShape, capsule_body
@@ -97,15 +97,6 @@ def _library(args: argparse.Namespace) -> Library:
     return load_library(args.dir, fps=args.fps, mirror=args.mirror, clips=args.clips)
 
 
-def _bar(done: int, total: int) -> None:
-    width = 30
-    fill = round(width * done / max(total, 1))
-    sys.stderr.write(f"\r[{'#' * fill}{'.' * (width - fill)}] {done}/{total} shards")
-    if done == total:
-        sys.stderr.write("\n")
-    sys.stderr.flush()
-
-
 def _build(args: argparse.Namespace) -> int:
     library = _library(args)
     settings = _settings(args)
@@ -115,7 +106,7 @@ def _build(args: argparse.Namespace) -> int:
         args.bank,
         shard_frames=args.shard_frames,
         workers=args.workers,
-        progress=_bar,
+        progress=bar("silhouette bank", "shards", quiet_s=0.0),
     )
     how = "built" if built else "up to date"
     print(

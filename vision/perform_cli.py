@@ -4,9 +4,14 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
+import fnmatch
 import itertools
+import json
+import os
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -16,6 +21,7 @@ from control.cli import _add_graph_args, _add_library_args, _options, start_fram
 from control.clusters import cached_higher_layer
 from control.graph import cached_graph
 from control.motion import load_library, write_bvh
+from control.progress import bar, step
 from silhouette_bank import (
     DEFAULT_DESCRIPTOR,
     DESCRIPTORS,
@@ -25,6 +31,7 @@ from silhouette_bank import (
     robust_settings,
 )
 
+from ._evaluate import evaluation, plot_evaluation
 from ._library import FLOOR_ABOVE, FLOOR_SECONDS, VISION_COORDS, on_the_floor
 from ._live import LivePainter, LiveView
 from ._matcher import MatchSettings
@@ -39,18 +46,18 @@ from ._video import MaskTape, write_video
 __all__ = ["add_perform_commands"]
 
 
-def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    p = sub.add_parser(
-        "perform",
-        help="the avatar follows a performer: camera, video, or masks in; BVH, MP4, log out",
-        description="Every 0.1 s of media time the performer's last silhouettes are matched "
-        "against the avatar's possible next actions (the silhouette bank); the best is taken.",
-    )
-    src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--camera", type=int, help="webcam index")
-    src.add_argument("--video", help="a video file (colour, or a silhouette video)")
-    src.add_argument("--masks", help="a folder of mask images")
+def _add_run_args(p: argparse.ArgumentParser) -> None:
+    """The options of a performance that ``perform`` and ``evaluate`` share: the library,
+    its graph, the matcher, the segmentation and the descriptor."""
     _add_library_args(p)
+    p.add_argument(
+        "--leave-out",
+        action="append",
+        default=[],
+        metavar="PATTERN",
+        help="leave out clips whose name matches (shell pattern, repeatable): the "
+        "performer's own take, to measure an unseen performer",
+    )
     _add_graph_args(p)
     # the vision interface's graph: relative coordinates, so that takes recorded in
     # different places reach each other
@@ -68,7 +75,6 @@ def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
         help="only the paper's cluster paths (and a relocation through the graph once a "
         "second), no direct blended jumps into the best-matching windows",
     )
-    p.add_argument("--realtime", action="store_true", help="pace a file like a camera")
     p.add_argument("--seconds", type=float, help="stop after this much media time")
     p.add_argument("--window", type=float, default=1.0, help="seconds of performer matched")
     p.add_argument("--lookahead", type=float, default=1.5, help="candidate actions within, s")
@@ -100,6 +106,21 @@ def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
     p.add_argument("--k", type=int, help="number of clusters (default: BIC)")
     p.add_argument("--start", help="avatar starts at CLIP:FRAME")
     p.add_argument("--seed", type=int, default=0)
+
+
+def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser(
+        "perform",
+        help="the avatar follows a performer: camera, video, or masks in; BVH, MP4, log out",
+        description="Every 0.1 s of media time the performer's last silhouettes are matched "
+        "against the avatar's possible next actions (the silhouette bank); the best is taken.",
+    )
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--camera", type=int, help="webcam index")
+    src.add_argument("--video", help="a video file (colour, or a silhouette video)")
+    src.add_argument("--masks", help="a folder of mask images")
+    _add_run_args(p)
+    p.add_argument("--realtime", action="store_true", help="pace a file like a camera")
     p.add_argument("--out", help="BVH of the avatar's motion")
     p.add_argument("--video-out", help="MP4: performer silhouette beside the avatar")
     p.add_argument("--log", help="JSON-lines decision log")
@@ -116,6 +137,24 @@ def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
         help="with --camera or --realtime, a live view at http://127.0.0.1:PORT/ (0: none)",
     )
     p.set_defaults(func=_perform)
+
+    e = sub.add_parser(
+        "evaluate",
+        help="how often the avatar does the performer's action: a labelled video in, "
+        "agreement by lag, confusion matrix, JSON and a plot out",
+        description="Replay a labelled performance (a recording with its sidecar, or any "
+        "video with a labels CSV) through mimic perform's loop, with its defaults, and "
+        "compare the avatar's action at every decision with the performer's, at lags of "
+        "0-3 s (the avatar follows, so it may be late).",
+    )
+    e.add_argument("video", help="a recording (with its .json sidecar) or any video file")
+    e.add_argument(
+        "--labels", help="labels CSV (file,start,end,label) when the video has no sidecar"
+    )
+    _add_run_args(e)
+    e.add_argument("--json", required=True, help="the report (JSON) to write")
+    e.add_argument("--png", help="a plot of agreement against lag and the confusion matrix")
+    e.set_defaults(func=_evaluate)
 
     r = sub.add_parser(
         "record",
@@ -188,28 +227,39 @@ def choose_descriptor(name: str, source: Any) -> str:
     return name
 
 
-def _perform(args: argparse.Namespace) -> int:
-    if args.labels and not args.video:
-        raise ValueError("--labels needs --video (the labels name its file)")
-    truth = truth_for(args.video, args.labels) if args.video else None  # bad: LabelFileError
-    for name in ("out", "video_out", "log"):  # outputs into a missing folder work alike
-        if getattr(args, name):
-            Path(getattr(args, name)).expanduser().parent.mkdir(parents=True, exist_ok=True)
-    source = open_source(args.camera, args.video, args.masks, realtime=args.realtime)
-    if args.camera is not None and args.seconds is None:
-        print("a camera never ends: stop with Ctrl-C (or give --seconds)", file=sys.stderr)
+@dataclass
+class Prepared:
+    """What a performance runs on, made from ``mimic perform``'s (or ``evaluate``'s)
+    arguments."""
+
+    descriptor: str
+    clips: list[Any]
+    graph: Any
+    layer: Any
+    bank: Any
+    bank_built: bool
+    settings: PerformSettings
+    start: int | None
+
+
+def prepare(args: argparse.Namespace, source: Any) -> Prepared:
+    """The library (the clips on the floor unless ``--off-floor``), its graph, higher
+    layer and bank for ``source`` with the defaults of the vision interface, saying on
+    stderr what was chosen and what was left out."""
     descriptor = choose_descriptor(args.descriptor, source)
     print(f"descriptor: {descriptor}", file=sys.stderr)
-    plate = args.segmentation in METHODS or (args.segmentation == "auto" and descriptor != "pose")
-    if args.camera is not None and plate:
-        print(
-            "step out of view for two seconds so that the background can be learned",
-            file=sys.stderr,
-        )
     if args.fps is None or args.fps <= 0:
         raise ValueError("--fps must be positive")
-    library = load_library(args.dir, fps=args.fps, mirror=args.mirror, clips=args.clips)
-    clips = list(library.clips)
+    with step("motion library"):
+        library = load_library(args.dir, fps=args.fps, mirror=args.mirror, clips=args.clips)
+    clips = [
+        c for c in library.clips if not any(fnmatch.fnmatchcase(c.name, p) for p in args.leave_out)
+    ]
+    if args.leave_out:
+        gone = sorted({c.name for c in library.clips} - {c.name for c in clips})
+        print(f"left out as asked: {', '.join(gone) or 'nothing matched'}", file=sys.stderr)
+    if not clips:
+        raise ValueError(f"{library.root}: --leave-out leaves no clip")
     if not args.off_floor:
         clips, dropped = on_the_floor(clips)
         if dropped:
@@ -221,7 +271,8 @@ def _perform(args: argparse.Namespace) -> int:
         if not clips:
             raise SystemExit("mimic perform: every clip leaves the floor (use --off-floor)")
     t0 = time.perf_counter()
-    graph, _, _ = cached_graph(clips, _options(args), rebuild=args.rebuild)
+    with step("motion graph"):
+        graph, _, _ = cached_graph(clips, _options(args), rebuild=args.rebuild)
     unreachable = [
         f"{name} ({graph.in_scc[a:b].mean():.0%} reachable)"
         for name, a, b in zip(
@@ -244,7 +295,8 @@ def _perform(args: argparse.Namespace) -> int:
     # the matcher looks no further ahead than the look-ahead: trees that reach that far
     # (the paper's 15 s trees of a dense graph are truncated, and slow to build)
     bound = max(2.0, args.lookahead + 0.5)
-    layer, _, layer_built = cached_higher_layer(graph, clips, k=args.k, bound_seconds=bound)
+    with step("higher layer (clusters and trees)"):
+        layer, _, layer_built = cached_higher_layer(graph, clips, k=args.k, bound_seconds=bound)
     print(
         f"library: {len(graph.clip_names)} clips, {graph.n_frames} frames "
         f"({int(graph.in_scc.sum())} reachable); graph coords {graph.options.coords}; "
@@ -256,14 +308,38 @@ def _perform(args: argparse.Namespace) -> int:
     if args.variants and descriptor == "pose":
         print("--variants: body variants do not apply to the pose descriptor", file=sys.stderr)
     bank_settings = robust_settings(base) if args.variants and descriptor != "pose" else base
-    bank, built = ensure_bank(clips, bank_settings, progress=None)
-    start = start_frame(graph, args.start)
+    bank, built = ensure_bank(clips, bank_settings, progress=bar("silhouette bank", "shards"))
     settings = PerformSettings(
         segmentation=args.segmentation,
         learn_frames=args.learn_frames,
         match=MatchSettings(window=args.window, lookahead=args.lookahead, jumps=not args.no_jumps),
         seconds=args.seconds,
     )
+    return Prepared(
+        descriptor, clips, graph, layer, bank, built, settings, start_frame(graph, args.start)
+    )
+
+
+def _perform(args: argparse.Namespace) -> int:
+    if args.labels and not args.video:
+        raise ValueError("--labels needs --video (the labels name its file)")
+    truth = truth_for(args.video, args.labels) if args.video else None  # bad: LabelFileError
+    for name in ("out", "video_out", "log"):  # outputs into a missing folder work alike
+        if getattr(args, name):
+            Path(getattr(args, name)).expanduser().parent.mkdir(parents=True, exist_ok=True)
+    source = open_source(args.camera, args.video, args.masks, realtime=args.realtime)
+    if args.camera is not None and args.seconds is None:
+        print("a camera never ends: stop with Ctrl-C (or give --seconds)", file=sys.stderr)
+    ready = prepare(args, source)
+    plate = args.segmentation in METHODS or (
+        args.segmentation == "auto" and ready.descriptor != "pose"
+    )
+    if args.camera is not None and plate:
+        print(
+            "step out of view for two seconds so that the background can be learned",
+            file=sys.stderr,
+        )
+    clips, graph, layer, bank = ready.clips, ready.graph, ready.layer, ready.bank
     live = args.live_port != 0 and (args.camera is not None or args.realtime)
     with contextlib.ExitStack() as stack:
         log: Any = stack.enter_context(open(args.log, "w")) if args.log else None
@@ -284,8 +360,8 @@ def _perform(args: argparse.Namespace) -> int:
                 layer,
                 bank,
                 clips,
-                settings,
-                start=start,
+                ready.settings,
+                start=ready.start,
                 seed=args.seed,
                 log=log,
                 tape=tape,
@@ -311,7 +387,7 @@ def _perform(args: argparse.Namespace) -> int:
             if lat
             else ""
         )
-        + ("; bank built" if built else "")
+        + ("; bank built" if ready.bank_built else "")
     )
     jumps = sum("jump" in c for c in made)
     clips_seen = [c["clip"] for c in result.decisions]
@@ -324,10 +400,78 @@ def _perform(args: argparse.Namespace) -> int:
     _print_actions(result.decisions, clips)
     if truth is not None:
         _print_agreement(result.decisions, clips, truth)
+        _warn_own_take(args.video, clips)
     for name in ("out", "video_out", "log"):
         if getattr(args, name):
             print(f"wrote {getattr(args, name)}")
     return 0
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    truth = truth_for(args.video, args.labels)  # bad: LabelFileError, naming the file
+    if truth is None:
+        raise ValueError(
+            f"{args.video}: no ground truth (no {Path(args.video).name}.json sidecar): "
+            "give --labels CSV"
+        )
+    source = open_source(None, args.video, None)
+    ready = prepare(args, source)
+    try:
+        result = perform(
+            source,
+            ready.layer,
+            ready.bank,
+            ready.clips,
+            ready.settings,
+            start=ready.start,
+            seed=args.seed,
+        )
+    finally:
+        source.close()
+    _warn_own_take(args.video, ready.clips)
+    report = evaluation(result.decisions, ready.clips, truth, result.media_seconds)
+    report = {
+        "video": str(args.video),
+        "library": [c.name for c in ready.clips],
+        "descriptor": ready.descriptor,
+        "graph": {"coords": ready.graph.options.coords, "frames": ready.graph.n_frames},
+        "match": dataclasses.asdict(ready.settings.match),
+        **report,
+    }
+    path = Path(args.json)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(report, indent=1) + "\n")
+    os.replace(tmp, path)
+    if args.png:
+        plot_evaluation(report, args.png, title=f"{Path(args.video).name} against {truth.source}")
+    _print_actions(result.decisions, ready.clips)
+    best = report["best_at_lag_le_1s"]
+    print(
+        "agreement (actions the library has): "
+        + (f"{best:.2f} at lag {report['best_lag_s']:g} s" if best is not None else "none")
+        + f"; chance {report['chance']}; per action "
+        + ", ".join(f"{a} {v:.2f}" for a, v in report["per_action_at_best_lag"].items())
+        + f"; switches a minute: avatar {report['switches_per_minute']['avatar']}, "
+        f"performer {report['switches_per_minute']['performer']}"
+    )
+    print(f"wrote {args.json}" + (f" and {args.png}" if args.png else ""))
+    return 0
+
+
+def _warn_own_take(video: str, clips: list[Any]) -> None:
+    """Say so when a recording's own take is in the library: then its agreement is not
+    that of a performer the library has never seen."""
+    side = Path(video).with_name(Path(video).name + ".json")
+    try:
+        take = json.loads(side.read_text()).get("clip") if side.is_file() else None
+    except (OSError, ValueError, AttributeError):
+        return
+    if take and any(c.name == take for c in clips):
+        print(
+            f"note: the recording is of {take}, which is in the library: this agreement is "
+            f"not that of an unseen performer (--leave-out {take} measures one)"
+        )
 
 
 def _print_actions(decisions: list[dict[str, Any]], clips: list[Any], most: int = 10) -> None:

@@ -106,3 +106,39 @@ def test_the_video_marks_jumps_and_starts() -> None:
     assert t0 == 1.0
     assert marks[:4] == ["START", "JUMP", "JUMP", ""]
     assert latest[0]["cost"] == 2.0 and latest[5]["cost"] == 3.0  # the last one made
+
+
+def test_mimic_evaluate_writes_agreement_confusion_and_a_plot(
+    mocap: Path, tmp_path: Path, capsys
+) -> None:
+    import json
+    import shutil
+
+    import cv2
+
+    from vision.cli import main
+
+    out, png = tmp_path / "r" / "report.json", tmp_path / "r" / "plot.png"
+    argv = ["evaluate", str(RECORDING), str(mocap), "--clips", "13_30", "--k", "12"]
+    assert main([*argv, "--seconds", "6", "--json", str(out), "--png", str(png)]) == 0
+    report = json.loads(out.read_text())
+    assert report["library"] == ["13_30"] and report["truth"].endswith(".mkv.json")
+    assert set(report["agreement_by_lag_s"]) >= {"0", "0.5", "1", "3"}
+    best = report["best_at_lag_le_1s"]
+    lag = f"{report['best_lag_s']:g}"
+    assert best == report["agreement_known_actions_by_lag_s"][lag]
+    # the confusion matrix holds every counted decision, its diagonal the agreement
+    conf = report["confusion_at_best_lag"]
+    n = sum(sum(r.values()) for r in conf.values())
+    assert n == report["decisions_known_actions_by_lag_s"][lag]
+    assert sum(r.get(a, 0) for a, r in conf.items()) / n == pytest.approx(best, abs=1e-3)
+    assert 0 < report["chance"] < 1 and report["latency_ms"]["over_100ms"] == 0
+    img = cv2.imread(str(png))
+    assert img is not None and img.shape[1] > img.shape[0] > 300
+    said = capsys.readouterr().out
+    assert "agreement (actions the library has): " in said
+    # a video without ground truth is a clear error
+    bare = tmp_path / "bare.mkv"
+    shutil.copy(RECORDING, bare)
+    assert main(["evaluate", str(bare), str(mocap), "--clips", "13_30", "--json", str(out)]) == 2
+    assert "bare.mkv: no ground truth" in capsys.readouterr().err

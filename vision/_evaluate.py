@@ -1,0 +1,134 @@
+"""``mimic evaluate``'s figures: how often the avatar did the performer's action.
+
+From a performance (``perform``'s result) and its ground truth: agreement against lag
+(over every labelled decision, and over those whose action the library has), the best at
+a lag of at most 1 s, the confusion matrix and per-action agreement at that lag, chance
+(the avatar at a random library frame), the avatar's and the performer's action switches
+a minute, and the decision latency. ``plot_evaluation`` draws agreement against lag beside
+the confusion matrix (matplotlib, headless).
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from control.motion import Clip
+
+from ._truth import LAGS, Truth, agreement, avatar_labels
+
+__all__ = ["evaluation", "plot_evaluation"]
+
+
+def _switches_per_minute(labels: Sequence[str | None], seconds: float) -> float:
+    runs = [k for k, _ in itertools.groupby(x for x in labels if x)]
+    return round(max(len(runs) - 1, 0) / max(seconds / 60.0, 1e-9), 2)
+
+
+def evaluation(
+    decisions: Sequence[dict[str, Any]],
+    clips: Sequence[Clip],
+    truth: Truth,
+    media_seconds: float,
+    lags: Sequence[float] = LAGS,
+) -> dict[str, Any]:
+    """The figures of a performance against its ``truth`` (see the module)."""
+    known = {
+        (c.label_at(int(i)) or "").lower() for c in clips for i in np.flatnonzero(c.labels >= 0)
+    }
+    every = agreement(decisions, clips, truth, lags)
+    have = agreement(decisions, clips, truth, lags, known=known)
+    lag = have["best_lag_s"] if have["best_lag_s"] is not None else 0.0
+    conf = have["confusion_at_best_lag"]
+    per_action = {
+        a: round(row.get(a, 0) / max(sum(row.values()), 1), 3) for a, row in sorted(conf.items())
+    }
+    # chance: the avatar at a random library frame, against the performer's actions
+    lib = np.array([(c.label_at(i) or "").lower() for c in clips for i in range(c.motion.n_frames)])
+    truths = [truth.label_at(float(d["t"]) - lag) for d in decisions]
+    truths = [t for t in truths if t is not None and t in known]
+    chance = float(np.mean([np.mean(lib == t) for t in truths])) if truths else None
+    made = [d for d in decisions if d.get("decision") is not None and "latency_ms" in d]
+    lat = np.array([d["latency_ms"] for d in made], dtype=np.float64)
+    mine = avatar_labels(decisions, clips)
+    theirs = [truth.label_at(float(d["t"])) for d in decisions]
+    return {
+        "truth": truth.source,
+        "decisions": len(decisions),
+        "media_seconds": round(media_seconds, 3),
+        "library_actions": sorted(known),
+        "performer_actions": sorted({s[2] for s in truth.spans}),
+        "agreement_by_lag_s": every["by_lag_s"],
+        "decisions_by_lag_s": every["decisions_by_lag_s"],
+        "agreement_known_actions_by_lag_s": have["by_lag_s"],
+        "decisions_known_actions_by_lag_s": have["decisions_by_lag_s"],
+        "best_at_lag_le_1s": have["best_at_lag_le_1s"],
+        "best_lag_s": have["best_lag_s"],
+        "per_action_at_best_lag": per_action,
+        "confusion_at_best_lag": conf,
+        "chance": round(chance, 3) if chance is not None else None,
+        "switches_per_minute": {
+            "avatar": _switches_per_minute(mine, media_seconds),
+            "performer": _switches_per_minute(theirs, media_seconds),
+        },
+        "latency_ms": {
+            "p50": round(float(np.percentile(lat, 50)), 3) if lat.size else None,
+            "p99": round(float(np.percentile(lat, 99)), 3) if lat.size else None,
+            "max": round(float(lat.max()), 3) if lat.size else None,
+            "over_100ms": int((lat > 100.0).sum()),
+        },
+    }
+
+
+def plot_evaluation(report: dict[str, Any], path: str | Path, title: str = "") -> None:
+    """Agreement against lag (left) and the confusion matrix at the best lag (right),
+    as a PNG written through a temporary file."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax, cm) = plt.subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [1, 1.2]})
+    for key, name in (
+        ("agreement_known_actions_by_lag_s", "actions the library has"),
+        ("agreement_by_lag_s", "every labelled decision"),
+    ):
+        pts = [(float(k), v) for k, v in report[key].items() if v is not None]
+        if pts:
+            ax.plot(*zip(*pts, strict=True), marker="o", label=name)
+    if report.get("chance") is not None:
+        ax.axhline(report["chance"], color="grey", linestyle=":", label="chance")
+    ax.axvline(1.0, color="grey", linewidth=0.5)
+    ax.set(xlabel="lag (s)", ylabel="agreement", ylim=(0, 1), title="the avatar's action")
+    ax.legend(loc="lower right")
+    conf = report["confusion_at_best_lag"]
+    rows = sorted(conf)
+    # the performer's actions first, in the rows' order, so that agreement is the diagonal
+    cols = rows + sorted({c for r in conf.values() for c in r} - set(rows))
+    m = np.array([[conf[r].get(c, 0) for c in cols] for r in rows], dtype=float)
+    share = m / np.maximum(m.sum(axis=1, keepdims=True), 1)
+    cm.imshow(share if m.size else np.zeros((1, 1)), vmin=0, vmax=1, cmap="Blues", aspect="auto")
+    cm.set_xticks(range(len(cols)), cols, rotation=60, ha="right", fontsize=8)
+    cm.set_yticks(range(len(rows)), rows, fontsize=8)
+    for (i, j), v in np.ndenumerate(m):
+        if v:
+            cm.text(j, i, int(v), ha="center", va="center", fontsize=7)
+    lag = report.get("best_lag_s")
+    cm.set(xlabel="avatar", ylabel="performer", title=f"confusion at lag {lag} s")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        fig.savefig(tmp, format="png", dpi=100)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+        plt.close(fig)
