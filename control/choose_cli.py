@@ -103,7 +103,9 @@ def run_choice_session(
 ) -> dict[str, Any]:
     data = FrameData(graph, library.clips)
     start = start_frame(graph, args.start)
-    avatar = Avatar(graph, library.clips, start=start, seed=args.seed, blend=args.blend)
+    from .cli import blend_seconds  # control.cli imports this module
+
+    avatar = Avatar(graph, library.clips, start=start, seed=args.seed, blend=blend_seconds(args))
     lookahead = None if args.lookahead <= 0 else (0.0, args.lookahead)
     region = None
     if args.region:

@@ -36,6 +36,7 @@ from .motion import (
 __all__ = [
     "add_graph_commands",
     "add_library_commands",
+    "blend_seconds",
     "format_report",
     "library_summary",
     "start_frame",
@@ -228,7 +229,14 @@ def _add_graph_args(p: argparse.ArgumentParser) -> None:
         help="transitions whose blend a foot contact spans: keep and let the foot slip "
         "(default) or prune them",
     )
-    p.add_argument("--blend", type=float, default=d.blend, help="blend interval b, seconds")
+    p.add_argument(
+        "--blend",
+        type=float,
+        default=None,
+        help=f"blend interval b, seconds, of the avatar's transitions and jumps (default "
+        f"{d.blend:g}; sketch on block terrain 0.3); with --case4 prune also the interval "
+        "the pruning assumes",
+    )
     p.add_argument("--rebuild", action="store_true", help="ignore a cached graph")
 
 
@@ -278,8 +286,18 @@ def _options(args: argparse.Namespace) -> GraphOptions:
         threshold=args.threshold,
         block=args.block,
         case4=args.case4,
-        blend=args.blend,
+        # only pruning reads the blend: elsewhere it must not change the graph's cache key
+        blend=blend_seconds(args) if args.case4 == "prune" else GraphOptions().blend,
     )
+
+
+def blend_seconds(args: argparse.Namespace, default: float | None = None) -> float:
+    """``--blend``, else ``default``, else the graph options' default (1 s)."""
+    if args.blend is not None:
+        if not (args.blend > 0 and np.isfinite(args.blend)):
+            raise ValueError(f"--blend must be positive seconds, not {args.blend}")
+        return float(args.blend)
+    return GraphOptions().blend if default is None else default
 
 
 def _graph_for(args: argparse.Namespace) -> tuple[Library, MotionGraph, Path, bool]:
@@ -336,7 +354,7 @@ def _graph_walk(args: argparse.Namespace) -> int:
     n = max(1, round(args.seconds * graph.fps))
     frames, jumps, edges = random_walk(graph, n, seed=args.seed, start=start)
     syn = synthesize(
-        graph, library.clips, frames, jumps, edges, blend=args.blend, ik=not args.no_ik
+        graph, library.clips, frames, jumps, edges, blend=blend_seconds(args), ik=not args.no_ik
     )
     write_bvh(syn.motion, args.out)
     minutes = n / graph.fps / 60.0

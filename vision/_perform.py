@@ -49,6 +49,7 @@ class PerformSettings:
     learn_frames: int = 30
     match: MatchSettings = field(default_factory=MatchSettings)
     seconds: float | None = None  # stop after this much media time (cameras never end)
+    blend: float = 1.0  # the avatar's blend interval, seconds (transitions and jumps)
     #: run relocation's global search in a thread, its answer taken at a later decision,
     #: so that a live source is never held up by it (it takes tens to hundreds of ms);
     #: None: only for a camera or a paced (``realtime``) file, so that replays stay
@@ -93,7 +94,15 @@ def perform(
     costs = JumpCosts(graph, clips, anywhere=jumps)
     if jumps:
         _ = costs.features
-    avatar = Avatar(graph, clips, start=start, seed=seed, anywhere=jumps, jump_costs=costs)
+    avatar = Avatar(
+        graph,
+        clips,
+        start=start,
+        seed=seed,
+        anywhere=jumps,
+        jump_costs=costs,
+        blend=settings.blend,
+    )
     segmenter: Any = None
     landmarks = matcher.desc.kind == "pose"
     reader = PoseReader() if landmarks else None
@@ -196,7 +205,13 @@ def perform(
                         # with jumps, where the performer is now: the window's last frame
                         at = got[0] + matcher.n - 1 if jumps else got[0]
                         avatar = Avatar(
-                            graph, clips, start=at, seed=seed, anywhere=jumps, jump_costs=costs
+                            graph,
+                            clips,
+                            start=at,
+                            seed=seed,
+                            anywhere=jumps,
+                            jump_costs=costs,
+                            blend=settings.blend,
                         )
                         views, view = [got[1]], got[1]
                         if tape is not None:  # the avatar restarts: so does its video

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from control.cli import _add_graph_args, _add_library_args, _options, start_frame
+from control.cli import _add_graph_args, _add_library_args, _options, blend_seconds, start_frame
 from control.clusters import cached_higher_layer
 from control.graph import cached_graph
 from control.motion import load_library, write_bvh
@@ -314,6 +314,7 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
         learn_frames=args.learn_frames,
         match=MatchSettings(window=args.window, lookahead=args.lookahead, jumps=not args.no_jumps),
         seconds=args.seconds,
+        blend=blend_seconds(args),
     )
     return Prepared(
         descriptor, clips, graph, layer, bank, built, settings, start_frame(graph, args.start)

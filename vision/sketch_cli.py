@@ -9,7 +9,14 @@ from typing import Any
 
 import numpy as np
 
-from control.cli import _add_graph_args, _add_library_args, _graph_for, _options, start_frame
+from control.cli import (
+    _add_graph_args,
+    _add_library_args,
+    _graph_for,
+    _options,
+    blend_seconds,
+    start_frame,
+)
 from control.clusters import HigherLayer, cached_higher_layer
 from control.graph import CapturedTerrain, MotionGraph, cached_graph, terrain_options
 from control.motion import Library, load_library, write_bvh
@@ -122,7 +129,7 @@ def _sketch(args: argparse.Namespace) -> int:
         runs[name] = tracker
     first = plan[0][0]
     main = runs[first]
-    syn = main.motion()
+    syn = main.motion(blend=blend_seconds(args) if args.blend is not None else None)
     write_bvh(syn.motion, args.out)
     if captured is not None:
         summary[first]["terrain"] = main.terrain_report(syn)

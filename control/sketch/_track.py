@@ -680,10 +680,11 @@ class SketchTracker:
     def _start_map(self) -> tuple[float, FloatArray]:
         return self._start
 
-    def motion(self) -> Synthesis:
-        """The planned motion, blended, placed on the sketch. On block terrain the blends
-        are short (0.3 s: transitions come often and each blend moves the body off the
-        blocks' grid) and planted feet are held where the checked path put them."""
+    def motion(self, blend: float | None = None) -> Synthesis:
+        """The planned motion, blended over ``blend`` seconds, placed on the sketch. By
+        default, on block terrain the blends are short (0.3 s: transitions come often and
+        each blend moves the body off the blocks' grid), else 1 s; on terrain planted
+        feet are held where the checked path put them."""
         syn = synthesize(
             self.graph,
             self.clips,
@@ -692,7 +693,7 @@ class SketchTracker:
             np.array(self.edges, dtype=np.int64),
             anchor="source" if self.terrain is not None else "output",
             max_offset=0.45 if self.terrain is not None else 0.2,
-            blend=0.3 if self.terrain is not None else 1.0,
+            blend=blend if blend is not None else 0.3 if self.terrain is not None else 1.0,
         )
         yaw, trans = self._start_map()
         m = syn.motion

@@ -67,3 +67,19 @@ def test_walk_bad_arguments_are_clear_errors(
     assert main(["graph", "build", str(mocap), "--clips", "zz_*"]) == 2
     assert "no clip matches zz_*" in capsys.readouterr().err
     assert not (tmp_path / "w.bvh").exists()
+
+
+def test_blend_reaches_the_avatar_and_leaves_the_graph_alone() -> None:
+    from control.cli import _options, blend_seconds
+    from vision.cli import build_parser
+
+    parse = build_parser().parse_args
+    plain = parse(["graph", "build"])
+    half = parse(["graph", "build", "--blend", "0.5"])
+    # the graph (and so its cache key) does not depend on the blend unless pruning reads it
+    assert _options(plain) == _options(half)
+    assert blend_seconds(plain) == 1.0 and blend_seconds(half) == 0.5
+    pruned = parse(["graph", "build", "--case4", "prune", "--blend", "0.5"])
+    assert _options(pruned).blend == 0.5
+    with pytest.raises(ValueError, match="--blend must be positive"):
+        blend_seconds(parse(["graph", "build", "--blend", "-1"]))

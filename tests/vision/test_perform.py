@@ -483,3 +483,11 @@ def test_the_demo_runs_on_the_embedded_library_where_no_other_exists(
     said = capsys.readouterr()
     assert "library: 9 clips" in said.err
     assert read_bvh(out).n_frames >= 30
+
+
+def test_the_avatar_blends_over_the_blend_asked_for(setup) -> None:
+    lib, layer, bank = setup
+    settings = PerformSettings(seconds=1.5, blend=0.4)
+    r = perform(VideoSource(RECORDING, silhouette=True), layer, bank, lib.clips, settings)
+    assert r.avatar.blend == 0.4
+    assert r.avatar.motion().motion.n_frames == r.avatar.n_frames
