@@ -27,7 +27,9 @@ from silhouette_bank import (
     DESCRIPTORS,
     BankSettings,
     BodyShape,
+    StaleBankError,
     ensure_bank,
+    load_bank,
     robust_settings,
 )
 
@@ -102,6 +104,11 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
         "when MediaPipe is installed, else multigrid (how full each cell of 16x8, 8x4 and "
         "4x2 grids over the silhouette is); grid, hu (7 Hu moments): see the README's "
         "recognition figures",
+    )
+    p.add_argument(
+        "--bank",
+        help="a bank folder built by mimic bank build (any render settings and descriptor; "
+        "from the same clips) instead of the cached default bank",
     )
     p.add_argument("--k", type=int, help="number of clusters (default: BIC)")
     p.add_argument("--start", help="avatar starts at CLIP:FRAME")
@@ -246,8 +253,6 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
     """The library (the clips on the floor unless ``--off-floor``), its graph, higher
     layer and bank for ``source`` with the defaults of the vision interface, saying on
     stderr what was chosen and what was left out."""
-    descriptor = choose_descriptor(args.descriptor, source)
-    print(f"descriptor: {descriptor}", file=sys.stderr)
     if args.fps is None or args.fps <= 0:
         raise ValueError("--fps must be positive")
     with step("motion library"):
@@ -304,11 +309,27 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
         f"{time.perf_counter() - t0:.1f} s",
         file=sys.stderr,
     )
-    base = BankSettings(descriptor=descriptor)
-    if args.variants and descriptor == "pose":
-        print("--variants: body variants do not apply to the pose descriptor", file=sys.stderr)
-    bank_settings = robust_settings(base) if args.variants and descriptor != "pose" else base
-    bank, built = ensure_bank(clips, bank_settings, progress=bar("silhouette bank", "shards"))
+    if args.bank:  # a bank built by mimic bank build, with its own settings
+        try:
+            bank, built = load_bank(args.bank, clips), False
+        except StaleBankError as exc:
+            problem = str(exc)[len(exc.path) + 2 :]  # the message without its path
+            raise StaleBankError(
+                exc.path,
+                f"{problem}; perform matches against {len(clips)} clips ({clips[0].name}"
+                f"..{clips[-1].name}, the clips off the floor left out unless --off-floor): "
+                "build the bank from the same clips",
+            ) from None
+        descriptor = choose_descriptor(bank.settings.descriptor, source)
+        print(f"descriptor: {descriptor} (the bank's, {args.bank})", file=sys.stderr)
+    else:
+        descriptor = choose_descriptor(args.descriptor, source)
+        print(f"descriptor: {descriptor}", file=sys.stderr)
+        base = BankSettings(descriptor=descriptor)
+        if args.variants and descriptor == "pose":
+            print("--variants: body variants do not apply to the pose descriptor", file=sys.stderr)
+        bank_settings = robust_settings(base) if args.variants and descriptor != "pose" else base
+        bank, built = ensure_bank(clips, bank_settings, progress=bar("silhouette bank", "shards"))
     settings = PerformSettings(
         segmentation=args.segmentation,
         learn_frames=args.learn_frames,

@@ -491,3 +491,29 @@ def test_the_avatar_blends_over_the_blend_asked_for(setup) -> None:
     r = perform(VideoSource(RECORDING, silhouette=True), layer, bank, lib.clips, settings)
     assert r.avatar.blend == 0.4
     assert r.avatar.motion().motion.n_frames == r.avatar.n_frames
+
+
+def test_perform_uses_a_bank_built_with_other_settings(mocap: Path, tmp_path: Path, capsys) -> None:
+    folder = tmp_path / "bank12"
+    build = [
+        "bank",
+        "build",
+        str(mocap),
+        "--clips",
+        "13_30",
+        "--views",
+        "12",
+        "--bank",
+        str(folder),
+    ]
+    assert main(build) == 0
+    log = tmp_path / "d.jsonl"
+    run = ["perform", "--video", str(RECORDING), str(mocap), "--k", "12", "--seconds", "3"]
+    assert main([*run, "--clips", "13_30", "--bank", str(folder), "--log", str(log)]) == 0
+    assert f"(the bank's, {folder})" in capsys.readouterr().err
+    views = {json.loads(x).get("view") for x in log.read_text().splitlines()} - {None}
+    assert views and max(views) < 12  # the 12-view bank's cameras, not the default 18
+    # another library than the bank's is a clear error naming the folder
+    assert main([*run, "--clips", "13_29", "--bank", str(folder)]) == 2
+    err = capsys.readouterr().err
+    assert str(folder) in err and "built from another motion library" in err
