@@ -36,8 +36,10 @@ from .motion import (
 __all__ = [
     "add_graph_commands",
     "add_library_commands",
+    "add_library_dir",
     "blend_seconds",
     "format_report",
+    "library_dir",
     "library_summary",
     "start_frame",
 ]
@@ -51,12 +53,7 @@ def add_library_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
         help="clips, frames, duration, rate, joints and contact statistics",
         description="Load a motion library (ASF/AMC and/or BVH) and summarise it.",
     )
-    info.add_argument(
-        "dir",
-        nargs="?",
-        default=None,
-        help="library folder (default: $MIMIC_MOCAP or ../shared/mocap)",
-    )
+    add_library_dir(info)
     info.add_argument("--fps", type=float, default=15.0, help="resample to this rate (default 15)")
     info.add_argument("--mirror", action="store_true", help="add mirrored copies of every clip")
     info.add_argument(
@@ -141,7 +138,11 @@ def library_summary(library: Library) -> dict[str, Any]:
 
 def _info(args: argparse.Namespace) -> int:
     library = load_library(
-        args.dir, fps=args.fps, mirror=args.mirror, prefer=args.prefer, use_cache=not args.no_cache
+        library_dir(args),
+        fps=args.fps,
+        mirror=args.mirror,
+        prefer=args.prefer,
+        use_cache=not args.no_cache,
     )
     summary = library_summary(library)
     if args.json:
@@ -171,13 +172,26 @@ def _info(args: argparse.Namespace) -> int:
 # --- mimic graph ---------------------------------------------------------------------------
 
 
+def add_library_dir(p: argparse.ArgumentParser, positional: bool = True) -> None:
+    """The library folder, given as ``--library DIR`` in every subcommand (and, where the
+    command takes no other positional list, as its last positional argument too); read
+    it with ``library_dir(args)``."""
+    where = "default: $MIMIC_MOCAP, else ../shared/mocap, else the embedded library"
+    if positional:
+        p.add_argument("dir", nargs="?", default=None, help=f"library folder ({where})")
+    p.add_argument("--library", default=None, metavar="DIR", help=f"library folder ({where})")
+
+
+def library_dir(args: argparse.Namespace) -> str | None:
+    """The library folder of ``add_library_dir``'s arguments (``None``: the default)."""
+    pos, opt = getattr(args, "dir", None), getattr(args, "library", None)
+    if pos is not None and opt is not None and Path(pos) != Path(opt):
+        raise ValueError(f"two library folders given: {pos} and --library {opt}")
+    return opt if opt is not None else pos
+
+
 def _add_library_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "dir",
-        nargs="?",
-        default=None,
-        help="library folder (default: $MIMIC_MOCAP or ../shared/mocap)",
-    )
+    add_library_dir(p)
     p.add_argument(
         "--clips",
         action="append",
@@ -304,7 +318,7 @@ def _graph_for(args: argparse.Namespace) -> tuple[Library, MotionGraph, Path, bo
     if args.fps is None or args.fps <= 0:
         raise ValueError("--fps must be positive")
     options = _options(args)
-    library = load_library(args.dir, fps=args.fps, mirror=args.mirror, clips=args.clips)
+    library = load_library(library_dir(args), fps=args.fps, mirror=args.mirror, clips=args.clips)
     graph, path, built = cached_graph(library.clips, options, rebuild=args.rebuild)
     return library, graph, path, built
 

@@ -10,7 +10,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from control.cli import _add_library_args
+from control.cli import _add_library_args, library_dir
 from control.motion import Library, load_library
 from control.progress import bar
 
@@ -94,7 +94,7 @@ def add_bank_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def _library(args: argparse.Namespace) -> Library:
-    return load_library(args.dir, fps=args.fps, mirror=args.mirror, clips=args.clips)
+    return load_library(library_dir(args), fps=args.fps, mirror=args.mirror, clips=args.clips)
 
 
 def _build(args: argparse.Namespace) -> int:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import time
 
+from control.cli import add_library_dir, library_dir
 from control.motion import load_library, write_bvh
 from control.transition._chain import Chainer
 
@@ -20,10 +21,16 @@ def add_chain_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "interpolation when no path exists.",
     )
     p.add_argument("actions", nargs="+", metavar="ACTION")
-    p.add_argument("--library", help="motion library (default ../shared/mocap)")
+    add_library_dir(p, positional=False)  # ACTION... takes the positionals
     p.add_argument("--clips", action="append", metavar="PATTERN", help="only these clips")
     p.add_argument("--fps", type=float, default=15.0)
-    p.add_argument("--radius", type=float, default=10.0, help="cluster radius, in sigmas")
+    p.add_argument(
+        "--cluster-sigmas",
+        type=float,
+        default=10.0,
+        help="cluster radius of the two-pass clustering, in sigmas (sketch's --radius is "
+        "metres: another thing)",
+    )
     p.add_argument("--blend", type=float, default=0.5, help="junction blend, seconds")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--undirected", action="store_true", help="also play transition clips backwards")
@@ -39,11 +46,11 @@ def add_chain_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def _chain(args: argparse.Namespace) -> int:
-    library = load_library(args.library, fps=args.fps, clips=args.clips)
+    library = load_library(library_dir(args), fps=args.fps, clips=args.clips)
     t0 = time.perf_counter()
     chainer = Chainer(
         library.clips,
-        radius=args.radius,
+        radius=args.cluster_sigmas,
         blend=args.blend,
         seed=args.seed,
         fallback=args.fallback,

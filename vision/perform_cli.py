@@ -17,7 +17,15 @@ from typing import Any
 
 import numpy as np
 
-from control.cli import _add_graph_args, _add_library_args, _options, blend_seconds, start_frame
+from control.cli import (
+    _add_graph_args,
+    _add_library_args,
+    _options,
+    add_library_dir,
+    blend_seconds,
+    library_dir,
+    start_frame,
+)
 from control.clusters import cached_higher_layer
 from control.graph import cached_graph
 from control.motion import load_library, write_bvh
@@ -170,7 +178,7 @@ def add_perform_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
         "noise; FFV1 video plus a JSON sidecar (source frame and label per video frame).",
     )
     r.add_argument("clip", help="clip name, e.g. 13_29")
-    r.add_argument("--library", default=None, help="motion library (default ../shared/mocap)")
+    add_library_dir(r)
     r.add_argument("--out", required=True, help="video to write (.mkv)")
     r.add_argument("--from", dest="start", type=float, default=0.0, help="start, seconds")
     r.add_argument("--to", dest="stop", type=float, help="end, seconds (default: clip end)")
@@ -192,7 +200,7 @@ def _record(args: argparse.Namespace) -> int:
         w, h = (int(v) for v in args.size.lower().split("x"))
     except ValueError as exc:
         raise ValueError(f"--size must be WIDTHxHEIGHT, not {args.size!r}") from exc
-    library = load_library(args.library, fps=args.fps, clips=[args.clip])
+    library = load_library(library_dir(args), fps=args.fps, clips=[args.clip])
     clip = library.clip(args.clip)
     start = round(args.start * args.fps)
     stop = clip.motion.n_frames if args.stop is None else round(args.stop * args.fps)
@@ -256,7 +264,9 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
     if args.fps is None or args.fps <= 0:
         raise ValueError("--fps must be positive")
     with step("motion library"):
-        library = load_library(args.dir, fps=args.fps, mirror=args.mirror, clips=args.clips)
+        library = load_library(
+            library_dir(args), fps=args.fps, mirror=args.mirror, clips=args.clips
+        )
     clips = [
         c for c in library.clips if not any(fnmatch.fnmatchcase(c.name, p) for p in args.leave_out)
     ]

@@ -15,6 +15,7 @@ from control.cli import (
     _graph_for,
     _options,
     blend_seconds,
+    library_dir,
     start_frame,
 )
 from control.clusters import HigherLayer, cached_higher_layer
@@ -177,7 +178,7 @@ def _terrain_graph(
         raise ValueError("--mirror cannot be used on terrain: mirrored clips leave the block grid")
     if args.fps is None or args.fps <= 0:
         raise ValueError("--fps must be positive")
-    library = load_library(args.dir, fps=args.fps, clips=args.clips)
+    library = load_library(library_dir(args), fps=args.fps, clips=args.clips)
     options, captured = terrain_options(library.clips, block, _options(args))
     graph, _, _ = cached_graph(library.clips, options, rebuild=args.rebuild)
     return library, graph, captured

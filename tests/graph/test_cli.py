@@ -83,3 +83,26 @@ def test_blend_reaches_the_avatar_and_leaves_the_graph_alone() -> None:
     assert _options(pruned).blend == 0.5
     with pytest.raises(ValueError, match="--blend must be positive"):
         blend_seconds(parse(["graph", "build", "--blend", "-1"]))
+
+
+def test_the_library_folder_is_given_the_same_way_everywhere(tmp_path: Path) -> None:
+    from control.cli import library_dir
+    from vision.cli import build_parser
+
+    parse = build_parser().parse_args
+    for argv in (
+        ["library", "info"],
+        ["graph", "build"],
+        ["graph", "walk", "--seconds", "1", "--out", "w.bvh"],
+        ["choose", "--out", "c.bvh"],
+        ["perform", "--video", "v.mkv"],
+        ["evaluate", "v.mkv", "--json", "r.json"],
+        ["record", "13_29", "--out", "r.mkv"],
+        ["chain", "02_01", "--out", "c.bvh"],
+        ["sketch", "--path", "p.json", "--out", "s.bvh"],
+        ["bank", "build"],
+    ):
+        assert library_dir(parse([*argv, "--library", str(tmp_path)])) == str(tmp_path), argv
+    assert library_dir(parse(["graph", "build", str(tmp_path)])) == str(tmp_path)
+    with pytest.raises(ValueError, match="two library folders"):
+        library_dir(parse(["graph", "build", str(tmp_path), "--library", "/elsewhere"]))
