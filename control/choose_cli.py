@@ -15,6 +15,7 @@ from .choice import Option, offer
 from .clusters import DEFAULT_KS, HigherLayer, cached_higher_layer
 from .graph import FrameData, MotionGraph
 from .motion import Library, write_bvh
+from .progress import step
 
 __all__ = ["add_choose_command", "parse_ks", "read_script", "start_frame"]
 
@@ -214,15 +215,16 @@ def _choose(args: argparse.Namespace, graph_for: Any) -> int:
         raise ValueError("--seconds must be positive and --options at least 1")
     ks = parse_ks(args.ks) if args.k is None else list(DEFAULT_KS)
     library, graph, _, _ = graph_for(args)
-    layer, _, _ = cached_higher_layer(
-        graph,
-        library.clips,
-        k=args.k,
-        ks=ks,
-        seeding=args.seeding,
-        seed=args.seed,
-        bound_seconds=args.bound,
-    )
+    with step("higher layer (clusters and trees)"):
+        layer, _, _ = cached_higher_layer(
+            graph,
+            library.clips,
+            k=args.k,
+            ks=ks,
+            seeding=args.seeding,
+            seed=args.seed,
+            bound_seconds=args.bound,
+        )
     print(
         f"{layer.clustering.k} clusters; {layer.forest.report['trees']} cluster trees "
         f"(median {layer.forest.report['nodes']['median']:.0f} nodes)"

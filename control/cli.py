@@ -32,6 +32,7 @@ from .motion import (
     load_library,
     write_bvh,
 )
+from .progress import step
 
 __all__ = [
     "add_graph_commands",
@@ -318,8 +319,12 @@ def _graph_for(args: argparse.Namespace) -> tuple[Library, MotionGraph, Path, bo
     if args.fps is None or args.fps <= 0:
         raise ValueError("--fps must be positive")
     options = _options(args)
-    library = load_library(library_dir(args), fps=args.fps, mirror=args.mirror, clips=args.clips)
-    graph, path, built = cached_graph(library.clips, options, rebuild=args.rebuild)
+    with step("motion library"):
+        library = load_library(
+            library_dir(args), fps=args.fps, mirror=args.mirror, clips=args.clips
+        )
+    with step("motion graph"):
+        graph, path, built = cached_graph(library.clips, options, rebuild=args.rebuild)
     return library, graph, path, built
 
 

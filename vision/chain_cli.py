@@ -7,6 +7,7 @@ import time
 
 from control.cli import add_library_dir, library_dir
 from control.motion import load_library, write_bvh
+from control.progress import step
 from control.transition._chain import Chainer
 
 __all__ = ["add_chain_command"]
@@ -48,14 +49,15 @@ def add_chain_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
 def _chain(args: argparse.Namespace) -> int:
     library = load_library(library_dir(args), fps=args.fps, clips=args.clips)
     t0 = time.perf_counter()
-    chainer = Chainer(
-        library.clips,
-        radius=args.cluster_sigmas,
-        blend=args.blend,
-        seed=args.seed,
-        fallback=args.fallback,
-        directed=not args.undirected,
-    )
+    with step("action clusters and transitions (two-pass clustering)"):
+        chainer = Chainer(
+            library.clips,
+            radius=args.cluster_sigmas,
+            blend=args.blend,
+            seed=args.seed,
+            fallback=args.fallback,
+            directed=not args.undirected,
+        )
     t1 = time.perf_counter()
     result = chainer.chain(args.actions)
     t2 = time.perf_counter()

@@ -21,6 +21,7 @@ from control.cli import (
 from control.clusters import HigherLayer, cached_higher_layer
 from control.graph import CapturedTerrain, MotionGraph, cached_graph, terrain_options
 from control.motion import Library, load_library, write_bvh
+from control.progress import step
 from control.sketch import (
     SketchSettings,
     SketchTracker,
@@ -100,9 +101,10 @@ def _sketch(args: argparse.Namespace) -> int:
     if args.approach == "actions":
         if captured is not None:
             raise ValueError("--approach actions does not handle block terrain")
-        layer, _, _ = cached_higher_layer(
-            graph, library.clips, k=args.k, bound_seconds=args.bound, max_nodes=args.tree_nodes
-        )
+        with step("higher layer (clusters and trees)"):
+            layer, _, _ = cached_higher_layer(
+                graph, library.clips, k=args.k, bound_seconds=args.bound, max_nodes=args.tree_nodes
+            )
     # (name, c, layer): the chosen approach first; --baseline adds its comparison (eq. 8
     # without the facing term, or for actions the eq. 8 search)
     plan: list[tuple[str, float, HigherLayer | None]] = [
