@@ -58,12 +58,14 @@ from silhouette_bank import (
     robust_settings,
     silhouette_features,
 )
+from vision._evaluate import evaluation
 from vision._library import on_the_floor
 from vision._matcher import Matcher, MatchSettings, performer_sequence
 from vision._perform import PerformSettings, perform
 from vision._record import RecordSettings, record_clip
 from vision._segment import clean_mask
 from vision._sources import VideoSource
+from vision._truth import truth_for
 
 LAGS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0)
 SETTINGS = ((1.0, 1.5), (1.0, 3.0), (2.0, 3.0), (2.0, 5.0))
@@ -324,6 +326,10 @@ def fold(
             r = perform(
                 VideoSource(video, silhouette=True), layer, bank, train, PerformSettings(match=ms)
             )
+            # mimic evaluate's figures of the same run (the confusion matrix among them)
+            truth = truth_for(video)
+            assert truth is not None  # the recording's sidecar
+            judged = evaluation(r.decisions, train, truth, r.media_seconds)
             out["runs"].append(
                 _run_figures(
                     r,
@@ -341,6 +347,16 @@ def fold(
                     train,
                 )
             )
+            out["runs"][-1]["evaluate"] = {
+                k: judged[k]
+                for k in (
+                    "best_at_lag_le_1s",
+                    "best_lag_s",
+                    "per_action_at_best_lag",
+                    "confusion_at_best_lag",
+                    "chance",
+                )
+            }
     return out
 
 

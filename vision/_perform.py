@@ -64,6 +64,8 @@ class PerformResult:
     views: list[int]  # the best-matching view per avatar frame
     media_seconds: float
     frames_read: int
+    #: why the run ended before its source did ("" when it did not): e.g. "SIGTERM"
+    stopped: str = ""
 
 
 def perform(
@@ -78,13 +80,15 @@ def perform(
     tape: MaskTape | None = None,
     on_frame: Callable[[float, NDArray[np.bool_] | None, Avatar], None] | None = None,
     on_decision: Callable[[dict[str, Any]], None] | None = None,
+    stop: Callable[[], str] | None = None,
 ) -> PerformResult:
     """Run the loop until the source ends (or ``settings.seconds`` of media time).
 
     ``tape``: the performer's mask at every avatar frame is appended to it (for the
     side-by-side video, ``vision._video.write_video``). ``on_frame(t, mask, avatar)`` is
     called for every media frame, ``on_decision(entry)`` with every decision log entry
-    (the live view uses both)."""
+    (the live view uses both). ``stop()`` is asked before every frame: a non-empty
+    answer (why) ends the run there, and what was performed is returned as usual."""
     settings = settings or PerformSettings()
     graph = layer.graph
     matcher = Matcher(layer, bank, settings.match)
@@ -136,8 +140,11 @@ def perform(
     pending: Future[tuple[int, int, float] | None] | None = None
     n_read = 0
     t = 0.0
+    stopped = ""
     try:
         while True:
+            if stop is not None and (stopped := stop()):
+                break
             frame = source.read()
             if frame is None:
                 break
@@ -163,6 +170,7 @@ def perform(
                 mask = segmenter.apply(frame.image)
             else:
                 mask = None
+            problem = frame.problem  # e.g. an unreadable mask file: no silhouette, said why
             if reader is not None:
                 lm = getattr(segmenter, "landmarks", None) if frame.image is not None else None
                 h_px, w_px = frame.image.shape[:2] if frame.image is not None else (1, 1)
@@ -171,7 +179,7 @@ def perform(
             elif mask is not None:
                 latest = silhouette_features(mask, descriptor=matcher.desc)
             else:
-                latest, why_blank = blank, "no silhouette"
+                latest, why_blank = blank, problem or "no silhouette"
             latest_mask = mask
             if on_frame is not None:
                 on_frame(t, mask, avatar)
@@ -306,4 +314,4 @@ def perform(
     finally:
         if searcher is not None:  # a search still running is left to finish alone
             searcher.shutdown(wait=False, cancel_futures=True)
-    return PerformResult(avatar, decisions, views, t, n_read)
+    return PerformResult(avatar, decisions, views, t, n_read, stopped)

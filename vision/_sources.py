@@ -42,12 +42,14 @@ class SourceError(OSError):
 class Frame:
     """One frame: ``t`` seconds of media time; ``image`` (H, W, 3) BGR, or ``mask``
     (H, W) bool for sources that are already silhouettes; neither when the source has
-    nothing right now (a camera reconnecting)."""
+    nothing right now (a camera reconnecting), and then ``problem`` may say why (an
+    unreadable mask file)."""
 
     t: float
     index: int
     image: NDArray[np.uint8] | None = None
     mask: NDArray[np.bool_] | None = None
+    problem: str = ""
 
 
 class Source(Protocol):
@@ -130,18 +132,24 @@ class MaskFolderSource:
         self._i = 0
         self._pacer = _Pacer(realtime)
         self.realtime = realtime  # paced like a camera
+        #: the files that could not be read (each one a frame without a silhouette)
+        self.skipped: list[str] = []
 
     def read(self) -> Frame | None:
         if self._i >= len(self.files):
             return None
         path = self.files[self._i]
-        img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-        if img is None:
-            raise SourceError(f"{path}: not a readable image")
+        try:
+            img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        except cv2.error:
+            img = None
         t = self._i / self.fps
         self._pacer.wait(t)
         i = self._i
         self._i += 1
+        if img is None or img.size == 0:  # skipped, said, and the run goes on
+            self.skipped.append(path.name)
+            return Frame(t, i, problem=f"unreadable mask {path.name}")
         return Frame(t, i, mask=img > 127)
 
     def close(self) -> None:

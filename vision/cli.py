@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 
 from control.cli import add_graph_commands, add_library_commands
@@ -36,6 +38,13 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _terminate(signum: int, frame: object) -> None:
+    """SIGTERM and SIGHUP end a command as Ctrl-C does, through Python, so that files
+    being written are removed or finished rather than left half-written (``mimic
+    perform`` handles them itself: it writes what was performed)."""
+    raise SystemExit(128 + signum)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -43,8 +52,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
     )
+    old: dict[int, object] = {}
+    if threading.current_thread() is threading.main_thread():
+        for name in ("SIGTERM", "SIGHUP"):
+            if hasattr(signal, name):
+                sig = getattr(signal, name)
+                old[sig] = signal.signal(sig, _terminate)
     try:
         return int(args.func(args))
+    except KeyboardInterrupt:
+        print("mimic: interrupted", file=sys.stderr)
+        return 130
     except (
         MotionFormatError,
         GraphFileError,
@@ -58,6 +76,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     ) as exc:
         print(f"mimic: error: {exc}", file=sys.stderr)
         return 2
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)  # type: ignore[arg-type]
 
 
 if __name__ == "__main__":

@@ -9,7 +9,9 @@ import fnmatch
 import itertools
 import json
 import os
+import signal
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -257,6 +259,71 @@ class Prepared:
     start: int | None
 
 
+_SIGNALS = {"SIGINT": 2, "SIGHUP": 1, "SIGTERM": 15}
+
+
+class StopOnSignal:
+    """While in use, Ctrl-C (SIGINT), SIGTERM and SIGHUP ask the performance to stop at
+    its next frame (``__call__`` says which came) instead of killing it, so that what was
+    performed is still written. A second Ctrl-C interrupts at once."""
+
+    def __init__(self) -> None:
+        self.got = ""
+        self._old: dict[int, Any] = {}
+
+    def __call__(self) -> str:
+        return self.got
+
+    def _handle(self, signum: int, frame: Any) -> None:
+        name = signal.Signals(signum).name
+        if self.got == "SIGINT" and name == "SIGINT":
+            raise KeyboardInterrupt
+        if not self.got:
+            self.got = name
+            print(f"\n{name}: stopping after this frame (Ctrl-C again to abort)", file=sys.stderr)
+
+    def __enter__(self) -> StopOnSignal:
+        if threading.current_thread() is threading.main_thread():
+            for name in _SIGNALS:
+                sig = getattr(signal, name, None)
+                if sig is not None:
+                    self._old[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+
+
+class DecisionLog:
+    """The JSON-lines decision log, written line by line (each line flushed) to a
+    temporary file beside ``path`` and moved onto ``path`` when the run ends, stopped or
+    not: an old log is replaced only by a run that logged something, never destroyed by
+    a run that failed to start."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self._tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
+        self._fh = open(self._tmp, "w", buffering=1, encoding="utf-8")  # noqa: SIM115
+        self.lines = 0
+
+    def write(self, text: str) -> int:
+        n = self._fh.write(text)
+        self._fh.flush()
+        self.lines += text.count("\n")
+        return n
+
+    def __enter__(self) -> DecisionLog:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._fh.close()
+        if self.lines:
+            os.replace(self._tmp, self.path)
+        else:
+            self._tmp.unlink(missing_ok=True)
+
+
 def prepare(args: argparse.Namespace, source: Any) -> Prepared:
     """The library (the clips on the floor unless ``--off-floor``), its graph, higher
     layer and bank for ``source`` with the defaults of the vision interface, saying on
@@ -374,8 +441,9 @@ def _perform(args: argparse.Namespace) -> int:
     clips, graph, layer, bank = ready.clips, ready.graph, ready.layer, ready.bank
     live = args.live_port != 0 and (args.camera is not None or args.realtime)
     with contextlib.ExitStack() as stack:
-        log: Any = stack.enter_context(open(args.log, "w")) if args.log else None
+        log: Any = stack.enter_context(DecisionLog(args.log)) if args.log else None
         tape = stack.enter_context(MaskTape(fps=graph.fps)) if args.video_out else None
+        stops = stack.enter_context(StopOnSignal())
         painter = None
         if live:
             try:
@@ -399,44 +467,56 @@ def _perform(args: argparse.Namespace) -> int:
                 tape=tape,
                 on_frame=painter.on_frame if painter else None,
                 on_decision=painter.on_decision if painter else None,
+                stop=stops,
             )
-        except KeyboardInterrupt:
-            print("stopped", file=sys.stderr)
-            return 130
         finally:
             source.close()
+        if result.stopped:
+            print(
+                f"stopped by {result.stopped} at {result.media_seconds:.1f} s of media: "
+                "writing what was performed",
+                file=sys.stderr,
+                flush=True,
+            )
         made = [c for c in result.decisions if c.get("decision") is not None]
         if args.out:
             write_bvh(result.avatar.motion().motion, args.out)
         if tape is not None:
             write_video(result, bank, clips, args.video_out, tape)
     lat = [c["latency_ms"] for c in made]
-    print(
-        f"{result.frames_read} frames, {result.media_seconds:.1f} s of media; "
-        f"{len(result.decisions)} decision points, {len(made)} decisions"
-        + (
-            f", matcher p50 {np.percentile(lat, 50):.2f} ms, p99 {np.percentile(lat, 99):.2f} ms"
-            if lat
-            else ""
-        )
-        + ("; bank built" if ready.bank_built else "")
-    )
     jumps = sum("jump" in c for c in made)
     clips_seen = [c["clip"] for c in result.decisions]
     changes = sum(a != b for a, b in itertools.pairwise(clips_seen))
     minutes = max(result.media_seconds, 1e-9) / 60.0
-    print(
-        f"the avatar: {result.avatar.time:.1f} s of motion, {jumps} direct jumps, "
+    print(  # the one summary line
+        f"{result.media_seconds:.1f} s of media ({result.frames_read} frames): "
+        f"{len(made)} decisions of {len(result.decisions)}"
+        + (
+            f" (p50 {np.percentile(lat, 50):.2f} ms, p99 {np.percentile(lat, 99):.2f} ms)"
+            if lat
+            else ""
+        )
+        + f"; the avatar moved {result.avatar.time:.1f} s, {jumps} direct jumps, "
         f"{changes / minutes:.1f} clip changes a minute"
+        + ("; bank built" if ready.bank_built else "")
     )
     _print_actions(result.decisions, clips)
     if truth is not None:
         _print_agreement(result.decisions, clips, truth)
         _warn_own_take(args.video, clips)
+    skipped = getattr(source, "skipped", [])
+    if skipped:
+        shown = ", ".join(skipped[:5]) + (" ..." if len(skipped) > 5 else "")
+        print(
+            f"skipped {len(skipped)} unreadable mask files (each a frame without a silhouette, "
+            f"in the log as such): {shown}",
+            file=sys.stderr,
+        )
     for name in ("out", "video_out", "log"):
         if getattr(args, name):
             print(f"wrote {getattr(args, name)}")
-    return 0
+    # Ctrl-C is how a camera session ends; another signal is reported as such
+    return 0 if result.stopped in ("", "SIGINT") else 128 + _SIGNALS[result.stopped]
 
 
 def _evaluate(args: argparse.Namespace) -> int:

@@ -39,9 +39,14 @@ def test_bad_sources_are_clear_errors(tmp_path: Path) -> None:
         VideoSource(junk)
     with pytest.raises(SourceError, match="no mask images"):
         MaskFolderSource(tmp_path)
+    # one unreadable mask is skipped and said, and the rest are read
     (tmp_path / "a.png").write_bytes(b"broken")
-    with pytest.raises(SourceError, match=r"a\.png: not a readable image"):
-        MaskFolderSource(tmp_path).read()
+    cv2.imwrite(str(tmp_path / "b.png"), np.full((4, 4), 255, np.uint8))
+    folder = MaskFolderSource(tmp_path)
+    first, second = folder.read(), folder.read()
+    assert first is not None and first.mask is None and first.problem == "unreadable mask a.png"
+    assert second is not None and second.mask is not None and second.mask.all()
+    assert folder.read() is None and folder.skipped == ["a.png"]
     with pytest.raises(ValueError, match="exactly one"):
         open_source()
 

@@ -1,0 +1,116 @@
+"""A stop keeps what was done: signals to mimic perform and graph walk, the decision log."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from control.motion import read_bvh
+from tests.conftest import REPO
+from tests.vision.conftest import RECORDING
+from vision.cli import main
+
+MIMIC = [sys.executable, "-m", "vision.cli"]
+
+
+def _start(argv: list[str], tmp_path: Path) -> subprocess.Popen[str]:
+    env = {**os.environ, "MIMIC_CACHE": str(tmp_path / "cache")}
+    return subprocess.Popen(
+        [*MIMIC, *argv],
+        cwd=REPO,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def _wait_for(path: Path, proc: subprocess.Popen[str], lines: int, timeout: float = 240) -> None:
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        tmp = list(path.parent.glob(f".{path.name}.*.tmp"))
+        if tmp and tmp[0].read_text().count("\n") >= lines:
+            return
+        if proc.poll() is not None:
+            pytest.fail(f"mimic ended early: {proc.communicate()}")
+        time.sleep(0.2)
+    pytest.fail("no decisions logged in time")
+
+
+@pytest.mark.parametrize(("sig", "rc"), [(signal.SIGTERM, 143), (signal.SIGINT, 0)])
+def test_a_stopped_perform_writes_what_was_performed(
+    mocap: Path, tmp_path: Path, sig: signal.Signals, rc: int
+) -> None:
+    out, log = tmp_path / "a.bvh", tmp_path / "d.jsonl"
+    log.write_text("an old log\n")
+    argv = [
+        "perform",
+        "--video",
+        str(RECORDING),
+        str(mocap),
+        "--clips",
+        "13_30",
+        "--k",
+        "12",
+        "--realtime",
+        "--live-port",
+        "0",
+        "--out",
+        str(out),
+        "--log",
+        str(log),
+    ]
+    proc = _start(argv, tmp_path)
+    _wait_for(log, proc, 20)  # two seconds of decisions
+    proc.send_signal(sig)
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == rc, stderr
+    assert f"stopped by {sig.name}" in stderr
+    lines = [json.loads(x) for x in log.read_text().splitlines()]
+    assert len(lines) >= 20 and lines[-1]["t"] < 11.0  # stopped well before the end (12 s)
+    motion = read_bvh(out)
+    # the BVH holds what was performed, from the avatar's start (where the performer was
+    # first located) up to the stop
+    start = next(x["t"] for x in lines if "located" in x)
+    assert motion.n_frames >= 0.9 * (lines[-1]["t"] - start) * 15
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+def test_a_failed_start_keeps_the_old_log(mocap: Path, tmp_path: Path) -> None:
+    log = tmp_path / "d.jsonl"
+    log.write_text("an old log\n")
+    argv = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "99_*"]
+    assert main([*argv, "--log", str(log)]) == 2
+    assert log.read_text() == "an old log\n" and not list(tmp_path.glob(".*.tmp"))
+
+
+def test_sigterm_during_graph_walk_leaves_no_temporary_file(mocap: Path, tmp_path: Path) -> None:
+    out = tmp_path / "walk.bvh"
+    argv = [
+        "graph",
+        "walk",
+        str(mocap),
+        "--clips",
+        "13_30",
+        "--seconds",
+        "36000",
+        "--out",
+        str(out),
+    ]
+    proc = _start(argv, tmp_path)
+    t0 = time.monotonic()
+    while not list(tmp_path.glob(".walk.bvh.*")) and time.monotonic() - t0 < 240:
+        if proc.poll() is not None:
+            pytest.fail(f"walk ended early: {proc.communicate()}")
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    proc.communicate(timeout=60)
+    assert proc.returncode == 143
+    assert not list(tmp_path.glob(".walk.bvh.*")) and not out.exists()
