@@ -96,8 +96,9 @@ def perform(
     # one set of jump costs for every avatar of the run, its frame features computed
     # before the first frame rather than at the first jump
     costs = JumpCosts(graph, clips, anywhere=jumps)
-    if jumps:
+    if jumps:  # built now, not at the first decision (a camera would stall there)
         _ = costs.features
+        matcher.index()
     avatar = Avatar(
         graph,
         clips,
