@@ -37,7 +37,11 @@ from ._segment import clean_mask
 from ._sources import CameraSource, Source
 from ._video import MaskTape
 
-__all__ = ["PerformResult", "PerformSettings", "perform"]
+__all__ = ["MAX_COVER", "PerformResult", "PerformSettings", "perform"]
+
+#: a silhouette mask covering more of the frame than this is no performer (a white
+#: frame, the lights going on under a background subtractor): treated as no silhouette
+MAX_COVER = 0.6
 
 
 @dataclass(frozen=True)
@@ -63,9 +67,13 @@ class PerformResult:
     decisions: list[dict[str, Any]]
     views: list[int]  # the best-matching view per avatar frame
     media_seconds: float
-    frames_read: int
+    frames_read: int  # frames the source gave, with media or not
     #: why the run ended before its source did ("" when it did not): e.g. "SIGTERM"
     stopped: str = ""
+    #: frames that carried an image or a mask (a camera that never opens gives none)
+    frames_with_media: int = 0
+    #: media time (s) of the avatar's first frame: its motion (BVH, MP4) starts there
+    avatar_start_s: float = 0.0
 
 
 def perform(
@@ -142,6 +150,8 @@ def perform(
     n_read = 0
     t = 0.0
     stopped = ""
+    n_media = 0
+    t_start = 0.0
     try:
         while True:
             if stop is not None and (stopped := stop()):
@@ -172,6 +182,12 @@ def perform(
             else:
                 mask = None
             problem = frame.problem  # e.g. an unreadable mask file: no silhouette, said why
+            if frame.image is not None or frame.mask is not None:
+                n_media += 1
+            cover = float(mask.mean()) if mask is not None and mask.size else 0.0
+            if not landmarks and cover > MAX_COVER:
+                # a lighting change, a white frame, a bad mask: no performer looks so
+                mask, problem = None, f"the mask covers {cover:.0%} of the frame"
             if reader is not None:
                 lm = getattr(segmenter, "landmarks", None) if frame.image is not None else None
                 h_px, w_px = frame.image.shape[:2] if frame.image is not None else (1, 1)
@@ -223,6 +239,7 @@ def perform(
                             blend=settings.blend,
                         )
                         views, view = [got[1]], got[1]
+                        t_start = t
                         if tape is not None:  # the avatar restarts: so does its video
                             tape.reset()
                             tape.append(latest_mask)
@@ -315,4 +332,4 @@ def perform(
     finally:
         if searcher is not None:  # a search still running is left to finish alone
             searcher.shutdown(wait=False, cancel_futures=True)
-    return PerformResult(avatar, decisions, views, t, n_read, stopped)
+    return PerformResult(avatar, decisions, views, t, n_read, stopped, n_media, t_start)

@@ -26,6 +26,7 @@ __all__ = [
     "Source",
     "SourceError",
     "VideoSource",
+    "looks_like_silhouettes",
     "open_source",
 ]
 
@@ -92,9 +93,26 @@ class VideoSource:
         fps = float(self._cap.get(cv2.CAP_PROP_FPS) or 0.0)
         self.fps = fps if 1.0 <= fps <= 1000.0 else 30.0
         self.silhouette = silhouette
+        #: the frame count the container declares (0: unknown): fewer frames read means
+        #: a truncated file
+        n = self._cap.get(cv2.CAP_PROP_FRAME_COUNT)
+        self.expected_frames = int(n) if np.isfinite(n) and 0 < n < 1e9 else 0
         self._i = 0
         self._pacer = _Pacer(realtime)
         self.realtime = realtime  # paced like a camera
+
+    @property
+    def frames_read(self) -> int:
+        return self._i
+
+    def truncated(self) -> str:
+        """After the last frame: why the video seems cut short ("" when it does not)."""
+        if self.expected_frames and self._i < self.expected_frames - 1:
+            return (
+                f"{self.path}: the video ended after {self._i} of the {self.expected_frames} "
+                "frames its header declares (a truncated or damaged file?)"
+            )
+        return ""
 
     def read(self) -> Frame | None:
         ok, img = self._cap.read()
@@ -226,8 +244,7 @@ def open_source(
     fps: float = 30.0,
 ) -> Source:
     """The one source named. A video is read as silhouettes when ``silhouette`` is True,
-    or when it is None and the video looks binary (its first frame has only black and
-    white pixels)."""
+    or when it is None and it looks like one (``looks_like_silhouettes``)."""
     if sum(x is not None for x in (camera, video, masks)) != 1:
         raise ValueError("give exactly one of a camera, a video or a folder of masks")
     if camera is not None:
@@ -236,11 +253,32 @@ def open_source(
         return MaskFolderSource(masks, fps=fps, realtime=realtime)
     assert video is not None
     if silhouette is None:
-        probe = VideoSource(video)
-        first = probe.read()
-        probe.close()
-        if first is None or first.image is None:
-            raise SourceError(f"{video}: the video has no frames")
-        img = first.image
-        silhouette = bool(np.mean((img > 32) & (img < 223)) < 0.01)
+        silhouette = looks_like_silhouettes(video)
     return VideoSource(video, silhouette=silhouette, realtime=realtime)
+
+
+def looks_like_silhouettes(video: str | Path, frames: int = 30, limit: int = 900) -> bool:
+    """Whether a video holds binary silhouettes: each of its first ``frames`` frames that
+    show anything (not all black; looked for among the first ``limit``) is grey and
+    black-and-white only (under 1% of pixels in between). A video that is all black that
+    far is taken as colour (a dark start says nothing about what follows).
+
+    Raises ``SourceError`` for a video without frames."""
+    probe = VideoSource(video)
+    seen = informative = binary = 0
+    try:
+        while informative < frames and seen < limit and (frame := probe.read()) is not None:
+            seen += 1
+            img = frame.image
+            assert img is not None
+            if np.mean(img > 32) < 0.001:  # black: no evidence either way
+                continue
+            informative += 1
+            grey = img.ndim == 2 or int(np.abs(np.diff(img.astype(np.int16), axis=2)).max()) <= 24
+            if grey and np.mean((img > 32) & (img < 223)) < 0.01:
+                binary += 1
+    finally:
+        probe.close()
+    if seen == 0:
+        raise SourceError(f"{video}: the video has no frames")
+    return informative > 0 and binary == informative

@@ -51,7 +51,7 @@ from ._perform import PerformSettings, perform
 from ._person import INSTALL, PERSON_METHODS, person_segmentation_available
 from ._record import RecordSettings, record_clip
 from ._segment import METHODS
-from ._sources import MaskFolderSource, open_source
+from ._sources import MaskFolderSource, SourceError, open_source
 from ._truth import Truth, action_runs, agreement, truth_for
 from ._video import MaskTape, write_video
 
@@ -114,6 +114,14 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
         "when MediaPipe is installed, else multigrid (how full each cell of 16x8, 8x4 and "
         "4x2 grids over the silhouette is); grid, hu (7 Hu moments): see the README's "
         "recognition figures",
+    )
+    p.add_argument(
+        "--silhouette-video",
+        choices=("auto", "yes", "no"),
+        default="auto",
+        help="whether --video holds binary silhouettes (white on black) rather than "
+        "colour footage; auto (default): yes when each of its first 30 frames that is not "
+        "all black is black and white only",
     )
     p.add_argument(
         "--bank",
@@ -426,7 +434,13 @@ def _perform(args: argparse.Namespace) -> int:
     for name in ("out", "video_out", "log"):  # outputs into a missing folder work alike
         if getattr(args, name):
             Path(getattr(args, name)).expanduser().parent.mkdir(parents=True, exist_ok=True)
-    source = open_source(args.camera, args.video, args.masks, realtime=args.realtime)
+    source = open_source(
+        args.camera,
+        args.video,
+        args.masks,
+        silhouette=_silhouette(args),
+        realtime=args.realtime,
+    )
     if args.camera is not None and args.seconds is None:
         print("a camera never ends: stop with Ctrl-C (or give --seconds)", file=sys.stderr)
     ready = prepare(args, source)
@@ -471,6 +485,12 @@ def _perform(args: argparse.Namespace) -> int:
             )
         finally:
             source.close()
+        if result.frames_with_media == 0:
+            raise SourceError(
+                f"{source.name}: no frame came from the source in "
+                f"{result.media_seconds:.1f} s (a camera that does not open, or is in use?)"
+            )
+        _warn_source(source)
         if result.stopped:
             print(
                 f"stopped by {result.stopped} at {result.media_seconds:.1f} s of media: "
@@ -500,6 +520,11 @@ def _perform(args: argparse.Namespace) -> int:
         f"{changes / minutes:.1f} clip changes a minute"
         + ("; bank built" if ready.bank_built else "")
     )
+    if result.avatar_start_s > 0:
+        print(
+            f"the avatar's motion (BVH, MP4) starts at {result.avatar_start_s:.2f} s of media, "
+            "where the performer was first matched (the log's times are media times)"
+        )
     _print_actions(result.decisions, clips)
     if truth is not None:
         _print_agreement(result.decisions, clips, truth)
@@ -526,7 +551,7 @@ def _evaluate(args: argparse.Namespace) -> int:
             f"{args.video}: no ground truth (no {Path(args.video).name}.json sidecar): "
             "give --labels CSV"
         )
-    source = open_source(None, args.video, None)
+    source = open_source(None, args.video, None, silhouette=_silhouette(args))
     ready = prepare(args, source)
     try:
         result = perform(
@@ -541,6 +566,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     finally:
         source.close()
     _warn_own_take(args.video, ready.clips)
+    _warn_source(source)
     report = evaluation(result.decisions, ready.clips, truth, result.media_seconds)
     report = {
         "video": str(args.video),
@@ -569,6 +595,17 @@ def _evaluate(args: argparse.Namespace) -> int:
     )
     print(f"wrote {args.json}" + (f" and {args.png}" if args.png else ""))
     return 0
+
+
+def _silhouette(args: argparse.Namespace) -> bool | None:
+    return {"auto": None, "yes": True, "no": False}[args.silhouette_video]
+
+
+def _warn_source(source: Any) -> None:
+    """Say so when a video ended before the frames its header declares."""
+    why = source.truncated() if hasattr(source, "truncated") else ""
+    if why:
+        print(f"warning: {why}", file=sys.stderr)
 
 
 def _warn_own_take(video: str, clips: list[Any]) -> None:
