@@ -139,3 +139,18 @@ def test_pose_landmarks_become_pose_vectors(squats: list[np.ndarray]) -> None:
         reader.read(lm, (720, 1280))
     assert np.isnan(reader.read(lm, (720, 1280))).all() and "half a body" in reader.why
     model.close()
+
+
+def test_native_log_lines_are_silenced_and_python_errors_are_not(capfd) -> None:
+    import os
+
+    from vision._person import quiet_native_stderr
+
+    with quiet_native_stderr():
+        os.write(2, b"INFO: Created TensorFlow Lite XNNPACK delegate for CPU.\n")
+    os.write(2, b"after\n")
+    assert capfd.readouterr().err == "after\n"
+    with pytest.raises(ZeroDivisionError), quiet_native_stderr():
+        1 / 0  # noqa: B018
+    os.write(2, b"restored\n")
+    assert capfd.readouterr().err == "restored\n"
