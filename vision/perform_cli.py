@@ -520,7 +520,7 @@ def _perform(args: argparse.Namespace) -> int:
         f"{changes / minutes:.1f} clip changes a minute"
         + ("; bank built" if ready.bank_built else "")
     )
-    if result.avatar_start_s > 0:
+    if result.avatar_start_s > ready.settings.match.window + 0.5:  # a late start
         print(
             f"the avatar's motion (BVH, MP4) starts at {result.avatar_start_s:.2f} s of media, "
             "where the performer was first matched (the log's times are media times)"
@@ -625,7 +625,10 @@ def _warn_own_take(video: str, clips: list[Any]) -> None:
 
 def _print_actions(decisions: list[dict[str, Any]], clips: list[Any], most: int = 10) -> None:
     """What the avatar did: its actions over media time (an unlabelled clip by name)."""
-    runs = action_runs(decisions, clips, min_seconds=0.5)
+    # from the avatar's start on (before the performer is first matched it idles, and
+    # that motion is dropped)
+    first = next((i for i, d in enumerate(decisions) if "located" in d), 0)
+    runs = action_runs(decisions[first:], clips, min_seconds=0.5)
     if not runs:
         return
     shown = [f"{a:.1f}-{b:.1f} s {name}" for a, b, name in runs[:most]]
