@@ -171,7 +171,7 @@ def test_perform_serves_the_live_view_while_it_runs(mocap: Path, tmp_path: Path)
         try:
             with urllib.request.urlopen(f"http://127.0.0.1:{port}/state.json", timeout=2) as r:
                 state = json.loads(r.read())
-            if state["frame"] >= 0:
+            if state["frame"] >= 0 and state["t"] > 0:
                 seen = state
         except OSError:
             time.sleep(0.1)
