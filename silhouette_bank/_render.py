@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from control.motion import Motion
+from control.motion import Motion, current_umask
 
 from ._body import CapsuleBody, capsule_segments
 from ._camera import CameraRing
@@ -210,7 +212,14 @@ def write_mp4(path: str | Path, frames: Iterable[NDArray[np.uint8]], fps: float)
     import cv2
 
     path = Path(path)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    # a new file of our own (O_EXCL: never a planted name or symlink), beside the target
+    fd, name = tempfile.mkstemp(
+        prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=path.parent
+    )
+    os.close(fd)
+    tmp = Path(name)
+    os.chmod(tmp, 0o666 & ~current_umask())
     writer = None
     try:
         for img in frames:
@@ -220,12 +229,15 @@ def write_mp4(path: str | Path, frames: Iterable[NDArray[np.uint8]], fps: float)
                 if not writer.isOpened():
                     raise OSError(f"{path}: cannot write an MP4 here")
             writer.write(img)
-    finally:
+        if writer is None:
+            raise ValueError(f"{path}: no frames to write")
+        writer.release()
+        tmp.replace(path)
+    except BaseException:
         if writer is not None:
             writer.release()
-    if writer is None:
-        raise ValueError(f"{path}: no frames to write")
-    tmp.replace(path)
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def render_motion_video(

@@ -56,8 +56,12 @@ def random_walk(
         raise ValueError("n_frames must be at least 1")
     rng = np.random.default_rng(seed)
     scc = np.flatnonzero(graph.in_scc)
-    if scc.size == 0:
-        raise ValueError("the graph has no strongly connected component to walk in")
+    if scc.size < 2:  # none, or one frame without a way back to itself
+        raise ValueError(
+            f"the graph's strongly connected component has {scc.size} frame"
+            f"{'' if scc.size == 1 else 's'}: too small to walk in (loosen --threshold or "
+            "--sigma-scale, or add clips)"
+        )
     if start is None:
         f = int(rng.choice(scc))
     else:

@@ -28,6 +28,7 @@ from ._library import (
 from ._names import ROLE_ALIASES, find_role, mirror_map, role_point
 from ._ops import cut, mirror, resample, resample_positions
 from ._quat import euler_to_q, q_to_euler, q_to_R, qconj, qexp, qlog, qmul, qnormalize, qrot, slerp
+from ._text import atomic_write, current_umask
 from ._types import Motion, Skeleton
 
 __all__ = [
@@ -45,7 +46,9 @@ __all__ = [
     "MotionFormatError",
     "Pose",
     "Skeleton",
+    "atomic_write",
     "contact_events",
+    "current_umask",
     "cut",
     "default_cache_dir",
     "default_library_path",

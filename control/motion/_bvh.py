@@ -327,31 +327,35 @@ def write_bvh(
     for e, p in enumerate(sk.end_parents):
         ends.setdefault(int(p), []).append(e)
 
-    def emit(j: int, depth: int) -> None:
+    # the hierarchy, depth first with an explicit stack (a chain of thousands of joints
+    # would overflow Python's recursion)
+    stack: list[tuple[bool, int, int]] = [(True, 0, 0)]
+    while stack:
+        enter, j, depth = stack.pop()
         pad = "  " * depth
-        written.append(j)
-        kind = "ROOT" if j == 0 else "JOINT"
-        out.append(f"{pad}{kind} {sk.names[j]}")
-        out.append(f"{pad}{{")
-        off = np.zeros(3) if j == 0 else sk.offsets[j] / scale
-        out.append(f"{pad}  OFFSET {_fmt(off)}")
-        if j == 0:
-            out.append(f"{pad}  CHANNELS 6 Xposition Yposition Zposition {rot_names}")
-        else:
-            out.append(f"{pad}  CHANNELS 3 {rot_names}")
         kids = sk.children(j)
-        for c in kids:
-            emit(c, depth + 1)
+        if enter:
+            written.append(j)
+            kind = "ROOT" if j == 0 else "JOINT"
+            out.append(f"{pad}{kind} {sk.names[j]}")
+            out.append(f"{pad}{{")
+            off = np.zeros(3) if j == 0 else sk.offsets[j] / scale
+            out.append(f"{pad}  OFFSET {_fmt(off)}")
+            if j == 0:
+                out.append(f"{pad}  CHANNELS 6 Xposition Yposition Zposition {rot_names}")
+            else:
+                out.append(f"{pad}  CHANNELS 3 {rot_names}")
+            stack.append((False, j, depth))
+            stack.extend((True, int(c), depth + 1) for c in reversed(list(kids)))
+            continue
         end_list = ends.get(j, [])
-        if not kids and not end_list:
+        if not len(kids) and not end_list:
             out.append(f"{pad}  End Site\n{pad}  {{\n{pad}    OFFSET 0 0 0\n{pad}  }}")
         for e in end_list:
             out.append(f"{pad}  End Site\n{pad}  {{")
             out.append(f"{pad}    OFFSET {_fmt(sk.end_offsets[e] / scale)}")
             out.append(f"{pad}  }}")
         out.append(f"{pad}}}")
-
-    emit(0, 0)
     out.append("MOTION")
     out.append(f"Frames: {motion.n_frames}")
     out.append(f"Frame Time: {1.0 / motion.fps:.9g}")

@@ -145,3 +145,20 @@ def test_scenery_shows_in_shaded_renders_but_not_in_silhouettes(exercise) -> Non
     assert np.array_equal(alone, with_wall)  # silhouettes are the body's alone
     lit = (shaded_wall.sum(axis=2) > 0) & (shaded_alone.sum(axis=2) == 0)
     assert lit.sum() > 100  # the wall is drawn
+
+
+def test_write_mp4_never_follows_a_planted_name(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    import numpy as np
+    import pytest
+
+    from silhouette_bank import write_mp4
+
+    target = tmp_path / "victim.txt"
+    target.write_text("keep me")
+    (tmp_path / ".v.tmp.mp4").symlink_to(target)  # the old, predictable temporary name
+    write_mp4(tmp_path / "v.mp4", [np.zeros((16, 16, 3), np.uint8)] * 3, 15.0)
+    assert target.read_text() == "keep me" and (tmp_path / "v.mp4").stat().st_size > 0
+    with pytest.raises(ValueError, match="no frames"):
+        write_mp4(tmp_path / "w.mp4", [], 15.0)
+    left = {p.name for p in tmp_path.iterdir()}
+    assert left == {"victim.txt", ".v.tmp.mp4", "v.mp4"}

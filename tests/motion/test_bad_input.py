@@ -253,3 +253,36 @@ def test_fuzz_real_files_raise_only_motion_format_error(
         p.unlink()
     # The mutations must exercise both outcomes.
     assert outcomes["ok"] > 20 and outcomes["error"] > 100, outcomes
+
+
+def test_a_very_deep_chain_writes_and_reads_back(tmp_path: Path) -> None:
+    from control.motion import Motion, Skeleton, write_bvh
+
+    n = 1200  # deeper than Python's recursion limit
+    sk = Skeleton(
+        tuple(f"j{i}" for i in range(n)),
+        np.arange(-1, n - 1),
+        np.tile([0.0, 0.01, 0.0], (n, 1)),
+        (("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation"),)
+        + (("Zrotation", "Xrotation", "Yrotation"),) * (n - 1),
+        np.array([n - 1]),
+        np.array([[0.0, 0.01, 0.0]]),
+    )
+    q = np.zeros((2, n, 4))
+    q[..., 0] = 1.0
+    m = Motion(sk, np.zeros((2, 3)), q, 30.0, "chain")
+    path = tmp_path / "chain.bvh"
+    write_bvh(m, path)
+    back = read_bvh(path, units="m")
+    assert back.skeleton.n_joints == n and back.n_frames == 2
+
+
+def test_a_walk_in_a_tiny_component_is_a_clear_error(mocap: Path) -> None:
+    from control.graph import GraphOptions, build_graph, random_walk
+    from control.motion import load_library
+
+    lib = load_library(mocap, clips=["02_03"])
+    g = build_graph(lib.clips, GraphOptions(threshold=1e-6, sigma_scale=0.01, similarity=False))
+    assert g.in_scc.sum() < 2
+    with pytest.raises(ValueError, match="too small to walk in"):
+        random_walk(g, 30)
