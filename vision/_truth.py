@@ -46,7 +46,7 @@ def read_span_labels(path: str | Path) -> list[tuple[str, float, float, str]]:
     header line and ``#`` comments allowed)."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
         raise LabelFileError(f"{path}: no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -56,7 +56,10 @@ def read_span_labels(path: str | Path) -> list[tuple[str, float, float, str]]:
         line = raw.split("#", 1)[0].strip()
         if not line:
             continue
-        parts = next(csv.reader([line]))
+        try:
+            parts = next(csv.reader([line]))
+        except csv.Error as exc:  # a huge field, a stray quote
+            raise LabelFileError(f"{path}:{no}: not a labels line ({exc})") from None
         if [p.strip().lower() for p in parts] == ["file", "start", "end", "label"]:
             continue
         if len(parts) != 4:

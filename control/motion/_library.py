@@ -243,10 +243,19 @@ def _descriptions(root: Path, names: set[str]) -> dict[str, str]:
             for n in _expand(cells[header.index("clip")], names):
                 out.setdefault(n, cells[header.index("description")])
     for table in sorted(root.rglob("descriptions.csv")):
-        with table.open(encoding="utf-8", newline="") as fh:
-            for row in csv.DictReader(fh):
+        try:
+            data = table.read_bytes()
+        except OSError as exc:
+            raise MotionFormatError(table, f"cannot read: {exc.strerror or exc}") from None
+        if not data.strip():
+            continue
+        text = decode(table, data)  # not UTF-8: an error naming the file
+        try:
+            for row in csv.DictReader(io.StringIO(text)):
                 if row.get("clip") in names and row.get("description"):
                     out[row["clip"]] = row["description"]
+        except csv.Error as exc:
+            raise MotionFormatError(table, f"not a descriptions CSV ({exc})") from None
     return out
 
 
@@ -257,7 +266,10 @@ def _label_files(root: Path) -> dict[str, Path]:
 def read_labels(path: Path, n_frames: int) -> tuple[NDArray[np.int64], tuple[str, ...]]:
     """Per source frame ``(n_frames,)`` label index (-1 unlabelled) and the label names."""
     text = decode(path, read_bytes(path))
-    rows = list(csv.reader(io.StringIO(text)))
+    try:
+        rows = list(csv.reader(io.StringIO(text)))
+    except csv.Error as exc:  # a huge field, a stray quote
+        raise MotionFormatError(path, f"not a labels CSV ({exc})") from None
     if not rows or [c.strip() for c in rows[0]] != ["first_frame", "last_frame", "action"]:
         raise MotionFormatError(path, "header must be first_frame,last_frame,action", 1)
     labels = np.full(n_frames, -1, dtype=np.int64)

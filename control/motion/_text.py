@@ -51,9 +51,13 @@ def read_bytes(path: str | Path) -> bytes:
 
 
 def decode(path: str | Path, data: bytes) -> str:
-    """UTF-8 text of ``data``; invalid bytes are an error naming line and byte."""
+    """UTF-8 text of ``data`` with ``\n`` line ends (CRLF and CR-only files too, and a
+    leading byte-order mark dropped); invalid bytes are an error naming line and byte."""
     try:
-        return data.decode("utf-8")
+        text = data.decode("utf-8")
+        if text.startswith("\ufeff"):
+            text = text[1:]
+        return text.replace("\r\n", "\n").replace("\r", "\n")
     except UnicodeDecodeError as exc:
         line = data[: exc.start].count(b"\n") + 1
         bad = data[exc.start : exc.start + 1].hex()

@@ -53,7 +53,7 @@ def _pair(path: Path, where: str, item: Any) -> tuple[float, float]:
         raise SketchFileError(f"{path}: {where}: expected a pair [x, z], got {item!r}")
     try:
         x, z = float(item[0]), float(item[1])
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise SketchFileError(
             f"{path}: {where}: coordinates must be numbers, got {item!r}"
         ) from None
@@ -62,15 +62,29 @@ def _pair(path: Path, where: str, item: Any) -> tuple[float, float]:
     return x, z
 
 
+class _HugeNumber(ValueError):
+    pass
+
+
+def _small_int(text: str) -> int:
+    if len(text.lstrip("-")) > 15:  # no plausible coordinate, level or count
+        raise _HugeNumber(text)
+    return int(text)
+
+
 def _load_json(path: Path) -> Any:
     try:
-        return json.loads(path.read_text())
+        return json.loads(path.read_text(encoding="utf-8-sig"), parse_int=_small_int)
     except FileNotFoundError:
         raise SketchFileError(f"{path}: no such file") from None
     except UnicodeDecodeError:
         raise SketchFileError(f"{path}: not a text file") from None
     except json.JSONDecodeError as exc:
         raise SketchFileError(f"{path}:{exc.lineno}: not valid JSON ({exc.msg})") from None
+    except _HugeNumber as exc:
+        raise SketchFileError(f"{path}: a number of {len(str(exc))} digits") from None
+    except RecursionError:
+        raise SketchFileError(f"{path}: nested too deeply to be a sketch") from None
 
 
 def read_sketch(path: str | Path) -> FloatArray:

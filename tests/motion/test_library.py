@@ -173,3 +173,41 @@ def test_unwritable_cache_only_warns(
     lib = load_library(small_lib, cache_dir=blocker / "c", workers=1)
     assert len(lib.clips) == 3
     assert "cannot write cache entry" in caplog.text
+
+
+def test_line_ends_byte_order_marks_and_bad_tables(small_lib: Path, tmp_path: Path) -> None:
+    import csv as csv_module
+
+    # CR-only and BOM-led files read as their CRLF/LF twins
+    amc = small_lib / "asf" / "02_03.amc"
+    text = amc.read_bytes().replace(b"\r\n", b"\n")
+    amc.write_bytes(b"\xef\xbb\xbf" + text.replace(b"\n", b"\r"))
+    labels = small_lib / "labels" / "02_03.csv"
+    labels.write_bytes(b"\xef\xbb\xbffirst_frame,last_frame,action\r1,96,Jog\r97,180,Stop\r")
+    lib = load_library(small_lib, fps=15, cache_dir=tmp_path / "c", workers=1)
+    clip = lib.clip("02_03")
+    assert clip.motion.n_frames > 0 and clip.label_names == ("Jog", "Stop")
+    # a huge field and a Latin-1 descriptions.csv are errors naming the file
+    labels.write_text(
+        "first_frame,last_frame,action\n1,2," + "x" * (csv_module.field_size_limit() + 5) + "\n"
+    )
+    with pytest.raises(MotionFormatError, match=r"02_03\.csv.*not a labels CSV"):
+        load_library(small_lib, fps=15, cache_dir=tmp_path / "c", workers=1)
+    labels.write_text("first_frame,last_frame,action\n1,96,Jog\n")
+    (small_lib / "descriptions.csv").write_bytes(
+        "clip,description\n02_03,caf\xe9\n".encode("latin-1")
+    )
+    with pytest.raises(MotionFormatError, match=r"descriptions\.csv.*not UTF-8"):
+        load_library(small_lib, fps=15, cache_dir=tmp_path / "c", workers=1)
+
+
+def test_sketch_files_with_huge_numbers_or_deep_nesting_are_clear_errors(tmp_path: Path) -> None:
+    from control.sketch import SketchFileError, read_sketch
+
+    path = tmp_path / "s.json"
+    path.write_text('{"points": [[' + "9" * 400 + ", 0], [1, 1]]}")
+    with pytest.raises(SketchFileError, match=r"s\.json: a number of 400 digits"):
+        read_sketch(path)
+    path.write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(SketchFileError, match=r"s\.json: nested too deeply"):
+        read_sketch(path)
