@@ -23,6 +23,10 @@ __all__ = ["read_amc"]
 _NAME_RE = re.compile(r"(?m)^[ \t]*([A-Za-z_][^ \t\r\n]*)")
 
 
+#: the farthest a root may be from the origin, metres (after the units are applied)
+MAX_ROOT_M = 10_000.0
+
+
 def read_amc(
     path: str | Path, asf: AsfSkeleton, fps: float = 120.0, name: str | None = None
 ) -> Motion:
@@ -211,5 +215,13 @@ def _to_motion(
         quats[:, j] = qmul(qmul(c, m), qconj(c))
     if not np.all(np.isfinite(root_pos)):
         raise MotionFormatError(path, "root translation overflows")
+    far = np.abs(root_pos).max(axis=1) > MAX_ROOT_M
+    if far.any():  # checked after the units: a capture volume, not 3e7 m
+        f = int(np.argmax(far))
+        raise MotionFormatError(
+            path,
+            f"frame {f + 1}: the root is {np.abs(root_pos[f]).max():.3g} m from the origin "
+            f"after the units (over {MAX_ROOT_M:g} m): wrong units or a broken file",
+        )
     norms = np.linalg.norm(quats, axis=-1, keepdims=True)
     return Motion(sk, root_pos, quats / norms, fps, name=name, source=str(path))

@@ -87,6 +87,10 @@ def _axis_q(
     return euler_to_q(rad[idx], seq)
 
 
+#: the longest bone a skeleton may have, metres (after the units are applied)
+MAX_BONE_M = 10.0
+
+
 def read_asf(path: str | Path, metres_per_unit: float | None = None) -> AsfSkeleton:
     """Read an Acclaim ASF skeleton.
 
@@ -307,6 +311,15 @@ def _assemble(
             assert bone.direction is not None and bone.length is not None
             end_parents.append(j)
             end_offsets.append(bone.direction * bone.length * metres)
+    for name in order[1:]:  # after the units are applied: a person's bones, not 1e8 m
+        b = bones[name]
+        assert b.length is not None
+        if b.length * metres > MAX_BONE_M:
+            raise MotionFormatError(
+                path,
+                f"bone {name!r} is {b.length * metres:.3g} m long after the units "
+                f"(over {MAX_BONE_M:g} m): wrong units or a broken file",
+            )
     skeleton = Skeleton(
         names=tuple(order),
         parents=parents,

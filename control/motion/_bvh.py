@@ -197,6 +197,10 @@ def read_bvh(path: str | Path, units: str | float = "auto", name: str | None = N
             path, f"'Frames: {n_frames}' but {len(data_lines)} lines of frame data follow", k + 1
         )
     values = parse_floats_fast("\n".join(data_lines))
+    # the total alone would let a frame of n-1 values and one of n+1 shift every channel
+    # between them: every line must hold exactly n_chan values
+    if values is not None and any(len(line.split()) != n_chan for line in data_lines):
+        values = None
     if values is None or values.size != n_frames * n_chan:
         values = _frames_slow(path, data_lines, k + 1, n_chan)
     values = values.reshape(n_frames, n_chan)

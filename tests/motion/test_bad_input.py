@@ -286,3 +286,35 @@ def test_a_walk_in_a_tiny_component_is_a_clear_error(mocap: Path) -> None:
     assert g.in_scc.sum() < 2
     with pytest.raises(ValueError, match="too small to walk in"):
         random_walk(g, 30)
+
+
+def test_bvh_frames_of_the_wrong_length_are_named_even_when_the_total_fits(
+    tmp_path: Path,
+) -> None:
+    src = (BVH_DIR / "02_03.bvh").read_text().replace("\r\n", "\n").splitlines()
+    k = next(i for i, line in enumerate(src) if line.startswith("Frame Time")) + 1
+    one, two = src[k + 3].split(), src[k + 4].split()
+    src[k + 3] = " ".join(one[:-1])  # a value short
+    src[k + 4] = " ".join([*two, "0"])  # a value over: the total still fits
+    path = tmp_path / "shift.bvh"
+    path.write_text("\n".join(src) + "\n")
+    with pytest.raises(MotionFormatError, match=rf"shift\.bvh:{k + 4}"):
+        read_bvh(path)
+
+
+def test_lengths_and_roots_are_checked_after_the_units(tmp_path: Path) -> None:
+    p = tmp_path / "huge.asf"
+    # 1e8 inches passes the number range, and is 2,540 km after the units
+    p.write_text(TINY_ASF.replace("length 10\n", "length 100000000\n", 1))
+    with pytest.raises(MotionFormatError, match=r"huge\.asf.*m long after the units"):
+        read_asf(p)
+    asf02 = read_asf(asf_path("02"))
+    amc = _real("02_03").decode().replace("\r\n", "\n").split("\n")
+    k = next(i for i, line in enumerate(amc) if line.startswith("root "))
+    parts = amc[k].split()
+    parts[1] = "3e7"  # x, in ASF units: 3e7 / 0.45 inches is 1,700 km
+    amc[k] = " ".join(parts)
+    q = tmp_path / "02_03.amc"
+    q.write_text("\n".join(amc))
+    with pytest.raises(MotionFormatError, match=r"02_03\.amc.*frame 1: the root is"):
+        read_amc(q, asf02)
