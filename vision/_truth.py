@@ -207,9 +207,8 @@ def action_runs(
     for run in raw:
         if out and (run[1] - run[0] < min_seconds or out[-1][2] == run[2]):
             out[-1][1] = run[1]
-        elif out and out[-1][1] - out[-1][0] < min_seconds and len(out) == 1:
-            out[-1] = run[:1] + run[1:]  # a short first run goes to the one after
-            out[-1][0] = raw[0][0]
+        elif len(out) == 1 and out[0][1] - out[0][0] < min_seconds:
+            out[0] = [out[0][0], run[1], run[2]]  # a short first run goes to the one after
         else:
             out.append(list(run))
     return [(a, b, s) for a, b, s in out]

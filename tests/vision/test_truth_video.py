@@ -75,6 +75,10 @@ def test_what_the_avatar_did_merges_short_runs(setup) -> None:
     assert [r[2] for r in runs] == ["JumpJack"] and runs[0][:2] == (0.0, 2.9)
     runs = action_runs(_decisions(clip, frames, times), lib.clips)
     assert [r[2] for r in runs] == ["JumpJack", "Squat", "JumpJack"]
+    # a short first run goes to the one after it
+    frames = [b if t < 0.2 else a for t in times]
+    runs = action_runs(_decisions(clip, frames, times), lib.clips, min_seconds=0.5)
+    assert runs == [(0.0, 2.9, "JumpJack")]
 
 
 def test_the_mask_tape_plays_back_what_was_written(rng: np.random.Generator) -> None:
