@@ -11,16 +11,15 @@ the confusion matrix (matplotlib, headless).
 from __future__ import annotations
 
 import itertools
-import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from control.motion import Clip
+from control.motion import Clip, atomic_write
 
-from ._truth import LAGS, Truth, agreement, avatar_labels
+from ._truth import LAGS, Truth, agreement, avatar_labels, library_actions
 
 __all__ = ["evaluation", "plot_evaluation"]
 
@@ -38,9 +37,7 @@ def evaluation(
     lags: Sequence[float] = LAGS,
 ) -> dict[str, Any]:
     """The figures of a performance against its ``truth`` (see the module)."""
-    known = {
-        (c.label_at(int(i)) or "").lower() for c in clips for i in np.flatnonzero(c.labels >= 0)
-    }
+    known = library_actions(clips)
     every = agreement(decisions, clips, truth, lags)
     have = agreement(decisions, clips, truth, lags, known=known)
     lag = have["best_lag_s"] if have["best_lag_s"] is not None else 0.0
@@ -123,12 +120,8 @@ def plot_evaluation(report: dict[str, Any], path: str | Path, title: str = "") -
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
     try:
-        fig.savefig(tmp, format="png", dpi=100)
-        os.replace(tmp, path)
+        with atomic_write(path, "wb") as fh:
+            fig.savefig(fh, format="png", dpi=100)
     finally:
-        tmp.unlink(missing_ok=True)
         plt.close(fig)

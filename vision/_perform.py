@@ -107,15 +107,19 @@ def perform(
     if jumps:  # built now, not at the first decision (a camera would stall there)
         _ = costs.features
         matcher.index()
-    avatar = Avatar(
-        graph,
-        clips,
-        start=start,
-        seed=seed,
-        anywhere=jumps,
-        jump_costs=costs,
-        blend=settings.blend,
-    )
+
+    def new_avatar(at: int | None) -> Avatar:
+        return Avatar(
+            graph,
+            clips,
+            start=at,
+            seed=seed,
+            anywhere=jumps,
+            jump_costs=costs,
+            blend=settings.blend,
+        )
+
+    avatar = new_avatar(start)
     segmenter: Any = None
     landmarks = matcher.desc.kind == "pose"
     reader = PoseReader() if landmarks else None
@@ -229,15 +233,7 @@ def perform(
                         last_relocate = t  # that was this second's global search
                         # with jumps, where the performer is now: the window's last frame
                         at = got[0] + matcher.n - 1 if jumps else got[0]
-                        avatar = Avatar(
-                            graph,
-                            clips,
-                            start=at,
-                            seed=seed,
-                            anywhere=jumps,
-                            jump_costs=costs,
-                            blend=settings.blend,
-                        )
+                        avatar = new_avatar(at)
                         views, view = [got[1]], got[1]
                         t_start = t
                         if tape is not None:  # the avatar restarts: so does its video

@@ -29,6 +29,7 @@ __all__ = [
     "action_runs",
     "agreement",
     "avatar_labels",
+    "library_actions",
     "read_span_labels",
     "truth_for",
 ]
@@ -129,6 +130,13 @@ def truth_for(video: str | Path, labels: str | Path | None = None) -> Truth | No
         return Truth(spans, str(labels))
     side = video.with_name(video.name + ".json")
     return _sidecar_truth(side) if side.is_file() else None
+
+
+def library_actions(clips: Sequence[Clip]) -> set[str]:
+    """The action labels the library's clips carry, in lower case."""
+    return {
+        c.label_names[int(k)].lower() for c in clips for k in np.unique(c.labels[c.labels >= 0])
+    }
 
 
 def avatar_labels(

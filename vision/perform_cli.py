@@ -30,7 +30,7 @@ from control.cli import (
 )
 from control.clusters import cached_higher_layer
 from control.graph import cached_graph
-from control.motion import load_library, write_bvh
+from control.motion import atomic_write, load_library, write_bvh
 from control.progress import bar, step
 from silhouette_bank import (
     DEFAULT_DESCRIPTOR,
@@ -52,7 +52,7 @@ from ._person import INSTALL, PERSON_METHODS, person_segmentation_available
 from ._record import RecordSettings, record_clip
 from ._segment import METHODS
 from ._sources import MaskFolderSource, SourceError, open_source
-from ._truth import Truth, action_runs, agreement, truth_for
+from ._truth import Truth, action_runs, agreement, library_actions, truth_for
 from ._video import MaskTape, write_video
 
 __all__ = ["add_perform_commands"]
@@ -576,11 +576,8 @@ def _evaluate(args: argparse.Namespace) -> int:
         "match": dataclasses.asdict(ready.settings.match),
         **report,
     }
-    path = Path(args.json)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(report, indent=1) + "\n")
-    os.replace(tmp, path)
+    with atomic_write(args.json) as fh:
+        fh.write(json.dumps(report, indent=1) + "\n")
     if args.png:
         plot_evaluation(report, args.png, title=f"{Path(args.video).name} against {truth.source}")
     _print_actions(result.decisions, ready.clips)
@@ -637,7 +634,7 @@ def _print_actions(decisions: list[dict[str, Any]], clips: list[Any], most: int 
 
 
 def _print_agreement(decisions: list[dict[str, Any]], clips: list[Any], truth: Truth) -> None:
-    known = {(c.label_at(i) or "").lower() for c in clips for i in np.flatnonzero(c.labels >= 0)}
+    known = library_actions(clips)
     got = agreement(decisions, clips, truth, known=known)
     if got["best_at_lag_le_1s"] is None:
         print(f"agreement: no decision falls on an action of {truth.source} the library has")
