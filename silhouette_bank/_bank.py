@@ -22,6 +22,7 @@ import dataclasses
 import hashlib
 import itertools
 import json
+import logging
 import multiprocessing
 import os
 import time
@@ -34,9 +35,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from control.artifacts import bound_cache, cache_root, checksum, touch, verify_checksum
 from control.graph import clips_digest
-from control.motion import Clip, Motion, default_cache_dir
-from control.motion._text import atomic_write, read_npz
+from control.motion import Clip, Motion, atomic_write
+from control.motion._text import read_npz
 
 from ._body import BodyShape, capsule_body
 from ._camera import CameraRing
@@ -59,13 +61,15 @@ __all__ = [
     "robust_settings",
 ]
 
+log = logging.getLogger(__name__)
+
 #: dimensions of the learned metric by default, per descriptor (the others: none)
 METRIC_DIMS = {"multigrid": 24}
 
 #: Bump when features or rendering change for the same settings.
 #: 2: grid cells sampled to a fraction of a pixel, pose banks; 3: the pose scale; 4: the
-#: pose bank's root motion in the same scale
-BANK_VERSION = 4
+#: pose bank's root motion in the same scale; 5: checksums, no shards kept once merged
+BANK_VERSION = 5
 FloatArray = NDArray[np.float32]
 
 
@@ -74,6 +78,7 @@ class BankFileError(ValueError):
 
     def __init__(self, path: str | Path, problem: str) -> None:
         self.path = str(path)
+        self.problem = problem
         super().__init__(f"{path}: {problem}")
 
 
@@ -228,8 +233,8 @@ class Bank:
 
 
 def bank_cache_dir() -> Path:
-    """``$MIMIC_CACHE/bank`` or ``~/.cache/mimic/bank``."""
-    return default_cache_dir().parent / "bank"
+    """The banks' folder of the cache: ``cache_root() / "bank"``."""
+    return cache_root() / "bank"
 
 
 def _key(digest: str, settings: BankSettings) -> str:
@@ -272,8 +277,9 @@ def _shard_job(
         moves.append(m)
     if gl is not None:
         gl.close()
+    arrays = {"features": np.concatenate(feats), "root_motion": np.concatenate(moves)}
     with atomic_write(path, "wb") as fh:
-        np.savez(fh, features=np.concatenate(feats), root_motion=np.concatenate(moves))
+        np.savez(fh, checksum=np.array(checksum({}, arrays)), **arrays)  # type: ignore[arg-type]
     return index, path
 
 
@@ -285,7 +291,8 @@ def _shard_ok(path: Path, n: int, views: int, size: int) -> bool:
     if not path.is_file():
         return False
     try:
-        d = _read_npz(path, ("features", "root_motion"))
+        d = _read_npz(path, ("checksum", "features", "root_motion"))
+        verify_checksum({"checksum": str(d.pop("checksum"))}, d, path, BankFileError)
     except BankFileError:
         return False
     return d["features"].shape == (n, views, size) and d["root_motion"].shape == (n, views, 2)
@@ -336,10 +343,12 @@ def build_bank(
     old = folder / "manifest.json"
     if old.is_file():
         try:
-            previous = json.loads(old.read_text())
-        except (OSError, json.JSONDecodeError):
+            previous = json.loads(old.read_bytes().decode("utf-8"))
+        except (OSError, ValueError):
             previous = {}
-        if previous.get("key") != key:  # another library or settings: start afresh
+        if (
+            not isinstance(previous, dict) or previous.get("key") != key
+        ):  # another library or settings: start afresh
             for p in folder.glob("shard-*.npz"):
                 p.unlink()
             (folder / "bank.npz").unlink(missing_ok=True)
@@ -378,9 +387,15 @@ def build_bank(
             done += 1
             if progress:
                 progress(done, len(shards))
-    parts = [_read_npz(folder / str(s["file"]), ("features", "root_motion")) for s in shards]
+    parts = []
+    for s in shards:  # checked again: a shard may have been damaged since it was written
+        path = folder / str(s["file"])
+        if not _shard_ok(path, int(s["stop"]) - int(s["start"]), views, size):
+            raise BankFileError(path, "a shard damaged during the build: build again")
+        parts.append(_read_npz(path, ("features", "root_motion")))
     features = np.concatenate([p["features"] for p in parts])
     root_motion = np.concatenate([p["root_motion"] for p in parts])
+    del parts
     arrays: dict[str, np.ndarray] = {
         "features": features,
         "root_motion": root_motion,
@@ -392,15 +407,18 @@ def build_bank(
             clips, settings.descriptor, settings.ring, settings.body, settings.metric_dims
         )
         arrays.update(metric_mean=mean, metric=proj)
-    with atomic_write(folder / "bank.npz", "wb") as fh:
-        np.savez(fh, **arrays)  # type: ignore[arg-type]  # (numpy's hints: allow_pickle)
     manifest["complete"] = True
     manifest["built"] = {
         "seconds": round(time.perf_counter() - t0, 3),
         "rendered_shards": len(todo),
     }
+    manifest["checksum"] = checksum(manifest, arrays)
+    with atomic_write(folder / "bank.npz", "wb") as fh:
+        np.savez(fh, **arrays)  # type: ignore[arg-type]  # (numpy's hints: allow_pickle)
     with atomic_write(old) as fh:
         json.dump(manifest, fh, indent=1)
+    for s in shards:  # merged: the shards would only double the bank's size on disk
+        (folder / str(s["file"])).unlink(missing_ok=True)
     return load_bank(folder)
 
 
@@ -409,16 +427,21 @@ def load_bank(
     clips: Sequence[Clip] | None = None,
     settings: BankSettings | None = None,
 ) -> Bank:
-    """Read a complete bank; with ``clips`` / ``settings``, refuse a stale one."""
+    """Read a complete bank; with ``clips`` / ``settings``, refuse a stale one.
+
+    Raises ``StaleBankError`` for a bank of another library, settings or version, and
+    ``BankFileError`` naming the file for one that is incomplete, unreadable, or damaged
+    or edited since it was written (its checksum covers the manifest and the arrays).
+    """
     folder = Path(folder)
     mpath = folder / "manifest.json"
     if not mpath.is_file():
         raise FileNotFoundError(f"no bank at {folder} (no manifest.json)")
     try:
-        manifest = json.loads(mpath.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
+        manifest = json.loads(mpath.read_bytes().decode("utf-8"))
+    except (OSError, ValueError) as exc:
         raise BankFileError(mpath, f"unreadable manifest ({exc})") from exc
-    if manifest.get("format") != "mimic-bank":
+    if not isinstance(manifest, dict) or manifest.get("format") != "mimic-bank":
         raise BankFileError(mpath, "not a mimic bank manifest")
     if manifest.get("version") != BANK_VERSION:
         raise StaleBankError(
@@ -428,6 +451,21 @@ def load_bank(
         raise BankFileError(
             mpath, "the bank is incomplete (an interrupted build): build it again to resume"
         )
+    try:
+        return _bank_of(folder, manifest, clips, settings)
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
+        if isinstance(exc, BankFileError):
+            raise
+        raise BankFileError(mpath, f"an inconsistent manifest ({exc!r})") from None
+
+
+def _bank_of(
+    folder: Path,
+    manifest: dict[str, Any],
+    clips: Sequence[Clip] | None,
+    settings: BankSettings | None,
+) -> Bank:
+    mpath, npz = folder / "manifest.json", folder / "bank.npz"
     if clips is not None and clips_digest(clips) != manifest["library_digest"]:
         raise StaleBankError(mpath, "built from another motion library")
     if settings is not None and settings.digest() != manifest["settings_digest"]:
@@ -436,25 +474,23 @@ def load_bank(
     keys = ["features", "root_motion", "clip_start", "key"]
     if settings_read.metric_dims:
         keys += ["metric_mean", "metric"]
-    d = _read_npz(folder / "bank.npz", keys)
+    d = _read_npz(npz, keys)
+    verify_checksum(manifest, d, mpath, BankFileError)
     n = int(manifest["clip_start"][-1])
     views = int(manifest["views"])
     if str(d["key"]) != manifest["key"]:
-        raise BankFileError(folder / "bank.npz", "does not belong to this manifest")
-    try:
-        size = get_descriptor(str(manifest["settings"].get("descriptor", "hu"))).size
-    except ValueError as exc:
-        raise BankFileError(mpath, str(exc)) from None
+        raise BankFileError(npz, "does not belong to this manifest")
+    size = get_descriptor(str(manifest["settings"].get("descriptor", "hu"))).size
     if d["features"].shape != (n, views, size) or d["root_motion"].shape != (n, views, 2):
-        raise BankFileError(folder / "bank.npz", "arrays of the wrong shape")
+        raise BankFileError(npz, "arrays of the wrong shape")
     metric = None
     if settings_read.metric_dims:
         s = settings_read.features.n_shape
         mean, proj = d["metric_mean"], d["metric"]
         if mean.shape != (s,) or proj.ndim != 2 or proj.shape[0] != s:
-            raise BankFileError(folder / "bank.npz", "a metric of the wrong shape")
+            raise BankFileError(npz, "a metric of the wrong shape")
         if not (np.isfinite(mean).all() and np.isfinite(proj).all()):
-            raise BankFileError(folder / "bank.npz", "a metric that is not finite")
+            raise BankFileError(npz, "a metric that is not finite")
         metric = (mean.astype(np.float64), proj.astype(np.float64))
     return Bank(
         features=d["features"],
@@ -479,9 +515,22 @@ def ensure_bank(
     ``folder`` defaults to ``bank_cache_dir() / <hash of library and settings>``.
     Returns ``(bank, built)``.
     """
-    if folder is None:
-        folder = bank_cache_dir() / _key(clips_digest(clips), settings)
+    cached = folder is None
+    folder = (
+        Path(folder)
+        if folder is not None
+        else bank_cache_dir() / _key(clips_digest(clips), settings)
+    )
     try:
-        return load_bank(folder, clips, settings), False
-    except (FileNotFoundError, BankFileError):
-        return build_bank(clips, settings, folder, **build_options), True
+        bank = load_bank(folder, clips, settings)
+        touch(folder)
+        return bank, False
+    except FileNotFoundError:
+        pass
+    except BankFileError as exc:
+        if "incomplete" not in exc.problem:  # an interrupted build resumes without a word
+            log.warning("rebuilding the bank: %s", exc)
+    bank = build_bank(clips, settings, folder, **build_options)
+    if cached:
+        bound_cache(keep=[folder])
+    return bank, True

@@ -13,16 +13,16 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-import zlib
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..artifacts import bound_cache, checksum, touch, verify_checksum
 from ..graph import MotionGraph, graph_cache_dir
-from ..motion import Clip
-from ..motion._text import atomic_write, read_npz
+from ..motion import Clip, atomic_write
+from ..motion._text import read_npz
 from ._forest import ClusterForest, ClusterTree
 from ._gmm import Clustering
 from ._layer import DEFAULT_KS, HigherLayer, build_higher_layer
@@ -33,7 +33,7 @@ __all__ = ["LAYER_VERSION", "LayerFileError", "cached_higher_layer", "load_layer
 log = logging.getLogger(__name__)
 
 #: bump when the layer's construction changes, so that stale files are never used
-LAYER_VERSION = 1
+LAYER_VERSION = 2  # 2: a checksum in the manifest
 
 _CLUSTERING = ("labels", "posterior", "means", "variances", "weights", "seeds")
 _TREES = ("root_frame", "parent", "cluster", "arrival", "truncated", "horizon", "offset")
@@ -84,7 +84,6 @@ def save_layer(layer: HigherLayer, path: str | Path, key: str = "") -> Path:
         "report": layer.forest.report,
     }
     arrays: dict[str, np.ndarray] = {
-        "manifest": np.array(json.dumps(manifest)),
         "states": layer.states,
         "q_hat": layer.q_hat,
         "tree_of": layer.forest.tree_of,
@@ -97,8 +96,9 @@ def save_layer(layer: HigherLayer, path: str | Path, key: str = "") -> Path:
         "t_horizon": np.array([t.horizon for t in trees], dtype=np.int64),
         "t_offset": np.concatenate(([0], np.cumsum(sizes))).astype(np.int64),
     }
+    manifest["checksum"] = checksum(manifest, arrays)
     with atomic_write(path, "wb") as fh:
-        np.savez_compressed(fh, **arrays)  # type: ignore[arg-type]
+        np.savez_compressed(fh, manifest=np.array(json.dumps(manifest)), **arrays)  # type: ignore[arg-type]
     return path
 
 
@@ -119,12 +119,13 @@ def load_layer(path: str | Path, graph: MotionGraph) -> HigherLayer:
         manifest: dict[str, Any] = json.loads(str(a.pop("manifest")))
     except LayerFileError:
         raise
-    except (zlib.error, json.JSONDecodeError, UnicodeDecodeError, ValueError) as exc:
+    except ValueError as exc:
         raise LayerFileError(path, f"damaged file ({exc})") from exc
     if not isinstance(manifest, dict) or manifest.get("format") != "mimic-layer":
         raise LayerFileError(path, "not a mimic higher-layer file")
     if manifest.get("version") != LAYER_VERSION:
         raise LayerFileError(path, f"layer version {manifest.get('version')}, not {LAYER_VERSION}")
+    verify_checksum(manifest, a, path, LayerFileError)
     if manifest.get("graph") != graph_digest(graph):
         raise LayerFileError(path, "built on another graph")
     n = graph.n_frames
@@ -223,11 +224,15 @@ def cached_higher_layer(
     path = folder / f"layer-{key}.npz"
     if path.is_file() and not rebuild:
         try:
-            return load_layer(path, graph), path, False
+            layer = load_layer(path, graph)
+            touch(path)
+            return layer, path, False
         except LayerFileError as exc:
             log.warning("rebuilding the higher layer: %s", exc)
     layer = build_higher_layer(
         graph, clips, k, ks, seeding, seed, bound_seconds, max_nodes, max_states
     )
     save_layer(layer, path, key)
+    if cache_dir is None:
+        bound_cache(keep=[path])
     return layer, path, True

@@ -7,14 +7,16 @@ so a changed library or setting never reuses a stale graph.
 from __future__ import annotations
 
 import json
+import logging
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..motion import Clip, default_cache_dir
-from ..motion._text import atomic_write, read_npz
+from ..artifacts import bound_cache, cache_root, checksum, touch, verify_checksum
+from ..motion import Clip, atomic_write
+from ..motion._text import read_npz
 from ._graph import (
     GRAPH_VERSION,
     GraphOptions,
@@ -26,6 +28,8 @@ from ._graph import (
 from ._graph import options_key as _key
 
 __all__ = ["GraphFileError", "cached_graph", "graph_cache_dir", "load_graph", "save_graph"]
+
+log = logging.getLogger(__name__)
 
 _ARRAYS = ("clip_start", "src", "dst", "dist", "align", "in_scc")
 
@@ -40,8 +44,8 @@ class GraphFileError(ValueError):
 
 
 def graph_cache_dir() -> Path:
-    """Beside the motion cache: ``$MIMIC_CACHE/graph`` or ``~/.cache/mimic/graph``."""
-    return default_cache_dir().parent / "graph"
+    """The graphs' folder of the cache: ``cache_root() / "graph"``."""
+    return cache_root() / "graph"
 
 
 def save_graph(graph: MotionGraph, path: str | Path) -> Path:
@@ -57,12 +61,10 @@ def save_graph(graph: MotionGraph, path: str | Path) -> Path:
         "library_digest": graph.library_digest,
         "report": graph.report,
     }
+    arrays = {name: np.asarray(getattr(graph, name)) for name in _ARRAYS}
+    manifest["checksum"] = checksum(manifest, arrays)
     with atomic_write(path, "wb") as fh:
-        np.savez_compressed(
-            fh,
-            manifest=np.array(json.dumps(manifest)),
-            **{name: getattr(graph, name) for name in _ARRAYS},
-        )
+        np.savez_compressed(fh, manifest=np.array(json.dumps(manifest)), **arrays)
     return path
 
 
@@ -74,14 +76,24 @@ def load_graph(path: str | Path) -> MotionGraph:
     arrays = read_npz(path, ("manifest", *_ARRAYS), GraphFileError, "mimic graph")
     try:
         manifest: dict[str, Any] = json.loads(str(arrays.pop("manifest")))
-    except json.JSONDecodeError as exc:
+    except ValueError as exc:
         raise GraphFileError(path, f"corrupt manifest ({exc})") from exc
-    if manifest.get("format") != "mimic-graph":
+    if not isinstance(manifest, dict) or manifest.get("format") != "mimic-graph":
         raise GraphFileError(path, "not a mimic graph file")
     if manifest.get("version") != GRAPH_VERSION:
         raise GraphFileError(
             path, f"graph version {manifest.get('version')}, this mimic reads {GRAPH_VERSION}"
         )
+    verify_checksum(manifest, arrays, path, GraphFileError)
+    try:
+        return _graph_of(manifest, arrays, path)
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        if isinstance(exc, GraphFileError):
+            raise
+        raise GraphFileError(path, f"inconsistent graph file ({exc!r})") from None
+
+
+def _graph_of(manifest: dict[str, Any], arrays: dict[str, np.ndarray], path: Path) -> MotionGraph:
     n_e = arrays["src"].shape[0]
     n = int(arrays["clip_start"][-1]) if arrays["clip_start"].size else -1
     shapes_ok = (
@@ -127,7 +139,8 @@ def cached_graph(
 ) -> tuple[MotionGraph, Path, bool]:
     """The graph of ``clips`` from the cache, built and stored when missing or stale.
 
-    Returns ``(graph, path, built)``. A cache file that cannot be read is rebuilt.
+    Returns ``(graph, path, built)``. A cache file that cannot be used (unreadable,
+    damaged, edited) is rebuilt, with a warning naming it.
     """
     options = options or GraphOptions()
     chosen, _ = select_clips(list(clips))
@@ -138,9 +151,13 @@ def cached_graph(
         try:
             graph = load_graph(path)
             if graph.library_digest == digest:
+                touch(path)
                 return graph, path, False
-        except GraphFileError:
-            pass
+            log.warning("rebuilding the graph: %s was built from another library", path)
+        except GraphFileError as exc:
+            log.warning("rebuilding the graph: %s", exc)
     graph = build_graph(clips, options)
     save_graph(graph, path)
+    if cache_dir is None:
+        bound_cache(keep=[path])
     return graph, path, True

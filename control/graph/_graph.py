@@ -40,7 +40,7 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 #: Bump when the build's output changes for the same inputs and options.
-GRAPH_VERSION = 1
+GRAPH_VERSION = 2  # 2: a checksum in the manifest
 IntArray = NDArray[np.int64]
 
 

@@ -11,9 +11,11 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from ..artifacts import checksum, verify_checksum
 from ._errors import MotionFormatError
 from ._quat import qnormalize
 from ._text import atomic_write, read_npz
@@ -22,14 +24,22 @@ from ._types import Motion, Skeleton
 __all__ = ["ARRAYS_SUFFIX", "read_motion_arrays", "write_motion_arrays"]
 
 ARRAYS_SUFFIX = ".motion.npz"
-FORMAT = "mimic-motion-arrays/1"
+FORMAT = "mimic-motion-arrays/2"  # 2: the checksum
 _KEYS = ("meta", "parents", "offsets", "end_parents", "end_offsets", "root_pos", "quats")
 
 
 def write_motion_arrays(path: str | Path, motion: Motion) -> None:
     """Write ``motion`` to ``path`` (atomically: a stop leaves the old file or none)."""
     sk = motion.skeleton
-    meta = {
+    arrays = {
+        "parents": np.asarray(sk.parents, dtype=np.int16),
+        "offsets": np.asarray(sk.offsets, dtype=np.float32),
+        "end_parents": np.asarray(sk.end_parents, dtype=np.int16),
+        "end_offsets": np.asarray(sk.end_offsets, dtype=np.float32),
+        "root_pos": np.asarray(motion.root_pos, dtype=np.float32),
+        "quats": np.asarray(motion.quats, dtype=np.float32),
+    }
+    meta: dict[str, Any] = {
         "format": FORMAT,
         "names": list(sk.names),
         "channels": [list(c) for c in sk.channels],
@@ -37,17 +47,9 @@ def write_motion_arrays(path: str | Path, motion: Motion) -> None:
         "name": motion.name,
         "source": motion.source,
     }
+    meta["checksum"] = checksum(meta, arrays)
     with atomic_write(path, "wb") as fh:
-        np.savez_compressed(
-            fh,
-            meta=np.array(json.dumps(meta)),
-            parents=np.asarray(sk.parents, dtype=np.int16),
-            offsets=np.asarray(sk.offsets, dtype=np.float32),
-            end_parents=np.asarray(sk.end_parents, dtype=np.int16),
-            end_offsets=np.asarray(sk.end_offsets, dtype=np.float32),
-            root_pos=np.asarray(motion.root_pos, dtype=np.float32),
-            quats=np.asarray(motion.quats, dtype=np.float32),
-        )
+        np.savez_compressed(fh, meta=np.array(json.dumps(meta)), **arrays)  # type: ignore[arg-type]
 
 
 def read_motion_arrays(path: str | Path, name: str | None = None) -> Motion:
@@ -67,6 +69,7 @@ def read_motion_arrays(path: str | Path, name: str | None = None) -> Motion:
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         got = meta.get("format") if isinstance(meta, dict) else type(meta).__name__
         raise MotionFormatError(path, f"format {got!r}, expected {FORMAT!r}")
+    verify_checksum(meta, {k: v for k, v in z.items() if k != "meta"}, path, MotionFormatError)
     try:
         sk = Skeleton(
             tuple(str(n) for n in meta["names"]),

@@ -25,16 +25,17 @@ import json
 import logging
 import os
 import re
-import zipfile
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ..artifacts import bound_cache, cache_root, checksum, touch, verify_checksum
 from ._amc import read_amc
 from ._arrays import ARRAYS_SUFFIX, read_motion_arrays
 from ._asf import read_asf
@@ -46,7 +47,7 @@ from ._fk import forward_kinematics
 from ._ops import mirror as mirror_motion
 from ._ops import resample, resample_positions
 from ._quat import FloatArray
-from ._text import atomic_write, decode, read_bytes
+from ._text import atomic_write, decode, read_bytes, read_npz
 from ._types import Motion, Skeleton
 
 __all__ = [
@@ -61,9 +62,8 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 #: Bump when a reader's output changes, so stale cache entries are never used.
-READER_VERSION = "1"
+READER_VERSION = "2"  # 2: cache entries carry a checksum
 ENV_LIBRARY = "MIMIC_MOCAP"
-ENV_CACHE = "MIMIC_CACHE"
 
 
 @dataclass(frozen=True, eq=False)
@@ -156,11 +156,8 @@ def default_library_path() -> Path:
 
 
 def default_cache_dir() -> Path:
-    env = os.environ.get(ENV_CACHE)
-    if env:
-        return Path(env) / "motion"
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "mimic" / "motion"
+    """The parsed-motion folder of the cache: ``cache_root() / "motion"``."""
+    return cache_root() / "motion"
 
 
 # --- discovery -----------------------------------------------------------------------------
@@ -319,47 +316,55 @@ def _cache_key(src: _Source, bvh_units: str | float, asf_digests: dict[Path, byt
     return h.hexdigest()[:32]
 
 
+_CACHED = ("meta", "parents", "offsets", "end_parents", "end_offsets", "root_pos", "quats")
+
+
 def _save(path: Path, m: Motion) -> None:
     sk = m.skeleton
-    meta = json.dumps(
-        {
-            "names": sk.names,
-            "channels": sk.channels,
-            "fps": m.fps,
-            "name": m.name,
-            "source": m.source,
-        }
-    )
+    arrays = {
+        "parents": np.asarray(sk.parents),
+        "offsets": np.asarray(sk.offsets),
+        "end_parents": np.asarray(sk.end_parents),
+        "end_offsets": np.asarray(sk.end_offsets),
+        "root_pos": np.asarray(m.root_pos),
+        "quats": np.asarray(m.quats),
+    }
+    meta: dict[str, Any] = {
+        "names": sk.names,
+        "channels": sk.channels,
+        "fps": m.fps,
+        "name": m.name,
+        "source": m.source,
+    }
+    meta["checksum"] = checksum(meta, arrays)
     with atomic_write(path, "wb") as fh:
-        np.savez(
-            fh,
-            meta=np.array(meta),
-            parents=sk.parents,
-            offsets=sk.offsets,
-            end_parents=sk.end_parents,
-            end_offsets=sk.end_offsets,
-            root_pos=m.root_pos,
-            quats=m.quats,
-        )
+        np.savez(fh, meta=np.array(json.dumps(meta)), **arrays)  # type: ignore[arg-type]
 
 
 def _load(path: Path) -> Motion | None:
+    """The motion in a cache entry, or ``None`` (with a warning naming the file) when it
+    is unreadable, inconsistent, or fails its checksum: it is then parsed again."""
     try:
-        # Opened here so that a corrupt file is closed too (np.load leaks it).
-        with path.open("rb") as fh, np.load(fh, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta"]))
-            sk = Skeleton(
-                tuple(meta["names"]),
-                z["parents"],
-                z["offsets"],
-                tuple(tuple(c) for c in meta["channels"]),
-                z["end_parents"],
-                z["end_offsets"],
-            )
-            return Motion(sk, z["root_pos"], z["quats"], meta["fps"], meta["name"], meta["source"])
-    except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
-        log.warning("ignoring unreadable cache entry %s: %s", path, exc)
+        z = read_npz(path, _CACHED, MotionFormatError, "motion cache entry")
+        meta = json.loads(str(z.pop("meta")))
+        if not isinstance(meta, dict):
+            raise MotionFormatError(path, "meta is not a JSON object")
+        verify_checksum(meta, z, path, MotionFormatError)
+        sk = Skeleton(
+            tuple(meta["names"]),
+            z["parents"],
+            z["offsets"],
+            tuple(tuple(c) for c in meta["channels"]),
+            z["end_parents"],
+            z["end_offsets"],
+        )
+        motion = Motion(sk, z["root_pos"], z["quats"], meta["fps"], meta["name"], meta["source"])
+    except (MotionFormatError, ValueError, KeyError, TypeError, IndexError) as exc:
+        said = str(exc) if isinstance(exc, MotionFormatError) else f"{path}: {exc!r}"
+        log.warning("ignoring a bad cache entry (parsing again): %s", said)
         return None
+    touch(path)
+    return motion
 
 
 def _is_arrays(src: _Source) -> bool:
@@ -439,6 +444,7 @@ def load_library(
     motions: dict[str, Motion] = {}
     todo: list[tuple[_Source, str | float, str | None]] = []
     asf_digests: dict[Path, bytes] = {}
+    used: list[Path] = []  # this library's cache entries, never evicted for it
     for src in sources:
         if _is_arrays(src):  # already compact arrays: read directly, never cached
             motions[src.name] = _parse(src, bvh_units)
@@ -447,6 +453,7 @@ def load_library(
             todo.append((src, bvh_units, None))
             continue
         cache_file = cache / f"{_cache_key(src, bvh_units, asf_digests)}.npz"
+        used.append(cache_file)
         hit = _load(cache_file) if cache_file.is_file() else None
         if hit is not None:
             motions[src.name] = hit
@@ -469,6 +476,8 @@ def load_library(
             motions[job[0].name] = _parse_job(job)
             if progress:
                 progress(f"parsed {job[0].path.name}")
+    if cache_dir is None and any(job[2] for job in todo):  # new entries: bound the cache
+        bound_cache(keep=used)
 
     names = {s.name for s in sources}
     descriptions = _descriptions(root, names)

@@ -6,7 +6,6 @@ import os
 import re
 import tempfile
 import warnings
-import zipfile
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -140,8 +139,11 @@ def read_npz(
         with path.open("rb") as fh, np.load(fh, allow_pickle=False) as z:
             missing = [k for k in keys if k not in z.files]
             arrays = {} if missing else {k: z[k] for k in keys}
-    except (OSError, zipfile.BadZipFile, EOFError, ValueError) as exc:
-        raise error(path, f"unreadable or truncated ({exc})") from exc
+    except Exception as exc:  # a damaged zip or header raises anything
+        # (zlib.error, EOFError, tokenize.TokenError, NotImplementedError, MemoryError, ...)
+        raise error(
+            path, f"unreadable, truncated or damaged ({type(exc).__name__}: {exc})"
+        ) from exc
     if missing:
         raise error(path, f"not a {what} (missing {', '.join(missing)})")
     return arrays

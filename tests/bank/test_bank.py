@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -55,18 +56,55 @@ def test_bank_holds_every_frame_and_view(lib: Library, tmp_path: Path) -> None:
     np.testing.assert_array_equal(par.features, bank.features)
 
 
+class _Interrupt(Exception):
+    pass
+
+
+def _stop_at(n: int) -> Callable[[int, int], None]:
+    """A progress callback that stops a build once ``n`` shards are done."""
+
+    def progress(done: int, total: int) -> None:
+        if done == n:
+            raise _Interrupt
+
+    return progress
+
+
 def test_resume_only_redoes_missing_or_broken_shards(lib: Library, tmp_path: Path) -> None:
     folder = tmp_path / "b"
-    build_bank(lib.clips, SMALL, folder, shard_frames=30, workers=1)
+    with pytest.raises(_Interrupt):  # a stop in the middle of the build
+        build_bank(lib.clips, SMALL, folder, shard_frames=30, workers=1, progress=_stop_at(3))
     shards = sorted(folder.glob("shard-*.npz"))
-    assert len(shards) == 4
+    assert len(shards) == 3
+    with pytest.raises(BankFileError, match="incomplete"):
+        load_bank(folder)
     shards[1].unlink()
     shards[2].write_bytes(shards[2].read_bytes()[:100])  # truncated by a crash
-    before = shards[0].stat().st_mtime_ns
+    seen: list[int] = []
+    build_bank(
+        lib.clips, SMALL, folder, shard_frames=30, workers=1, progress=lambda d, t: seen.append(d)
+    )
+    manifest = json.loads((folder / "manifest.json").read_text())
+    assert manifest["complete"] and manifest["built"]["rendered_shards"] == 3
+    assert seen[0] == 1  # shard 0 was kept
+    assert not list(folder.glob("shard-*.npz"))  # merged, then removed
+    fresh = build_bank(lib.clips, SMALL, tmp_path / "fresh", shard_frames=30, workers=1)
+    np.testing.assert_array_equal(load_bank(folder).features, fresh.features)
+
+
+def test_a_shard_with_a_flipped_byte_is_rendered_again(lib: Library, tmp_path: Path) -> None:
+    folder = tmp_path / "b"
+    with pytest.raises(_Interrupt):
+        build_bank(lib.clips, SMALL, folder, shard_frames=30, workers=1, progress=_stop_at(2))
+    shard = sorted(folder.glob("shard-*.npz"))[0]
+    data = bytearray(shard.read_bytes())
+    data[len(data) - 200] ^= 0x10  # inside the root motion: still a valid zip of arrays
+    shard.write_bytes(bytes(data))
     build_bank(lib.clips, SMALL, folder, shard_frames=30, workers=1)
     manifest = json.loads((folder / "manifest.json").read_text())
-    assert manifest["complete"] and manifest["built"]["rendered_shards"] == 2
-    assert shards[0].stat().st_mtime_ns == before
+    assert manifest["built"]["rendered_shards"] == 3  # of 4: the damaged one again
+    fresh = build_bank(lib.clips, SMALL, tmp_path / "fresh", shard_frames=30, workers=1)
+    np.testing.assert_array_equal(load_bank(folder).root_motion, fresh.root_motion)
 
 
 def test_stale_and_broken_banks(lib: Library, tmp_path: Path) -> None:
@@ -83,7 +121,7 @@ def test_stale_and_broken_banks(lib: Library, tmp_path: Path) -> None:
     assert not built
     data = (folder / "bank.npz").read_bytes()
     (folder / "bank.npz").write_bytes(data[: len(data) // 3])
-    with pytest.raises(BankFileError, match=r"bank\.npz: unreadable or truncated"):
+    with pytest.raises(BankFileError, match=r"bank\.npz: unreadable, truncated or damaged"):
         load_bank(folder)
     manifest = json.loads((folder / "manifest.json").read_text())
     manifest["complete"] = False
