@@ -69,7 +69,7 @@ def checksum(manifest: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> s
     for name in sorted(arrays):
         a = np.ascontiguousarray(arrays[name])
         h.update(f"\0{name}\0{a.dtype.str}\0{a.shape}\0".encode())
-        h.update(a.reshape(-1).view(np.uint8) if a.size else b"")
+        h.update(a.reshape(-1).view(np.uint8).data if a.size else b"")
     return h.hexdigest()
 
 

@@ -475,7 +475,8 @@ def _bank_of(
     if settings_read.metric_dims:
         keys += ["metric_mean", "metric"]
     d = _read_npz(npz, keys)
-    verify_checksum(manifest, d, mpath, BankFileError)
+    # one checksum covers manifest.json and bank.npz: a mismatch names the bank's folder
+    verify_checksum(manifest, d, folder, BankFileError)
     n = int(manifest["clip_start"][-1])
     views = int(manifest["views"])
     if str(d["key"]) != manifest["key"]:

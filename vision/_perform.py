@@ -3,13 +3,14 @@
 Media time drives everything (a file runs as fast as it can unless paced; a camera runs
 on the clock). The performer's features are sampled into a buffer at the library's rate;
 every ``decide_every`` seconds the matcher decides from the avatar's current frame and
-the avatar takes what it chose (blending into it). With ``MatchSettings.jumps`` (the
-default) that is motion matching: a direct blended jump into the frame after one of the
-library's best windows when it fits the performer clearly better than the avatar's own
-last second, else playing on; without, the paper's best cluster path, and now and then
-the way through the graph to a better window (relocation). Without a usable silhouette
-(nobody in view, a dark frame, a camera that is reconnecting) the avatar simply keeps
-moving: along its current path, then on its own.
+the avatar takes what it chose (blending into it); at most one decision a frame, so after
+a stall the points missed are skipped (the log says how many), not made in a burst. With
+``MatchSettings.jumps`` (the default) that is motion matching: a direct blended jump into
+the frame after one of the library's best windows when it fits the performer clearly
+better than the avatar's own last second, else playing on; without, the paper's best
+cluster path, and now and then the way through the graph to a better window
+(relocation). Without a usable silhouette (nobody in view, a dark frame, a camera that
+is reconnecting) the avatar simply keeps moving: along its current path, then on its own.
 """
 
 from __future__ import annotations
@@ -214,8 +215,12 @@ def perform(
                 if tape is not None:
                     tape.append(latest_mask)
                 views.append(view)
-            while next_decision <= t + 1e-9:
-                next_decision += settings.decide_every
+            if next_decision <= t + 1e-9:
+                # at most one decision a frame: after a stall (a camera that froze, a slow
+                # frame) the points missed are skipped and said, not made in a burst on
+                # the same frame
+                missed = int((t + 1e-9 - next_decision) // settings.decide_every)
+                next_decision += (missed + 1) * settings.decide_every
                 clip, f = graph.locate(avatar.frame)
                 entry: dict[str, Any] = {
                     "t": round(t, 3),
@@ -223,6 +228,8 @@ def perform(
                     "clip": clip,
                     "clip_frame": f,
                 }
+                if missed:
+                    entry["skipped"] = missed
                 full = len(buffer) == matcher.n
                 if full and not located and settings.match.locate and start is None:
                     # the first full buffer: start the avatar where the library looks most

@@ -9,6 +9,7 @@ import sys
 import threading
 from collections.abc import Sequence
 
+from control.cache_cli import add_cache_command
 from control.cli import add_graph_commands, add_library_commands
 from control.graph import GraphFileError
 from control.motion import MotionFormatError
@@ -35,6 +36,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_perform_commands(sub)
     add_chain_command(sub)
     add_sketch_command(sub)
+    add_cache_command(sub)
     return parser
 
 

@@ -64,7 +64,7 @@ def save_graph(graph: MotionGraph, path: str | Path) -> Path:
     arrays = {name: np.asarray(getattr(graph, name)) for name in _ARRAYS}
     manifest["checksum"] = checksum(manifest, arrays)
     with atomic_write(path, "wb") as fh:
-        np.savez_compressed(fh, manifest=np.array(json.dumps(manifest)), **arrays)
+        np.savez_compressed(fh, manifest=np.array(json.dumps(manifest)), **arrays)  # type: ignore[arg-type]
     return path
 
 

@@ -31,7 +31,7 @@ _KEYS = ("meta", "parents", "offsets", "end_parents", "end_offsets", "root_pos",
 def write_motion_arrays(path: str | Path, motion: Motion) -> None:
     """Write ``motion`` to ``path`` (atomically: a stop leaves the old file or none)."""
     sk = motion.skeleton
-    arrays = {
+    arrays: dict[str, np.ndarray] = {
         "parents": np.asarray(sk.parents, dtype=np.int16),
         "offsets": np.asarray(sk.offsets, dtype=np.float32),
         "end_parents": np.asarray(sk.end_parents, dtype=np.int16),

@@ -125,7 +125,7 @@ def test_artifact_round_trip_and_bad_files(walk_lib: Library, tmp_path: Path) ->
                 np.save(tmp_path / "x.npy", np.ones(3, dtype=bool))
                 blob = (tmp_path / "x.npy").read_bytes()
             z.writestr(m, blob)
-    with pytest.raises(GraphFileError, match="bad.npz: checksum mismatch"):
+    with pytest.raises(GraphFileError, match=r"bad\.npz: checksum mismatch"):
         load_graph(tmp_path / "bad.npz")
     with pytest.raises(FileNotFoundError):
         load_graph(tmp_path / "missing.npz")

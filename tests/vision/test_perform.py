@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import itertools
 import json
 import threading
 import time
@@ -199,6 +201,36 @@ def test_no_silhouette_stretch_keeps_the_avatar_moving(setup, tmp_path: Path) ->
     assert gap and all(d["decision"] is None and d["reason"] == "no silhouette" for d in gap)
     after = [d for d in r.decisions if d["t"] >= 5.2]
     assert any(d["decision"] is not None for d in after)  # back as soon as the buffer refills
+
+
+class _Stalled:
+    """The recording, with its media clock jumping 1.2 s ahead after 2 s: a camera that
+    froze and came back."""
+
+    def __init__(self) -> None:
+        self.inner = VideoSource(RECORDING)
+        self.name = "stalled"
+
+    def read(self):  # type: ignore[no-untyped-def]
+        frame = self.inner.read()
+        if frame is not None and frame.t > 2.0:
+            frame = dataclasses.replace(frame, t=frame.t + 1.2)
+        return frame
+
+    def close(self) -> None:
+        self.inner.close()
+
+
+def test_decisions_after_a_stall_are_skipped_not_bunched(setup) -> None:
+    r = _run(setup, _Stalled(), seconds=5.0, match=MatchSettings(relocate=0))
+    times = [d["t"] for d in r.decisions]
+    assert all(b > a for a, b in itertools.pairwise(times))  # never two on one frame
+    skipped = [d for d in r.decisions if "skipped" in d]
+    assert len(skipped) == 1 and 2.0 < skipped[0]["t"] < 3.4
+    assert skipped[0]["skipped"] == 11  # the 1.2 s missed, less the one made
+    assert len(r.decisions) + 11 == pytest.approx(50, abs=1)
+    # the avatar kept its clock across the stall: it is as long as the media
+    assert r.avatar.n_frames == pytest.approx(r.media_seconds * 15, abs=3)
 
 
 class _DyingCapture:
