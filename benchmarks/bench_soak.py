@@ -44,7 +44,7 @@ class Looped:
 
     def __init__(self, path: Path, seconds: float) -> None:
         self.path, self.seconds = path, seconds
-        self.inner = VideoSource(path)
+        self.inner = VideoSource(path, silhouette=True)
         self.name = f"{path.name} (looped)"
         self.offset = 0.0
         self.last = 0.0
@@ -54,7 +54,7 @@ class Looped:
         frame = self.inner.read()
         if frame is None:  # the end of the file: again, from the start
             self.inner.close()
-            self.inner = VideoSource(self.path)
+            self.inner = VideoSource(self.path, silhouette=True)
             self.offset = self.last + 1.0 / 30.0
             self.loops += 1
             frame = self.inner.read()

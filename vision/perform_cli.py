@@ -427,6 +427,26 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
     )
 
 
+def _write_timing(out: str, result: Any, frames: int, fps: float, source: str) -> Path:
+    """``OUT.json`` beside the BVH: where its frames lie in the input's media time (a BVH
+    has no field for it), so that the avatar lines up with the input after a late start."""
+    path = Path(out).expanduser()
+    path = path.with_name(path.name + ".json")
+    timing = {
+        "bvh": Path(out).name,
+        "source": source,
+        "media_start_s": round(float(result.avatar_start_s), 4),
+        "fps": fps,
+        "frames": frames,
+        "media_end_s": round(float(result.avatar_start_s) + frames / fps, 4),
+        "stopped": result.stopped or None,
+    }
+    with atomic_write(path) as fh:
+        json.dump(timing, fh, indent=1)
+        fh.write("\n")
+    return path
+
+
 def _perform(args: argparse.Namespace) -> int:
     if args.labels and not args.video:
         raise ValueError("--labels needs --video (the labels name its file)")
@@ -500,7 +520,9 @@ def _perform(args: argparse.Namespace) -> int:
             )
         made = [c for c in result.decisions if c.get("decision") is not None]
         if args.out:
-            write_bvh(result.avatar.motion().motion, args.out)
+            motion = result.avatar.motion().motion
+            write_bvh(motion, args.out)
+            _write_timing(args.out, result, motion.n_frames, motion.fps, source.name)
         if tape is not None:
             write_video(result, bank, clips, args.video_out, tape)
     lat = [c["latency_ms"] for c in made]
@@ -523,7 +545,9 @@ def _perform(args: argparse.Namespace) -> int:
     if result.avatar_start_s > ready.settings.match.window + 0.5:  # a late start
         print(
             f"the avatar's motion (BVH, MP4) starts at {result.avatar_start_s:.2f} s of media, "
-            "where the performer was first matched (the log's times are media times)"
+            "where the performer was first matched (the log's times are media times; "
+            + (f"{args.out}.json says so for the BVH" if args.out else "the MP4 shows them")
+            + ")"
         )
     _print_actions(result.decisions, clips)
     if truth is not None:
@@ -540,6 +564,8 @@ def _perform(args: argparse.Namespace) -> int:
     for name in ("out", "video_out", "log"):
         if getattr(args, name):
             print(f"wrote {getattr(args, name)}")
+            if name == "out":
+                print(f"wrote {args.out}.json (the BVH's place in the input's media time)")
     # Ctrl-C is how a camera session ends; another signal is reported as such
     return 0 if result.stopped in ("", "SIGINT") else 128 + _SIGNALS[result.stopped]
 
