@@ -121,6 +121,13 @@ def perform(
         )
 
     avatar = new_avatar(start)
+    if jumps and bank.features.shape[0] >= matcher.n:
+        # one throwaway decision on a window of the library itself, so that the first
+        # real one does not pay for loading or compiling the search and DTW kernels
+        # (0.5 s on a fresh install: a stall a performer would see)
+        probe = np.asarray(bank.features[: matcher.n, 0], dtype=np.float64)
+        matcher.decide(avatar.frame, probe, avatar.recent(matcher.recent_frames), costs)
+        matcher.why, matcher.last_own = "", float("inf")
     segmenter: Any = None
     landmarks = matcher.desc.kind == "pose"
     reader = PoseReader() if landmarks else None
