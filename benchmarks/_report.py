@@ -8,7 +8,7 @@ import platform
 from pathlib import Path
 from typing import Any
 
-from control.motion._text import atomic_write
+from control.artifacts import atomic_write
 
 __all__ = ["machine", "save"]
 

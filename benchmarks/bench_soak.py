@@ -23,11 +23,10 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks._report import machine, save
-from vision._perform import perform
-from vision._sources import Frame, VideoSource
-from vision._video import MaskTape
-from vision.cli import build_parser
-from vision.perform_cli import DecisionLog, prepare
+from mimic.cli import build_parser
+from mimic.perform import DecisionLog
+from mimic.run import prepare
+from vision import Frame, MaskTape, VideoSource, perform
 
 RECORDING = Path(__file__).resolve().parents[1] / "recordings" / "13_29_first12s_160x120.mkv"
 

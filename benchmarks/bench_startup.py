@@ -39,7 +39,7 @@ def main() -> None:
         cmd = [
             sys.executable,
             "-m",
-            "vision.cli",
+            "mimic",
             "perform",
             "--video",
             str(RECORDING),

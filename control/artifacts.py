@@ -1,5 +1,6 @@
-"""Artifacts on disk: a checksum of their contents, checked on load, and the cache that
-holds them (its folders, size, eviction and clearing).
+"""Artifacts on disk: written atomically (``atomic_write``), read without pickle
+(``read_npz``), a checksum of their contents checked on load, and the cache that holds
+them (its folders, size, eviction and clearing).
 
 Every file mimic writes for itself (parsed motion, graphs, higher layers, banks, motion
 arrays) carries ``checksum``: a SHA-256 over its manifest (all of it but the checksum)
@@ -28,23 +29,28 @@ import json
 import logging
 import os
 import shutil
+import tempfile
 import time
-from collections.abc import Callable, Collection, Iterable, Mapping
+from collections.abc import Callable, Collection, Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 
 __all__ = [
     "CACHE_KINDS",
     "CacheEntry",
+    "atomic_write",
     "bound_cache",
     "cache_entries",
     "cache_limit",
     "cache_root",
     "checksum",
     "clear_cache",
+    "current_umask",
+    "read_npz",
     "touch",
     "verify_checksum",
 ]
@@ -85,6 +91,64 @@ def verify_checksum(
         raise error(Path(path), "no checksum (written by an older mimic, or edited)")
     if stored != checksum(manifest, arrays):
         raise error(Path(path), "checksum mismatch: damaged or edited since it was written")
+
+
+# --- writing and reading -------------------------------------------------------------------
+
+
+def current_umask() -> int:
+    """The process's file-mode creation mask (read without changing it where Linux allows)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+@contextmanager
+def atomic_write(path: str | Path, mode: str = "w") -> Iterator[IO[Any]]:
+    """Open a temporary file beside ``path``; on success it replaces ``path`` in one step,
+    on failure it is removed and ``path`` is untouched."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        os.chmod(fd, 0o666 & ~current_umask())  # as open() would make it, not mkstemp's 0600
+        newline = None if "b" in mode else "\n"
+        with os.fdopen(fd, mode, newline=newline) as fh:
+            yield fh
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def read_npz(
+    path: Path, keys: Sequence[str], error: Callable[[Path, str], Exception], what: str
+) -> dict[str, np.ndarray]:
+    """The arrays ``keys`` of an ``.npz`` file, read without pickle.
+
+    Raises ``error(path, problem)`` when the file cannot be read (missing, truncated,
+    not a zip of arrays) or lacks one of ``keys`` (``"not a {what} (missing ...)"``).
+    """
+    try:
+        with path.open("rb") as fh, np.load(fh, allow_pickle=False) as z:
+            missing = [k for k in keys if k not in z.files]
+            arrays = {} if missing else {k: z[k] for k in keys}
+    except Exception as exc:  # a damaged zip or header raises anything
+        # (zlib.error, EOFError, tokenize.TokenError, NotImplementedError, MemoryError, ...)
+        raise error(
+            path, f"unreadable, truncated or damaged ({type(exc).__name__}: {exc})"
+        ) from exc
+    if missing:
+        raise error(path, f"not a {what} (missing {', '.join(missing)})")
+    return arrays
 
 
 # --- the cache -------------------------------------------------------------------------------

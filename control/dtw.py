@@ -2,9 +2,10 @@
 interface), one query against many references.
 
 ``cost(a, b) = sqrt(min over warping paths of sum ||a_i - b_j||^2)``, the convention of
-dtaidistance's ``dtw_ndim.distance``, optionally inside a Sakoe-Chiba band of half-width
-``window`` (|i - j| < window when the sequences have the same length; the band follows
-the diagonal when they do not).
+dtaidistance's ``dtw_ndim.distance``, optionally inside its Sakoe-Chiba band: with
+``window`` w > 0, row i of ``a`` (n rows) may meet row j of ``b`` (m rows) when
+``i - max(0, n - m) - w < j < i + max(0, m - n) + w``, i.e. ``|i - j| < w`` for sequences
+of the same length, widened towards the longer one by the difference in length.
 
 The batched kernel keeps the two best costs found so far over *groups* (a group is a
 candidate path, its members the 18 views) and abandons a reference as soon as every cell
@@ -35,11 +36,11 @@ def _dtw_sq(
     for j in range(m + 1):
         prev[j] = inf
     prev[0] = 0.0
+    shrink, grow = max(0, n - m), max(0, m - n)
     for i in range(1, n + 1):
-        # band centred on the diagonal i * m / n
-        centre = (i * m) // n if n > 0 else 0
-        lo = max(1, centre - window + 1) if window > 0 else 1
-        hi = min(m, centre + window) if window > 0 else m
+        # the band: i - shrink - window < j < i + grow + window (dtaidistance's)
+        lo = max(1, i - shrink - window + 1) if window > 0 else 1
+        hi = min(m, i + grow + window - 1) if window > 0 else m
         for j in range(m + 1):
             row[j] = inf
         best_row = inf
@@ -273,10 +274,10 @@ def dtw_reference(a: FloatArray, b: FloatArray, window: int = 0) -> float:
     n, m = len(a), len(b)
     cost = [[math.inf] * (m + 1) for _ in range(n + 1)]
     cost[0][0] = 0.0
+    shrink, grow = max(0, n - m), max(0, m - n)
     for i in range(1, n + 1):
-        centre = (i * m) // n
         for j in range(1, m + 1):
-            if window > 0 and not (centre - window + 1 <= j <= centre + window):
+            if window > 0 and not (i - shrink - window < j < i + grow + window):
                 continue
             d = float(np.sum((np.asarray(a[i - 1]) - np.asarray(b[j - 1])) ** 2))
             cost[i][j] = d + min(cost[i - 1][j - 1], cost[i - 1][j], cost[i][j - 1])

@@ -30,6 +30,7 @@ from ._descriptor import (
     hu_log,
 )
 from ._features import feature_size, silhouette_features
+from ._gl import GLRenderer
 from ._raster import rasterize
 from ._render import (
     draw_ground_shadow,
@@ -57,6 +58,7 @@ __all__ = [
     "CameraRing",
     "CapsuleBody",
     "Descriptor",
+    "GLRenderer",
     "GridDescriptor",
     "HuDescriptor",
     "PoseDescriptor",

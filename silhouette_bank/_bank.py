@@ -35,10 +35,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from control.artifacts import bound_cache, cache_root, checksum, touch, verify_checksum
-from control.graph import clips_digest
-from control.motion import Clip, Motion, atomic_write
-from control.motion._text import read_npz
+from control.artifacts import (
+    atomic_write,
+    bound_cache,
+    cache_root,
+    checksum,
+    read_npz,
+    touch,
+    verify_checksum,
+)
+from control.motion import Clip, Motion, clips_digest
 
 from ._body import BodyShape, capsule_body
 from ._camera import CameraRing

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from control.motion import Motion, current_umask
+from control.artifacts import current_umask
+from control.motion import Motion
 
 from ._body import CapsuleBody, capsule_segments
 from ._camera import CameraRing

@@ -24,8 +24,8 @@ from control.artifacts import (
 )
 from control.graph import cached_graph
 from control.motion import load_library
+from mimic.cli import main
 from tests.faults import GOOD, sweep, table
-from vision.cli import main
 
 
 def test_every_damaged_artifact_is_rebuilt_or_named(mocap: Path) -> None:

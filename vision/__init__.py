@@ -1,1 +1,152 @@
-"""Online half of the vision interface (Lee et al. §5.3), and the ``mimic`` command line."""
+"""The online half of the vision interface (Lee et al. §5.3): sources (camera, video,
+mask folders), segmentation, silhouette and pose features against the bank, the matcher
+and its global window index, the performance loop, the live view, the side-by-side video,
+ground truth and evaluation, and synthetic recordings."""
+
+from __future__ import annotations
+
+from ._evaluate import (
+    evaluation,
+    plot_evaluation,
+)
+from ._index import (
+    WindowIndex,
+)
+from ._landmarks import (
+    MEDIAPIPE_INDEX,
+    PoseReader,
+)
+from ._library import (
+    FLOOR_ABOVE,
+    FLOOR_SECONDS,
+    VISION_COORDS,
+    floor_level,
+    on_the_floor,
+)
+from ._live import (
+    LivePainter,
+    LiveView,
+)
+from ._matcher import (
+    Decision,
+    Matcher,
+    MatchSettings,
+    best_window,
+    per_frame_cost,
+    performer_queries,
+    performer_sequence,
+    shape_stats,
+    window_tables,
+)
+from ._perform import (
+    MAX_COVER,
+    PerformResult,
+    PerformSettings,
+    perform,
+)
+from ._person import (
+    INSTALL,
+    PERSON_METHODS,
+    PersonSegmenter,
+    make_segmenter,
+    person_segmentation_available,
+    resolve_segmentation,
+)
+from ._record import (
+    RecordSettings,
+    add_mask_noise,
+    performer_masks,
+    record_clip,
+)
+from ._segment import (
+    METHODS,
+    Segmenter,
+    clean_mask,
+)
+from ._sources import (
+    CameraSource,
+    Frame,
+    MaskFolderSource,
+    Source,
+    SourceError,
+    VideoSource,
+    looks_like_silhouettes,
+    open_source,
+)
+from ._truth import (
+    LAGS,
+    LabelFileError,
+    Truth,
+    action_runs,
+    agreement,
+    avatar_labels,
+    library_actions,
+    read_span_labels,
+    truth_for,
+)
+from ._video import (
+    PANE,
+    MaskTape,
+    write_video,
+)
+
+__all__ = [
+    "FLOOR_ABOVE",
+    "FLOOR_SECONDS",
+    "INSTALL",
+    "LAGS",
+    "MAX_COVER",
+    "MEDIAPIPE_INDEX",
+    "METHODS",
+    "PANE",
+    "PERSON_METHODS",
+    "VISION_COORDS",
+    "CameraSource",
+    "Decision",
+    "Frame",
+    "LabelFileError",
+    "LivePainter",
+    "LiveView",
+    "MaskFolderSource",
+    "MaskTape",
+    "MatchSettings",
+    "Matcher",
+    "PerformResult",
+    "PerformSettings",
+    "PersonSegmenter",
+    "PoseReader",
+    "RecordSettings",
+    "Segmenter",
+    "Source",
+    "SourceError",
+    "Truth",
+    "VideoSource",
+    "WindowIndex",
+    "action_runs",
+    "add_mask_noise",
+    "agreement",
+    "avatar_labels",
+    "best_window",
+    "clean_mask",
+    "evaluation",
+    "floor_level",
+    "library_actions",
+    "looks_like_silhouettes",
+    "make_segmenter",
+    "on_the_floor",
+    "open_source",
+    "per_frame_cost",
+    "perform",
+    "performer_masks",
+    "performer_queries",
+    "performer_sequence",
+    "person_segmentation_available",
+    "plot_evaluation",
+    "read_span_labels",
+    "record_clip",
+    "resolve_segmentation",
+    "shape_stats",
+    "truth_for",
+    "window_tables",
+    "write_video",
+]

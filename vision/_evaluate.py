@@ -17,7 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from control.motion import Clip, atomic_write
+from control.artifacts import atomic_write
+from control.motion import Clip
 
 from ._truth import LAGS, Truth, agreement, avatar_labels, library_actions
 

@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 from ._segment import Segmenter, clean_mask
 
 __all__ = [
+    "INSTALL",
     "PERSON_METHODS",
     "PersonSegmenter",
     "make_segmenter",

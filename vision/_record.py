@@ -21,8 +21,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from control.artifacts import atomic_write
 from control.motion import Clip, Motion
-from control.motion._text import atomic_write
 from silhouette_bank import (
     BodyShape,
     CameraRing,

@@ -19,10 +19,9 @@ from typing import Any
 
 import numpy as np
 
-from ..artifacts import bound_cache, checksum, touch, verify_checksum
+from ..artifacts import atomic_write, bound_cache, checksum, read_npz, touch, verify_checksum
 from ..graph import MotionGraph, graph_cache_dir
-from ..motion import Clip, atomic_write
-from ..motion._text import read_npz
+from ..motion import Clip
 from ._forest import ClusterForest, ClusterTree
 from ._gmm import Clustering
 from ._layer import DEFAULT_KS, HigherLayer, build_higher_layer

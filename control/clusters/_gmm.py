@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from sklearn.cluster import KMeans
 from sklearn.mixture import GaussianMixture
 
-from ..motion._quat import FloatArray
+from ..motion import FloatArray
 
 __all__ = [
     "SEEDINGS",

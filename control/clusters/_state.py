@@ -13,10 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..graph import FrameFeatures, yaw_of
-from ..graph._features import yaw_q
-from ..motion import qconj, qlog, qmul
-from ..motion._quat import FloatArray
+from ..graph import FrameFeatures, yaw_of, yaw_q
+from ..motion import FloatArray, qconj, qlog, qmul
 
 __all__ = ["orientation_distance", "reference_orientation", "state_vectors"]
 

@@ -8,9 +8,11 @@ from ._features import (
     FrameFeatures,
     frame_features,
     q_embed,
+    root_scales,
     rotate_y,
     weighted_joints,
     yaw_of,
+    yaw_q,
 )
 from ._graph import (
     GRAPH_VERSION,
@@ -18,6 +20,7 @@ from ._graph import (
     MotionGraph,
     build_graph,
     clips_digest,
+    graph_sigma,
     select_clips,
 )
 from ._ik import knee_hinge, leg_chain, solve_leg, two_bone_ik
@@ -31,7 +34,7 @@ from ._quality import (
     quality_summary,
     sole_speed,
 )
-from ._synth import FrameData, Synthesis, compose, synthesize
+from ._synth import FrameData, Synthesis, compose, hermite, synthesize
 from ._terrain import CapturedTerrain, FootTrack, captured_terrain, foot_track, terrain_options
 from ._walk import random_step, random_walk
 
@@ -59,6 +62,8 @@ __all__ = [
     "foot_track",
     "frame_features",
     "graph_cache_dir",
+    "graph_sigma",
+    "hermite",
     "jerk",
     "joint_jumps",
     "knee_hinge",
@@ -74,6 +79,7 @@ __all__ = [
     "quality_summary",
     "random_step",
     "random_walk",
+    "root_scales",
     "rotate_y",
     "save_graph",
     "select_clips",
@@ -84,4 +90,5 @@ __all__ = [
     "two_bone_ik",
     "weighted_joints",
     "yaw_of",
+    "yaw_q",
 ]

@@ -14,9 +14,16 @@ from typing import Any
 
 import numpy as np
 
-from ..artifacts import bound_cache, cache_root, checksum, touch, verify_checksum
-from ..motion import Clip, atomic_write
-from ..motion._text import read_npz
+from ..artifacts import (
+    atomic_write,
+    bound_cache,
+    cache_root,
+    checksum,
+    read_npz,
+    touch,
+    verify_checksum,
+)
+from ..motion import Clip
 from ._graph import (
     GRAPH_VERSION,
     GraphOptions,

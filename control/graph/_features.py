@@ -30,8 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..motion import Clip, Skeleton, find_role, qconj, qlog, qmul
-from ..motion._quat import FloatArray
+from ..motion import Clip, FloatArray, Skeleton, find_role, qconj, qlog, qmul
 
 __all__ = [
     "COORDS",

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..motion import Clip
+from ..motion import Clip, clips_digest
 from ._distance import close_pairs, lower_bound_features, pair_distances
 from ._features import COORDS, FrameFeatures, frame_features
 from ._prune import CONTACT_RULES, case4, contact_groups, largest_scc, local_maxima
@@ -182,17 +182,6 @@ class MotionGraph:
         return ok
 
 
-def clips_digest(clips: Sequence[Clip]) -> str:
-    """SHA-256 of the clips' names, rates, motions and contacts."""
-    h = hashlib.sha256()
-    for c in clips:
-        m = c.motion
-        h.update(f"{c.name}|{m.fps}|{m.n_frames}|{','.join(m.skeleton.names)}".encode())
-        for arr in (m.root_pos, m.quats, m.skeleton.offsets, c.contacts.states):
-            h.update(np.ascontiguousarray(arr).tobytes())
-    return h.hexdigest()
-
-
 def select_clips(clips: Sequence[Clip]) -> tuple[list[Clip], list[str]]:
     """The clips the graph can join: the largest group (by frames) sharing joint names.
 
@@ -207,7 +196,9 @@ def select_clips(clips: Sequence[Clip]) -> tuple[list[Clip], list[str]]:
     return best, excluded
 
 
-def _sigma(feat: FrameFeatures, fps: float, options: GraphOptions) -> float:
+def graph_sigma(feat: FrameFeatures, fps: float, options: GraphOptions) -> float:
+    """The distance scale sigma of eq. 1: ``options.sigma_scale`` times the median
+    distance between frames ``options.sigma_dt`` apart within a clip."""
     step = max(1, round(options.sigma_dt * fps))
     f = np.arange(feat.n - step)
     clip = np.searchsorted(feat.clip_start, np.arange(feat.n), side="right")
@@ -244,7 +235,7 @@ def build_graph(
         log.warning("left out %d clips with other joints: %s", len(excluded), ", ".join(excluded))
     feat = frame_features(chosen, options.coords)
     n = feat.n
-    sigma = _sigma(feat, fps, options)
+    sigma = graph_sigma(feat, fps, options)
     dmax = sigma * math.log(1.0 / options.threshold)
     t_feat = time.perf_counter()
 

@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..motion import Skeleton, find_role, qconj, qmul, qrot
-from ..motion._quat import FloatArray
+from ..motion import FloatArray, Skeleton, find_role, qconj, qmul, qrot
 
 __all__ = ["knee_hinge", "leg_chain", "solve_leg", "two_bone_ik"]
 

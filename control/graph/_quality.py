@@ -17,8 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from ..motion import Motion, foot_points, forward_kinematics, qconj, qlog, qmul
-from ..motion._quat import FloatArray
+from ..motion import FloatArray, Motion, foot_points, forward_kinematics, qconj, qlog, qmul
 from ._features import weighted_joints
 
 __all__ = [

@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from ..motion import (
     Clip,
+    FloatArray,
     Motion,
     Skeleton,
     forward_kinematics,
@@ -36,7 +37,6 @@ from ..motion import (
     qlog,
     qmul,
 )
-from ..motion._quat import FloatArray
 from ._features import root_scales, rotate_y, yaw_q
 from ._graph import MotionGraph
 from ._ik import knee_hinge, leg_chain, solve_leg
@@ -100,7 +100,7 @@ def compose(
     return yaw + a_yaw, rotate_y(a_trans, yaw) + trans
 
 
-def _hermite(e0: FloatArray, v0: FloatArray, k: FloatArray, b: int) -> FloatArray:
+def hermite(e0: FloatArray, v0: FloatArray, k: FloatArray, b: int) -> FloatArray:
     """Displacement at frames ``k = 1..`` after the jump: value ``e0`` and slope ``v0``
     (per frame) at ``k = 0``, zero value and slope at ``k = b``."""
     u = np.clip(k / b, 0.0, 1.0)
@@ -191,8 +191,8 @@ def synthesize(
         p0 = out_p[t - 1] - v1_p[m]
         pp = out_p[o2] - v2_p[m]
         k = np.arange(1, end - t + 1, dtype=np.float64)
-        out_q[t:end] = qmul(qexp(_hermite(e0, e0 - ep, k, b)), src_q[t:end])
-        out_p[t:end] = src_p[t:end] + _hermite(p0, p0 - pp, k, b)
+        out_q[t:end] = qmul(qexp(hermite(e0, e0 - ep, k, b)), src_q[t:end])
+        out_p[t:end] = src_p[t:end] + hermite(p0, p0 - pp, k, b)
         blended[t:end] = True
 
     states = data.states[frames]

@@ -20,8 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..motion import Clip
-from ..motion._contacts import foot_points
+from ..motion import Clip, foot_points
 from ._graph import GraphOptions, select_clips
 
 __all__ = ["CapturedTerrain", "FootTrack", "captured_terrain", "foot_track", "terrain_options"]

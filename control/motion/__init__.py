@@ -4,11 +4,13 @@ Quaternions are ``(w, x, y, z)``; Y is up; lengths are metres. See ``_quat`` for
 glossary and ``_types`` for the joint conventions.
 """
 
+from ..artifacts import atomic_write, current_umask
 from ._amc import read_amc
 from ._arrays import read_motion_arrays, write_motion_arrays
 from ._asf import AsfSkeleton, read_asf
 from ._bvh import UNITS, read_bvh, write_bvh
 from ._contacts import FEET, Contacts, contact_events, detect_contacts, foot_points
+from ._digest import clips_digest
 from ._embedded import (
     EMBEDDED_CLIPS,
     EMBEDDED_LIBRARY,
@@ -27,8 +29,19 @@ from ._library import (
 )
 from ._names import ROLE_ALIASES, find_role, mirror_map, role_point
 from ._ops import cut, mirror, resample, resample_positions
-from ._quat import euler_to_q, q_to_euler, q_to_R, qconj, qexp, qlog, qmul, qnormalize, qrot, slerp
-from ._text import atomic_write, current_umask
+from ._quat import (
+    FloatArray,
+    euler_to_q,
+    q_to_euler,
+    q_to_R,
+    qconj,
+    qexp,
+    qlog,
+    qmul,
+    qnormalize,
+    qrot,
+    slerp,
+)
 from ._types import Motion, Skeleton
 
 __all__ = [
@@ -41,12 +54,14 @@ __all__ = [
     "AsfSkeleton",
     "Clip",
     "Contacts",
+    "FloatArray",
     "Library",
     "Motion",
     "MotionFormatError",
     "Pose",
     "Skeleton",
     "atomic_write",
+    "clips_digest",
     "contact_events",
     "current_umask",
     "cut",

@@ -15,10 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from ..artifacts import checksum, verify_checksum
+from ..artifacts import atomic_write, checksum, read_npz, verify_checksum
 from ._errors import MotionFormatError
 from ._quat import qnormalize
-from ._text import atomic_write, read_npz
 from ._types import Motion, Skeleton
 
 __all__ = ["ARRAYS_SUFFIX", "read_motion_arrays", "write_motion_arrays"]

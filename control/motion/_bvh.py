@@ -12,10 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..artifacts import atomic_write
 from ._errors import MotionFormatError
 from ._fk import rest_positions
 from ._quat import FloatArray, euler_to_q, q_to_euler
-from ._text import atomic_write, decode, is_int, parse_floats, parse_floats_fast, read_bytes
+from ._text import decode, is_int, parse_floats, parse_floats_fast, read_bytes
 from ._types import Motion, Skeleton
 
 __all__ = ["UNITS", "read_bvh", "write_bvh"]

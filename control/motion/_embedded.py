@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..artifacts import atomic_write, current_umask
 from ._arrays import ARRAYS_SUFFIX, write_motion_arrays
-from ._text import atomic_write, current_umask
 
 __all__ = ["EMBEDDED_CLIPS", "EMBEDDED_FPS", "EMBEDDED_LIBRARY", "embed_library"]
 

@@ -35,7 +35,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..artifacts import bound_cache, cache_root, checksum, touch, verify_checksum
+from ..artifacts import (
+    atomic_write,
+    bound_cache,
+    cache_root,
+    checksum,
+    read_npz,
+    touch,
+    verify_checksum,
+)
 from ._amc import read_amc
 from ._arrays import ARRAYS_SUFFIX, read_motion_arrays
 from ._asf import read_asf
@@ -47,7 +55,7 @@ from ._fk import forward_kinematics
 from ._ops import mirror as mirror_motion
 from ._ops import resample, resample_positions
 from ._quat import FloatArray
-from ._text import atomic_write, decode, read_bytes, read_npz
+from ._text import decode, read_bytes
 from ._types import Motion, Skeleton
 
 __all__ = [

@@ -1,15 +1,10 @@
-"""Shared text helpers for the motion readers: decoding, number parsing, atomic writes."""
+"""Shared text helpers for the motion readers: decoding and number parsing."""
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 import warnings
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Any
 
 import numpy as np
 
@@ -18,8 +13,6 @@ from ._quat import FloatArray
 
 __all__ = [
     "MAX_ABS",
-    "atomic_write",
-    "current_umask",
     "decode",
     "is_int",
     "parse_floats",
@@ -92,58 +85,3 @@ def parse_floats_fast(text: str) -> FloatArray | None:
     if values.size and not np.max(np.abs(values)) <= MAX_ABS:
         return None
     return values
-
-
-def current_umask() -> int:
-    """The process's file-mode creation mask (read without changing it where Linux allows)."""
-    try:
-        for line in Path("/proc/self/status").read_text().splitlines():
-            if line.startswith("Umask:"):
-                return int(line.split()[1], 8)
-    except (OSError, ValueError, IndexError):
-        pass
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-@contextmanager
-def atomic_write(path: str | Path, mode: str = "w") -> Iterator[IO[Any]]:
-    """Open a temporary file beside ``path``; on success it replaces ``path`` in one step,
-    on failure it is removed and ``path`` is untouched."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        os.chmod(fd, 0o666 & ~current_umask())  # as open() would make it, not mkstemp's 0600
-        newline = None if "b" in mode else "\n"
-        with os.fdopen(fd, mode, newline=newline) as fh:
-            yield fh
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def read_npz(
-    path: Path, keys: Sequence[str], error: Callable[[Path, str], Exception], what: str
-) -> dict[str, np.ndarray]:
-    """The arrays ``keys`` of an ``.npz`` file, read without pickle.
-
-    Raises ``error(path, problem)`` when the file cannot be read (missing, truncated,
-    not a zip of arrays) or lacks one of ``keys`` (``"not a {what} (missing ...)"``).
-    """
-    try:
-        with path.open("rb") as fh, np.load(fh, allow_pickle=False) as z:
-            missing = [k for k in keys if k not in z.files]
-            arrays = {} if missing else {k: z[k] for k in keys}
-    except Exception as exc:  # a damaged zip or header raises anything
-        # (zlib.error, EOFError, tokenize.TokenError, NotImplementedError, MemoryError, ...)
-        raise error(
-            path, f"unreadable, truncated or damaged ({type(exc).__name__}: {exc})"
-        ) from exc
-    if missing:
-        raise error(path, f"not a {what} (missing {', '.join(missing)})")
-    return arrays

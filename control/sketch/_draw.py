@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ..motion._text import atomic_write
+from ..artifacts import atomic_write
 from ._files import Environment
 
 __all__ = ["draw_top_down", "environment_mesh"]

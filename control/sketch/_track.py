@@ -52,10 +52,9 @@ from ..graph import (
     rotate_y,
     synthesize,
     yaw_of,
+    yaw_q,
 )
-from ..graph._features import yaw_q
-from ..motion import Clip, Motion, qmul
-from ..motion._contacts import foot_points
+from ..motion import Clip, Motion, foot_points, qmul
 from ._files import Environment
 
 __all__ = [

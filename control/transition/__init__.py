@@ -1,16 +1,21 @@
 """Action-to-action transitions (Peng et al.): two-pass clustering, the cluster transition
 graph, its candidate paths, and the run-time pieces (node pair, path choice, greedy
-stitching at optimal transition points, the Bezier fallback's curve, walk and duration).
-Not built yet: motion assembly with root alignment, the action queue and
-``mimic chain``."""
+stitching at optimal transition points, the Bezier fallback's curve, walk and duration),
+and the chainer that assembles requested actions into one motion with root alignment
+(``Chainer``, behind ``mimic chain``)."""
 
 from ._bezier import average_quats, bezier_quats, greedy_walk, interpolation_frames
+from ._chain import Action, Chainer, ChainPlayer, ChainResult
 from ._cluster import FrameClusters, two_pass_clusters
 from ._runtime import choose_path, clip_frames, nearest_cluster, stitch_path, transition_point
 from ._tgraph import CandidatePaths, TransitionGraph, build_transition_graph, candidate_paths
 
 __all__ = [
+    "Action",
     "CandidatePaths",
+    "ChainPlayer",
+    "ChainResult",
+    "Chainer",
     "FrameClusters",
     "TransitionGraph",
     "average_quats",

@@ -22,17 +22,25 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..graph import GraphOptions, frame_features, pair_distances, select_clips
-from ..graph._features import root_scales, rotate_y, yaw_of, yaw_q
-from ..graph._graph import _sigma
-from ..graph._synth import _hermite
+from ..graph import (
+    GraphOptions,
+    frame_features,
+    graph_sigma,
+    hermite,
+    pair_distances,
+    root_scales,
+    rotate_y,
+    select_clips,
+    yaw_of,
+    yaw_q,
+)
 from ..motion import Clip, Motion, qconj, qexp, qlog, qmul
 from ._bezier import average_quats, bezier_quats, greedy_walk, interpolation_frames
 from ._cluster import two_pass_clusters
 from ._runtime import choose_path, nearest_cluster, stitch_path, transition_point
 from ._tgraph import build_transition_graph, candidate_paths
 
-__all__ = ["Action", "ChainResult", "Chainer"]
+__all__ = ["Action", "ChainPlayer", "ChainResult", "Chainer"]
 
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
@@ -80,7 +88,7 @@ class Chainer:
         self.clips = chosen
         self.fps = chosen[0].motion.fps
         self.feat = frame_features(chosen, "relative")
-        self.sigma = _sigma(self.feat, self.fps, GraphOptions(coords="relative"))
+        self.sigma = graph_sigma(self.feat, self.fps, GraphOptions(coords="relative"))
         self.nu = nu
         self.clusters = two_pass_clusters(self.feat, radius * self.sigma, nu)
         self.graph = build_transition_graph(self.feat, self.clusters, directed=directed, nu=nu)
@@ -230,12 +238,12 @@ class _Placer:
                 else:
                     kk = np.array([float(self.k)])
                     quats = qmul(
-                        qexp(_hermite(self.e0, np.zeros_like(self.e0), kk, ch.blend)[0]), quats
+                        qexp(hermite(self.e0, np.zeros_like(self.e0), kk, ch.blend)[0]), quats
                     )
                     root = root + np.array(
                         [
                             0.0,
-                            float(_hermite(np.array(self.p0), np.array(0.0), kk, ch.blend)[0]),
+                            float(hermite(np.array(self.p0), np.array(0.0), kk, ch.blend)[0]),
                             0.0,
                         ]
                     )

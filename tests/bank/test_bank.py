@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from control.motion import Library, load_library
+from mimic.cli import main
 from silhouette_bank import (
     POSE_JOINTS,
     SHIN_RATIO,
@@ -29,7 +30,6 @@ from silhouette_bank import (
     motion_features,
     robust_settings,
 )
-from vision.cli import main
 
 SMALL = BankSettings(CameraRing(n_views=6, width=80, height_px=60), descriptor="hu")
 

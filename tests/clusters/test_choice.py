@@ -1,4 +1,4 @@
-"""The avatar and the choice interface on the playground, and `mimic choose`."""
+"""The choice interface on the playground, and `mimic choose`."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import pytest
 from control.avatar import Avatar
 from control.choice import offer
 from control.clusters import HigherLayer, build_higher_layer
-from control.graph import FrameData, GraphOptions, MotionGraph, build_graph, rotate_y
+from control.graph import FrameData, GraphOptions, MotionGraph, build_graph
 from control.motion import Library, read_bvh
-from vision.cli import main
+from mimic.cli import main
 
 
 @pytest.fixture(scope="module")
@@ -54,29 +54,6 @@ def test_region_limits_the_options(playground, playground_lib: Library) -> None:
     near = offer(layer, avatar, data, region=(float(here[0]), float(here[2]), 1.0))
     assert all(np.hypot(*(o.root_path[-1] - here)[[0, 2]]) <= 1.0 for o in near)
     assert offer(layer, avatar, data, region=(here[0] + 100.0, here[2], 1.0)) == []
-
-
-def test_avatar_moves_takes_and_keeps_its_transform(medium_lib: Library) -> None:
-    g = build_graph(medium_lib.clips, GraphOptions(coords="relative"))
-    avatar = Avatar(g, medium_lib.clips, seed=4)
-    assert avatar.advance(1.0) == 15 and avatar.n_frames == 16
-    assert avatar.advance(0.03) == 0 and avatar.advance(0.04) == 1
-    for _ in range(600):
-        avatar.step()
-    frames, jumps, _ = avatar.history()
-    assert g.in_scc[frames].all() and jumps.size > 0
-    with pytest.raises(ValueError, match="must start at the avatar's frame"):
-        avatar.take([avatar.frame + 1, avatar.frame + 2], [-1])
-    with pytest.raises(ValueError, match="not in the graph"):
-        avatar.take([avatar.frame, avatar.frame + 5], [-1])
-    while avatar.blending:
-        avatar.step()
-    syn = avatar.motion()
-    yaw, trans = avatar.root_transform()
-    data = FrameData(g, medium_lib.clips)
-    np.testing.assert_allclose(
-        syn.motion.root_pos[-1], rotate_y(data.root[avatar.frame], yaw) + trans, atol=1e-9
-    )
 
 
 def test_scripted_two_minute_session(

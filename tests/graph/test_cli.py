@@ -11,8 +11,8 @@ import pytest
 
 from control.graph import load_graph
 from control.motion import read_bvh
+from mimic.cli import main
 from tests.conftest import REPO
-from vision.cli import main
 
 
 def test_build_prints_table_and_writes_graph(
@@ -70,24 +70,24 @@ def test_walk_bad_arguments_are_clear_errors(
 
 
 def test_blend_reaches_the_avatar_and_leaves_the_graph_alone() -> None:
-    from control.cli import _options, blend_seconds
-    from vision.cli import build_parser
+    from mimic.args import blend_seconds, graph_options
+    from mimic.cli import build_parser
 
     parse = build_parser().parse_args
     plain = parse(["graph", "build"])
     half = parse(["graph", "build", "--blend", "0.5"])
     # the graph (and so its cache key) does not depend on the blend unless pruning reads it
-    assert _options(plain) == _options(half)
+    assert graph_options(plain) == graph_options(half)
     assert blend_seconds(plain) == 1.0 and blend_seconds(half) == 0.5
     pruned = parse(["graph", "build", "--case4", "prune", "--blend", "0.5"])
-    assert _options(pruned).blend == 0.5
+    assert graph_options(pruned).blend == 0.5
     with pytest.raises(ValueError, match="--blend must be positive"):
         blend_seconds(parse(["graph", "build", "--blend", "-1"]))
 
 
 def test_the_library_folder_is_given_the_same_way_everywhere(tmp_path: Path) -> None:
-    from control.cli import library_dir
-    from vision.cli import build_parser
+    from mimic.args import library_dir
+    from mimic.cli import build_parser
 
     parse = build_parser().parse_args
     for argv in (

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from control.artifacts import atomic_write
 from control.motion import (
     EMBEDDED_CLIPS,
     EMBEDDED_LIBRARY,
@@ -23,7 +24,6 @@ from control.motion import (
     write_motion_arrays,
 )
 from control.motion import _library as library_module
-from control.motion._text import atomic_write
 
 
 def _files(root: Path) -> dict[str, bytes]:

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from control.motion import MotionFormatError, _library, load_library, read_labels
+from mimic.cli import main
 from tests.conftest import BVH_DIR, SUBJECTS
-from vision.cli import main
 
 
 @pytest.fixture

@@ -24,8 +24,8 @@ from control.sketch import (
     read_sketch,
     resample,
 )
+from mimic.cli import main
 from tests.conftest import REPO
-from vision.cli import main
 
 MAZE = REPO / "benchmarks" / "sketch" / "maze.json"
 MAZE_PATH = REPO / "benchmarks" / "sketch" / "maze_path.json"

@@ -29,8 +29,8 @@ from control.sketch import (
     read_environment,
     read_sketch,
 )
+from mimic.cli import main
 from tests.conftest import REPO
-from vision.cli import main
 
 TERRAIN = REPO / "benchmarks" / "sketch" / "terrain.json"
 TERRAIN_PATH = REPO / "benchmarks" / "sketch" / "terrain_path.json"

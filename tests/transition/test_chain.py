@@ -14,8 +14,8 @@ from control.graph import joint_jumps
 from control.motion import Library, load_library, read_bvh
 from control.transition._chain import Chainer
 from control.transition._tgraph import CandidatePaths
+from mimic.cli import main
 from tests.conftest import REPO
-from vision.cli import main
 
 
 @pytest.fixture(scope="module")

@@ -7,11 +7,13 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pytest
 
+from control.motion import read_bvh
+from mimic.cli import main
 from tests.vision.conftest import RECORDING
 from vision._perform import PerformSettings, perform
 from vision._sources import MaskFolderSource, VideoSource, looks_like_silhouettes
-from vision.cli import main
 
 
 def _video(path: Path, frames: list[np.ndarray], fps: float = 30.0) -> Path:
@@ -32,14 +34,14 @@ def test_a_colour_video_that_starts_black_is_not_taken_for_silhouettes(
     assert not looks_like_silhouettes(_video(tmp_path / "b.mkv", black))  # no evidence: colour
     assert looks_like_silhouettes(RECORDING)
     # and the user can say so
-    from vision.cli import build_parser
-    from vision.perform_cli import _silhouette
+    from mimic.cli import build_parser
+    from mimic.run import silhouette_flag
 
     for word, meant in (("yes", True), ("no", False), ("auto", None)):
         args = build_parser().parse_args(
             ["perform", "--video", "c.mkv", "--silhouette-video", word]
         )
-        assert _silhouette(args) is meant
+        assert silhouette_flag(args) is meant
 
 
 def test_white_frames_are_no_performer(setup, tmp_path: Path) -> None:
@@ -77,10 +79,15 @@ def test_a_late_start_says_where_the_avatar_begins(
     while (got := src.read())[0]:
         frames.append(got[1])
     late = _video(tmp_path / "late.mkv", frames)
-    log = tmp_path / "d.jsonl"
+    log, out = tmp_path / "d.jsonl", tmp_path / "a.bvh"
     argv = ["perform", "--video", str(late), str(mocap), "--clips", "13_30", "--k", "12"]
-    assert main([*argv, "--seconds", "6", "--log", str(log)]) == 0
+    assert main([*argv, "--seconds", "6", "--log", str(log), "--out", str(out)]) == 0
     said = capsys.readouterr().out
     lines = [json.loads(x) for x in log.read_text().splitlines()]
     start = next(x["t"] for x in lines if "located" in x)
     assert start >= 2.0 and f"starts at {start:.2f} s of media" in said
+    # the BVH's place in the input is written beside it (a BVH has no field for it)
+    timing = json.loads((tmp_path / "a.bvh.json").read_text())
+    assert timing["media_start_s"] == pytest.approx(start, abs=1e-3)
+    assert timing["frames"] == read_bvh(out).n_frames
+    assert timing["media_end_s"] == pytest.approx(6.0, abs=0.2)

@@ -143,7 +143,7 @@ def test_a_browser_shows_the_performer_and_the_avatar(setup, tmp_path: Path) -> 
 
 
 def test_perform_serves_the_live_view_while_it_runs(mocap: Path, tmp_path: Path) -> None:
-    from vision.cli import main
+    from mimic.cli import main
 
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 
 from control.motion import read_bvh
+from mimic.cli import main
 from silhouette_bank import Bank, BankSettings, build_bank, silhouette_features
 from tests.vision.conftest import RECORDING
 from vision._matcher import Matcher, MatchSettings
 from vision._perform import PerformSettings, perform
 from vision._sources import CameraSource, MaskFolderSource, VideoSource
-from vision.cli import main
 
 
 @pytest.fixture(scope="module")
@@ -231,29 +231,6 @@ def test_decisions_after_a_stall_are_skipped_not_bunched(setup) -> None:
     assert len(r.decisions) + 11 == pytest.approx(50, abs=1)
     # the avatar kept its clock across the stall: it is as long as the media
     assert r.avatar.n_frames == pytest.approx(r.media_seconds * 15, abs=3)
-
-
-def test_a_late_start_says_where_the_bvh_lies_in_the_input(
-    mocap: Path, tmp_path: Path, capsys
-) -> None:
-    masks = tmp_path / "masks"
-    masks.mkdir()
-    cap = cv2.VideoCapture(str(RECORDING))
-    for i in range(150):  # nobody in view for the first 2 s, then the performer
-        ok, img = cap.read()
-        assert ok
-        mask = img[..., 0] if i >= 60 else np.zeros(img.shape[:2], dtype=np.uint8)
-        cv2.imwrite(str(masks / f"{i:04d}.png"), mask)
-    out = tmp_path / "a.bvh"
-    argv = ["perform", "--masks", str(masks), str(mocap), "--clips", "13_30", "--k", "12"]
-    assert main([*argv, "--out", str(out)]) == 0
-    said = capsys.readouterr().out
-    timing = json.loads((tmp_path / "a.bvh.json").read_text())
-    # located once enough of a 1 s window holds the performer, after 2 s of nobody
-    assert 2.2 <= timing["media_start_s"] <= 3.1
-    assert f"starts at {timing['media_start_s']:.2f} s of media" in said
-    assert timing["frames"] == read_bvh(out).n_frames
-    assert timing["media_end_s"] == pytest.approx(5.0, abs=0.2)  # the input's end
 
 
 class _DyingCapture:
@@ -512,7 +489,7 @@ def test_perform_with_landmarks_logs_why_a_frame_has_no_pose(
 
 
 def test_the_default_descriptor_follows_the_source(mocap: Path) -> None:
-    from vision.perform_cli import choose_descriptor
+    from mimic.run import choose_descriptor
 
     silhouettes = VideoSource(RECORDING, silhouette=True)
     colour = VideoSource(mocap.parent / "video" / "pose_1.mp4")

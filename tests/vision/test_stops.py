@@ -13,11 +13,11 @@ from pathlib import Path
 import pytest
 
 from control.motion import read_bvh
+from mimic.cli import main
 from tests.conftest import REPO
 from tests.vision.conftest import RECORDING
-from vision.cli import main
 
-MIMIC = [sys.executable, "-m", "vision.cli"]
+MIMIC = [sys.executable, "-m", "mimic"]
 
 
 def _start(argv: list[str], tmp_path: Path) -> subprocess.Popen[str]:

@@ -120,7 +120,7 @@ def test_mimic_evaluate_writes_agreement_confusion_and_a_plot(
 
     import cv2
 
-    from vision.cli import main
+    from mimic.cli import main
 
     out, png = tmp_path / "r" / "report.json", tmp_path / "r" / "plot.png"
     argv = ["evaluate", str(RECORDING), str(mocap), "--clips", "13_30", "--k", "12"]

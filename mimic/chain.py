@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 import time
 
-from control.cli import add_library_dir, library_dir
 from control.motion import load_library, write_bvh
 from control.progress import step
-from control.transition._chain import Chainer
+from control.transition import Chainer
+
+from .args import add_library_dir, library_dir
 
 __all__ = ["add_chain_command"]
 

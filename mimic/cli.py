@@ -1,4 +1,5 @@
-"""The ``mimic`` command line. Subcommands live beside the code they drive."""
+"""The ``mimic`` command line: the parser, the error handling and the signals; one module
+of this package per subcommand."""
 
 from __future__ import annotations
 
@@ -9,16 +10,21 @@ import sys
 import threading
 from collections.abc import Sequence
 
-from control.cache_cli import add_cache_command
-from control.cli import add_graph_commands, add_library_commands
 from control.graph import GraphFileError
 from control.motion import MotionFormatError
-from silhouette_bank._bank import BankFileError
-from silhouette_bank.cli import add_bank_commands
-from vision._sources import SourceError
-from vision.chain_cli import add_chain_command
-from vision.perform_cli import add_perform_commands
-from vision.sketch_cli import add_sketch_command
+from silhouette_bank import BankFileError
+from vision import SourceError
+
+from .bank import add_bank_commands
+from .cache import add_cache_command
+from .chain import add_chain_command
+from .choose import add_choose_command
+from .evaluate import add_evaluate_command
+from .graph import add_graph_commands
+from .library import add_library_commands
+from .perform import add_perform_command
+from .record import add_record_command
+from .sketch import add_sketch_command
 
 __all__ = ["build_parser", "main"]
 
@@ -32,8 +38,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     add_library_commands(sub)
     add_graph_commands(sub)
+    add_choose_command(sub)
     add_bank_commands(sub)
-    add_perform_commands(sub)
+    add_perform_command(sub)
+    add_evaluate_command(sub)
+    add_record_command(sub)
     add_chain_command(sub)
     add_sketch_command(sub)
     add_cache_command(sub)

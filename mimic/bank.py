@@ -10,21 +10,29 @@ from typing import Any
 import cv2
 import numpy as np
 
-from control.cli import _add_library_args, library_dir
 from control.motion import Library, load_library
 from control.progress import bar
+from silhouette_bank import (
+    DEFAULT_DESCRIPTOR,
+    DESCRIPTORS,
+    BankSettings,
+    BodyShape,
+    CameraRing,
+    capsule_body,
+    ensure_bank,
+    load_bank,
+    motion_silhouettes,
+)
 
-from ._bank import BankSettings, ensure_bank, load_bank
-from ._body import BodyShape, capsule_body
-from ._camera import CameraRing
-from ._descriptor import DEFAULT_DESCRIPTOR, DESCRIPTORS
-from ._render import motion_silhouettes
+from .args import add_library_args, library_dir
 
-__all__ = ["add_bank_commands", "contact_sheet"]
+__all__ = ["add_bank_args", "add_bank_commands", "bank_settings", "contact_sheet"]
 
 
-def _add_settings(p: argparse.ArgumentParser) -> None:
-    _add_library_args(p)
+def add_bank_args(p: argparse.ArgumentParser) -> None:
+    """The library, ``--bank`` and the bank's settings (camera ring, body, renderer,
+    descriptor)."""
+    add_library_args(p)
     d = CameraRing()
     p.add_argument("--bank", help="bank folder (default: the cache, by content hash)")
     p.add_argument("--width", type=int, default=d.width, help="image width, pixels")
@@ -52,7 +60,7 @@ def _add_settings(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _settings(args: argparse.Namespace) -> BankSettings:
+def bank_settings(args: argparse.Namespace) -> BankSettings:
     ring = CameraRing(
         n_views=args.views,
         distance=args.distance,
@@ -78,7 +86,7 @@ def add_bank_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
         help="render every library frame from every view and store the features",
         description="Built in shards (parallel, resumable); a stale bank is rebuilt.",
     )
-    _add_settings(build)
+    add_bank_args(build)
     build.add_argument("--workers", type=int, default=None, help="processes (default: cores)")
     build.add_argument("--shard-frames", type=int, default=1000, help="frames per shard")
     build.set_defaults(func=_build)
@@ -88,7 +96,7 @@ def add_bank_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     info.set_defaults(func=_info)
     show = bsub.add_parser("show", help="a PNG contact sheet of one frame's silhouettes")
     show.add_argument("frame", help="CLIP:FRAME (library frame at --fps)")
-    _add_settings(show)
+    add_bank_args(show)
     show.add_argument("--out", required=True, help="PNG to write")
     show.set_defaults(func=_show)
 
@@ -99,7 +107,7 @@ def _library(args: argparse.Namespace) -> Library:
 
 def _build(args: argparse.Namespace) -> int:
     library = _library(args)
-    settings = _settings(args)
+    settings = bank_settings(args)
     bank, built = ensure_bank(
         library.clips,
         settings,
@@ -167,7 +175,7 @@ def contact_sheet(masks: np.ndarray, cols: int = 6) -> np.ndarray:
 
 def _show(args: argparse.Namespace) -> int:
     library = _library(args)
-    settings = _settings(args)
+    settings = bank_settings(args)
     clip_name, _, frame = args.frame.rpartition(":")
     if not clip_name or not frame.isdigit():
         raise ValueError(f"FRAME must be CLIP:FRAME, not {args.frame!r}")
@@ -177,8 +185,7 @@ def _show(args: argparse.Namespace) -> int:
         raise ValueError(f"clip {clip_name} has no frame {f} (it has {clip.motion.n_frames})")
     body = capsule_body(clip.motion.skeleton, settings.body)
     if settings.renderer == "gl":
-        from ._gl import GLRenderer
-        from ._render import gl_silhouettes
+        from silhouette_bank import GLRenderer, gl_silhouettes
 
         with GLRenderer(settings.ring) as gl:
             masks = gl_silhouettes(gl, clip.motion, body, settings.ring, np.array([f]))[0]

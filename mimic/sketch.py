@@ -9,15 +9,6 @@ from typing import Any
 
 import numpy as np
 
-from control.cli import (
-    _add_graph_args,
-    _add_library_args,
-    _graph_for,
-    _options,
-    blend_seconds,
-    library_dir,
-    start_frame,
-)
 from control.clusters import HigherLayer, cached_higher_layer
 from control.graph import CapturedTerrain, MotionGraph, cached_graph, terrain_options
 from control.motion import Library, load_library, write_bvh
@@ -29,6 +20,16 @@ from control.sketch import (
     environment_mesh,
     read_environment,
     read_sketch,
+)
+
+from .args import (
+    add_graph_args,
+    add_library_args,
+    blend_seconds,
+    graph_for,
+    graph_options,
+    library_dir,
+    start_frame,
 )
 
 __all__ = ["add_sketch_command"]
@@ -47,8 +48,8 @@ def add_sketch_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
         "block grid found under the clips' feet) and planted feet must land on blocks of the "
         "level they were captured on: pass the clips captured on blocks (CMU: --clips '03_*').",
     )
-    _add_library_args(p)
-    _add_graph_args(p)
+    add_library_args(p)
+    add_graph_args(p)
     # the maze of the paper used relative coordinates; a terrain env makes them "terrain"
     p.set_defaults(coords="relative")
     p.add_argument("--path", required=True, help="the sketch: JSON or CSV file")
@@ -95,7 +96,7 @@ def _sketch(args: argparse.Namespace) -> int:
     if env is not None and env.terrain is not None:
         library, graph, captured = _terrain_graph(args, env.terrain.block)
     else:
-        library, graph, _, _ = _graph_for(args)
+        library, graph, _, _ = graph_for(args)
     start = start_frame(graph, args.start)
     layer = None
     if args.approach == "actions":
@@ -181,6 +182,6 @@ def _terrain_graph(
     if args.fps is None or args.fps <= 0:
         raise ValueError("--fps must be positive")
     library = load_library(library_dir(args), fps=args.fps, clips=args.clips)
-    options, captured = terrain_options(library.clips, block, _options(args))
+    options, captured = terrain_options(library.clips, block, graph_options(args))
     graph, _, _ = cached_graph(library.clips, options, rebuild=args.rebuild)
     return library, graph, captured

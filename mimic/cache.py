@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 import time
 
-from .artifacts import CACHE_KINDS, bound_cache, cache_entries, cache_limit, cache_root, clear_cache
+from control.artifacts import (
+    CACHE_KINDS,
+    bound_cache,
+    cache_entries,
+    cache_limit,
+    cache_root,
+    clear_cache,
+)
 
 __all__ = ["add_cache_command"]
 

@@ -3,9 +3,14 @@ a slow reference and dtaidistance."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from dtaidistance import dtw_ndim
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 
 from control.dtw import dtw, dtw_batch, dtw_best_window, dtw_reference
 
@@ -19,18 +24,32 @@ def test_textbook_case() -> None:
     assert dtw(a, a) == 0.0
 
 
-@pytest.mark.parametrize("window", [0, 3, 6])
+@pytest.mark.parametrize("window", [0, 1, 2, 3, 6])
 def test_matches_reference_and_dtaidistance(rng: np.random.Generator, window: int) -> None:
     for n, m in ((15, 15), (12, 17), (20, 9)):
-        a = rng.normal(size=(n, 9))
-        b = rng.normal(size=(m, 9))
-        ours = dtw(a, b, window)
-        assert ours == pytest.approx(dtw_reference(a, b, window), rel=1e-12)
-        if window == 0:
-            assert ours == pytest.approx(dtw_ndim.distance(a, b), rel=1e-9)
-        elif n == m:
-            # dtaidistance's window w allows |i - j| < w, as ours does on equal lengths
-            assert ours == pytest.approx(dtw_ndim.distance(a, b, window=window), rel=1e-9)
+        for d, walk in ((9, False), (2, True)):
+            a = rng.normal(size=(n, d))
+            b = rng.normal(size=(m, d))
+            if walk:  # random walks: their best paths run along the band's edge
+                a, b = np.cumsum(a, axis=0), np.cumsum(b, axis=0)
+            ours = dtw(a, b, window)
+            assert ours == pytest.approx(dtw_reference(a, b, window), rel=1e-12)
+            theirs = dtw_ndim.distance(a, b, window=window) if window else dtw_ndim.distance(a, b)
+            assert ours == pytest.approx(theirs, rel=1e-9), (n, m, d, window)
+
+
+def test_the_band_is_symmetric_and_its_edge_is_used() -> None:
+    # b is a shifted by k frames: the cheapest path runs k cells off the diagonal, so a
+    # band narrower than k + 1 must cost more, the same on either side
+    t = np.linspace(0.0, 6.0, 24)
+    a = np.sin(t)[:, None]
+    for k in (1, 2, 3):
+        b = np.sin(t + k * (t[1] - t[0]))[:, None]
+        inside, outside = dtw(a, b, k + 1), dtw(a, b, k)
+        assert outside > inside
+        assert dtw(b, a, k + 1) == pytest.approx(inside, rel=1e-12)  # symmetric
+        assert dtw(b, a, k) == pytest.approx(outside, rel=1e-12)
+        assert inside == pytest.approx(dtw_ndim.distance(a, b, window=k + 1), rel=1e-9)
 
 
 def test_batch_equals_one_by_one_and_abandoning_is_exact(rng: np.random.Generator) -> None:
@@ -83,3 +102,18 @@ def test_best_window_is_the_exhaustive_minimum(n_shape: int) -> None:
         dtw_best_window(query, hu, centre, np.array([55]), m)
     with pytest.raises(ValueError, match="S \\+ 2"):
         dtw_best_window(query[:, 1:], hu, centre, starts, m)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(
+    arrays(np.float64, st.tuples(st.integers(1, 12), st.just(2)), elements=st.floats(-5, 5)),
+    arrays(np.float64, st.tuples(st.integers(1, 12), st.just(2)), elements=st.floats(-5, 5)),
+)
+def test_a_wider_band_never_costs_more_and_the_band_is_symmetric(
+    a: np.ndarray, b: np.ndarray
+) -> None:
+    costs = [dtw(a, b, w) for w in (1, 2, 3, 5, 8)] + [dtw(a, b)]
+    assert all(x >= y - 1e-9 for x, y in itertools.pairwise(costs))
+    for w in (1, 3, 0):
+        assert dtw(a, b, w) == pytest.approx(dtw(b, a, w), rel=1e-12, abs=1e-12)
+        assert dtw(a, b, w) == pytest.approx(dtw_reference(a, b, w), rel=1e-12, abs=1e-12)

@@ -1,4 +1,5 @@
-"""The avatar's direct blended jumps (the vision interface's motion-matching move)."""
+"""The running avatar (``control.avatar``): moving, taking paths, its root transform, and
+its direct blended jumps (the vision interface's motion-matching move)."""
 
 from __future__ import annotations
 
@@ -7,12 +8,14 @@ import pytest
 
 from control.avatar import JUMP, Avatar
 from control.graph import (
+    FrameData,
     GraphOptions,
     MotionGraph,
     build_graph,
     joint_jumps,
     lowest_foot,
     pair_distances,
+    rotate_y,
     synthesize,
 )
 from control.motion import Library
@@ -75,3 +78,26 @@ def test_bad_jumps_are_refused(graph: MotionGraph, medium_lib: Library) -> None:
     extra = (np.array([0]), np.array([6]), np.zeros((1, 4)))
     with pytest.raises(ValueError, match="does not lead"):
         synthesize(graph, medium_lib.clips, frames, jumps, edges, extra=extra)
+
+
+def test_avatar_moves_takes_and_keeps_its_transform(medium_lib: Library) -> None:
+    g = build_graph(medium_lib.clips, GraphOptions(coords="relative"))
+    avatar = Avatar(g, medium_lib.clips, seed=4)
+    assert avatar.advance(1.0) == 15 and avatar.n_frames == 16
+    assert avatar.advance(0.03) == 0 and avatar.advance(0.04) == 1
+    for _ in range(600):
+        avatar.step()
+    frames, jumps, _ = avatar.history()
+    assert g.in_scc[frames].all() and jumps.size > 0
+    with pytest.raises(ValueError, match="must start at the avatar's frame"):
+        avatar.take([avatar.frame + 1, avatar.frame + 2], [-1])
+    with pytest.raises(ValueError, match="not in the graph"):
+        avatar.take([avatar.frame, avatar.frame + 5], [-1])
+    while avatar.blending:
+        avatar.step()
+    syn = avatar.motion()
+    yaw, trans = avatar.root_transform()
+    data = FrameData(g, medium_lib.clips)
+    np.testing.assert_allclose(
+        syn.motion.root_pos[-1], rotate_y(data.root[avatar.frame], yaw) + trans, atol=1e-9
+    )

@@ -10,14 +10,16 @@ from typing import Any
 
 import numpy as np
 
-from .avatar import Avatar
-from .choice import Option, offer
-from .clusters import DEFAULT_KS, HigherLayer, cached_higher_layer
-from .graph import FrameData, MotionGraph
-from .motion import Library, write_bvh
-from .progress import step
+from control.avatar import Avatar
+from control.choice import Option, offer
+from control.clusters import DEFAULT_KS, HigherLayer, cached_higher_layer
+from control.graph import FrameData, MotionGraph
+from control.motion import Library, write_bvh
+from control.progress import step
 
-__all__ = ["add_choose_command", "parse_ks", "read_script", "start_frame"]
+from .args import add_graph_args, add_library_args, blend_seconds, graph_for, start_frame
+
+__all__ = ["add_choose_command", "parse_ks", "read_script", "run_choice_session"]
 
 
 def parse_ks(text: str) -> list[int]:
@@ -104,8 +106,6 @@ def run_choice_session(
 ) -> dict[str, Any]:
     data = FrameData(graph, library.clips)
     start = start_frame(graph, args.start)
-    from .cli import blend_seconds  # control.cli imports this module
-
     avatar = Avatar(graph, library.clips, start=start, seed=args.seed, blend=blend_seconds(args))
     lookahead = None if args.lookahead <= 0 else (0.0, args.lookahead)
     region = None
@@ -161,22 +161,7 @@ def run_choice_session(
     }
 
 
-def start_frame(graph: MotionGraph, text: str | None) -> int | None:
-    """The graph frame of a ``--start CLIP:FRAME`` argument (``None`` when not given)."""
-    if not text:
-        return None
-    clip, _, frame = text.rpartition(":")
-    if not clip or not frame.isdigit():
-        raise ValueError(f"--start must be CLIP:FRAME, not {text!r}")
-    return graph.frame_of(clip, int(frame))
-
-
-def add_choose_command(
-    sub: argparse._SubParsersAction[argparse.ArgumentParser],
-    add_library_args: Any,
-    add_graph_args: Any,
-    graph_for: Any,
-) -> None:
+def add_choose_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "choose",
         help="steer the avatar by picking among offered actions (terminal), write BVH",
@@ -203,10 +188,10 @@ def add_choose_command(
     p.add_argument("--start", help="start at CLIP:FRAME")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", required=True, help="BVH file to write")
-    p.set_defaults(func=lambda args: _choose(args, graph_for))
+    p.set_defaults(func=_choose)
 
 
-def _choose(args: argparse.Namespace, graph_for: Any) -> int:
+def _choose(args: argparse.Namespace) -> int:
     if args.script and not Path(args.script).is_file():
         raise FileNotFoundError(f"no script file {args.script}")
     if args.script:

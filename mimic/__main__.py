@@ -1,0 +1,7 @@
+"""``python -m mimic``."""
+
+import sys
+
+from mimic.cli import main
+
+sys.exit(main())

@@ -1,0 +1,158 @@
+"""The argument groups the subcommands share: the library folder, the library and graph
+options, the blend and a start frame, and what they make (the options, the graph)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from control.graph import CONTACT_RULES, COORDS, GraphOptions, MotionGraph, cached_graph
+from control.motion import Library, load_library
+from control.progress import step
+
+__all__ = [
+    "add_graph_args",
+    "add_library_args",
+    "add_library_dir",
+    "blend_seconds",
+    "graph_for",
+    "graph_options",
+    "library_dir",
+    "start_frame",
+]
+
+
+def add_library_dir(p: argparse.ArgumentParser, positional: bool = True) -> None:
+    """The library folder, given as ``--library DIR`` in every subcommand (and, where the
+    command takes no other positional list, as its last positional argument too); read
+    it with ``library_dir(args)``."""
+    where = "default: $MIMIC_MOCAP, else ../shared/mocap, else the embedded library"
+    if positional:
+        p.add_argument("dir", nargs="?", default=None, help=f"library folder ({where})")
+    p.add_argument("--library", default=None, metavar="DIR", help=f"library folder ({where})")
+
+
+def library_dir(args: argparse.Namespace) -> str | None:
+    """The library folder of ``add_library_dir``'s arguments (``None``: the default)."""
+    pos, opt = getattr(args, "dir", None), getattr(args, "library", None)
+    if pos is not None and opt is not None and Path(pos) != Path(opt):
+        raise ValueError(f"two library folders given: {pos} and --library {opt}")
+    return opt if opt is not None else pos
+
+
+def add_library_args(p: argparse.ArgumentParser) -> None:
+    """The library folder, ``--clips``, ``--fps`` and ``--mirror``."""
+    add_library_dir(p)
+    p.add_argument(
+        "--clips",
+        action="append",
+        metavar="PATTERN",
+        help="only clips whose name matches (shell pattern, repeatable): --clips '01_*'",
+    )
+    p.add_argument("--fps", type=float, default=15.0, help="library frame rate (default 15)")
+    p.add_argument("--mirror", action="store_true", help="add mirrored copies of every clip")
+
+
+def add_graph_args(p: argparse.ArgumentParser) -> None:
+    """The graph options (``GraphOptions``) and ``--blend``, ``--rebuild``."""
+    d = GraphOptions()
+    p.add_argument(
+        "--coords", choices=COORDS, default=d.coords, help="root coordinates (default fixed)"
+    )
+    p.add_argument(
+        "--contact",
+        choices=CONTACT_RULES,
+        default=d.contact,
+        help="contact pruning rule (default loose)",
+    )
+    sim = p.add_mutually_exclusive_group()
+    sim.add_argument(
+        "--similarity",
+        dest="similarity",
+        action="store_true",
+        default=None,
+        help="keep only local maxima (default: on unless --contact strict)",
+    )
+    sim.add_argument("--no-similarity", dest="similarity", action="store_false")
+    p.add_argument(
+        "--threshold",
+        type=float,
+        default=d.threshold,
+        help=f"likelihood threshold relative to playing on (default {d.threshold})",
+    )
+    p.add_argument(
+        "--sigma-scale",
+        type=float,
+        default=d.sigma_scale,
+        help="sigma = this x the median distance between frames 1/15 s apart",
+    )
+    p.add_argument("--nu", type=float, default=d.nu, help=f"velocity weight, s^2 (default {d.nu})")
+    p.add_argument("--block", type=float, default=d.block, help="terrain block size, metres")
+    p.add_argument(
+        "--case4",
+        choices=("slip", "prune"),
+        default=d.case4,
+        help="transitions whose blend a foot contact spans: keep and let the foot slip "
+        "(default) or prune them",
+    )
+    p.add_argument(
+        "--blend",
+        type=float,
+        default=None,
+        help=f"blend interval b, seconds, of the avatar's transitions and jumps (default "
+        f"{d.blend:g}; sketch on block terrain 0.3); with --case4 prune also the interval "
+        "the pruning assumes",
+    )
+    p.add_argument("--rebuild", action="store_true", help="ignore a cached graph")
+
+
+def graph_options(args: argparse.Namespace) -> GraphOptions:
+    """The ``GraphOptions`` of ``add_graph_args``'s arguments."""
+    return GraphOptions(
+        coords=args.coords,
+        contact=args.contact,
+        similarity=args.similarity,
+        nu=args.nu,
+        sigma_scale=args.sigma_scale,
+        threshold=args.threshold,
+        block=args.block,
+        case4=args.case4,
+        # only pruning reads the blend: elsewhere it must not change the graph's cache key
+        blend=blend_seconds(args) if args.case4 == "prune" else GraphOptions().blend,
+    )
+
+
+def blend_seconds(args: argparse.Namespace, default: float | None = None) -> float:
+    """``--blend``, else ``default``, else the graph options' default (1 s)."""
+    if args.blend is not None:
+        if not (args.blend > 0 and np.isfinite(args.blend)):
+            raise ValueError(f"--blend must be positive seconds, not {args.blend}")
+        return float(args.blend)
+    return GraphOptions().blend if default is None else default
+
+
+def graph_for(args: argparse.Namespace) -> tuple[Library, MotionGraph, Path, bool]:
+    """The library and its (cached) graph, from ``add_library_args`` and ``add_graph_args``:
+    ``(library, graph, cache path, built)``."""
+    if args.fps is None or args.fps <= 0:
+        raise ValueError("--fps must be positive")
+    options = graph_options(args)
+    with step("motion library"):
+        library = load_library(
+            library_dir(args), fps=args.fps, mirror=args.mirror, clips=args.clips
+        )
+    with step("motion graph"):
+        graph, path, built = cached_graph(library.clips, options, rebuild=args.rebuild)
+    return library, graph, path, built
+
+
+def start_frame(graph: MotionGraph, text: str | None) -> int | None:
+    """The graph frame of a ``--start CLIP:FRAME`` argument (``None`` when not given)."""
+    if not text:
+        return None
+    clip, _, frame = text.rpartition(":")
+    if not clip or not frame.isdigit():
+        raise ValueError(f"--start must be CLIP:FRAME, not {text!r}")
+    return graph.frame_of(clip, int(frame))

@@ -1,0 +1,99 @@
+"""``mimic evaluate``: a labelled video through perform's loop; agreement by lag, the
+confusion matrix, JSON and a plot."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+from pathlib import Path
+
+from control.artifacts import atomic_write
+from vision import (
+    evaluation,
+    open_source,
+    perform,
+    plot_evaluation,
+    truth_for,
+)
+
+from .run import (
+    add_run_args,
+    prepare,
+    print_actions,
+    silhouette_flag,
+    warn_own_take,
+    warn_source,
+)
+
+__all__ = ["add_evaluate_command"]
+
+
+def add_evaluate_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    e = sub.add_parser(
+        "evaluate",
+        help="how often the avatar does the performer's action: a labelled video in, "
+        "agreement by lag, confusion matrix, JSON and a plot out",
+        description="Replay a labelled performance (a recording with its sidecar, or any "
+        "video with a labels CSV) through mimic perform's loop, with its defaults, and "
+        "compare the avatar's action at every decision with the performer's, at lags of "
+        "0-3 s (the avatar follows, so it may be late).",
+    )
+    e.add_argument("video", help="a recording (with its .json sidecar) or any video file")
+    e.add_argument(
+        "--labels", help="labels CSV (file,start,end,label) when the video has no sidecar"
+    )
+    add_run_args(e)
+    e.add_argument("--json", required=True, help="the report (JSON) to write")
+    e.add_argument("--png", help="a plot of agreement against lag and the confusion matrix")
+    e.set_defaults(func=_evaluate)
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    truth = truth_for(args.video, args.labels)  # bad: LabelFileError, naming the file
+    if truth is None:
+        raise ValueError(
+            f"{args.video}: no ground truth (no {Path(args.video).name}.json sidecar): "
+            "give --labels CSV"
+        )
+    source = open_source(None, args.video, None, silhouette=silhouette_flag(args))
+    ready = prepare(args, source)
+    try:
+        result = perform(
+            source,
+            ready.layer,
+            ready.bank,
+            ready.clips,
+            ready.settings,
+            start=ready.start,
+            seed=args.seed,
+        )
+    finally:
+        source.close()
+    warn_own_take(args.video, ready.clips)
+    warn_source(source)
+    report = evaluation(result.decisions, ready.clips, truth, result.media_seconds)
+    report = {
+        "video": str(args.video),
+        "library": [c.name for c in ready.clips],
+        "descriptor": ready.descriptor,
+        "graph": {"coords": ready.graph.options.coords, "frames": ready.graph.n_frames},
+        "match": dataclasses.asdict(ready.settings.match),
+        **report,
+    }
+    with atomic_write(args.json) as fh:
+        fh.write(json.dumps(report, indent=1) + "\n")
+    if args.png:
+        plot_evaluation(report, args.png, title=f"{Path(args.video).name} against {truth.source}")
+    print_actions(result.decisions, ready.clips)
+    best = report["best_at_lag_le_1s"]
+    print(
+        "agreement (actions the library has): "
+        + (f"{best:.2f} at lag {report['best_lag_s']:g} s" if best is not None else "none")
+        + f"; chance {report['chance']}; per action "
+        + ", ".join(f"{a} {v:.2f}" for a, v in report["per_action_at_best_lag"].items())
+        + f"; switches a minute: avatar {report['switches_per_minute']['avatar']}, "
+        f"performer {report['switches_per_minute']['performer']}"
+    )
+    print(f"wrote {args.json}" + (f" and {args.png}" if args.png else ""))
+    return 0

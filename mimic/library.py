@@ -1,0 +1,146 @@
+"""``mimic library info`` and ``mimic library embed``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+import numpy as np
+
+from control.motion import (
+    EMBEDDED_CLIPS,
+    EMBEDDED_LIBRARY,
+    EMBEDDED_MAX_BYTES,
+    Library,
+    embed_library,
+    load_library,
+)
+
+from .args import add_library_dir, library_dir
+
+__all__ = ["add_library_commands", "library_summary"]
+
+
+def add_library_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    lib = sub.add_parser("library", help="inspect a motion library")
+    lib_sub = lib.add_subparsers(dest="library_command", required=True)
+    info = lib_sub.add_parser(
+        "info",
+        help="clips, frames, duration, rate, joints and contact statistics",
+        description="Load a motion library (ASF/AMC and/or BVH) and summarise it.",
+    )
+    add_library_dir(info)
+    info.add_argument("--fps", type=float, default=15.0, help="resample to this rate (default 15)")
+    info.add_argument("--mirror", action="store_true", help="add mirrored copies of every clip")
+    info.add_argument(
+        "--prefer",
+        choices=("amc", "bvh"),
+        default="amc",
+        help="format to use for takes present in both (default amc)",
+    )
+    info.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
+    info.add_argument("--json", action="store_true", help="print the summary as JSON")
+    info.set_defaults(func=_info)
+    embed = lib_sub.add_parser(
+        "embed",
+        help="convert a few clips into the package's embedded default library",
+        description=(
+            "Convert clips of a full library into compact motion arrays at 30 frames/s, "
+            "with their labels and the CMU acknowledgement: the library used when neither "
+            "$MIMIC_MOCAP nor ../shared/mocap exists."
+        ),
+    )
+    embed.add_argument("dir", help="the full library folder (e.g. ../shared/mocap)")
+    embed.add_argument(
+        "--out", default=str(EMBEDDED_LIBRARY), help=f"output folder (default {EMBEDDED_LIBRARY})"
+    )
+    embed.add_argument(
+        "--clips",
+        default=",".join(EMBEDDED_CLIPS),
+        help=f"comma-separated clip names (default {','.join(EMBEDDED_CLIPS)})",
+    )
+    embed.set_defaults(func=_embed)
+
+
+def _embed(args: argparse.Namespace) -> int:
+    sizes = embed_library(args.dir, args.out, [c for c in args.clips.split(",") if c])
+    total = sum(sizes.values())
+    print(f"wrote {len(sizes)} files to {args.out}: {total / 1e6:.2f} MB")
+    if total > EMBEDDED_MAX_BYTES:
+        print(f"warning: over the {EMBEDDED_MAX_BYTES / 1e6:g} MB the embedded library may use")
+    return 0
+
+
+def library_summary(library: Library) -> dict[str, Any]:
+    """Per-clip and total figures of a loaded library, as plain JSON-able values."""
+    clips = []
+    for c in library.clips:
+        st = c.contacts.states
+        events = c.contacts.events()
+        minutes = max(c.motion.n_frames / c.motion.fps / 60.0, 1e-9)
+        clips.append(
+            {
+                "clip": c.name,
+                "frames": c.motion.n_frames,
+                "seconds": round(c.motion.n_frames / c.motion.fps, 2),
+                "fps": c.motion.fps,
+                "joints": c.motion.skeleton.n_joints,
+                "contact_left": round(float(st[:, 0].mean()), 3),
+                "contact_right": round(float(st[:, 1].mean()), 3),
+                "airborne": round(float((~st.any(axis=1)).mean()), 3),
+                "contact_changes_per_min": round(len(events) / minutes, 1),
+                "labels": list(c.label_names),
+                "description": c.description,
+            }
+        )
+    all_states = np.concatenate([c.contacts.states for c in library.clips])
+    return {
+        "root": library.root,
+        "clips": len(library.clips),
+        "frames": library.n_frames,
+        "seconds": round(library.duration, 1),
+        "fps": library.fps,
+        "skeletons": [s.n_joints for s in library.skeletons()],
+        "contact_fraction": {
+            "left": round(float(all_states[:, 0].mean()), 3),
+            "right": round(float(all_states[:, 1].mean()), 3),
+            "both": round(float(all_states.all(axis=1).mean()), 3),
+            "none": round(float((~all_states.any(axis=1)).mean()), 3),
+        },
+        "contact_changes": int(sum(len(c.contacts.events()) for c in library.clips)),
+        "per_clip": clips,
+    }
+
+
+def _info(args: argparse.Namespace) -> int:
+    library = load_library(
+        library_dir(args),
+        fps=args.fps,
+        mirror=args.mirror,
+        prefer=args.prefer,
+        use_cache=not args.no_cache,
+    )
+    summary = library_summary(library)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+        return 0
+    print(
+        f"{'clip':<14}{'frames':>7}{'sec':>8}{'fps':>6}{'joints':>7}"
+        f"{'L cont':>7}{'R cont':>7}{'air':>6}{'chg/min':>8}  description"
+    )
+    for row in summary["per_clip"]:
+        print(
+            f"{row['clip']:<14}{row['frames']:>7}{row['seconds']:>8.1f}{row['fps']:>6g}"
+            f"{row['joints']:>7}{row['contact_left']:>7.2f}{row['contact_right']:>7.2f}"
+            f"{row['airborne']:>6.2f}{row['contact_changes_per_min']:>8.1f}  {row['description']}"
+        )
+    cf = summary["contact_fraction"]
+    print(
+        f"\nlibrary {summary['root']}: {summary['clips']} clips, {summary['frames']} frames, "
+        f"{summary['seconds']:.1f} s at {summary['fps'] or 'native'} frames/s, skeletons with "
+        f"{', '.join(map(str, summary['skeletons']))} joints; feet in contact: left "
+        f"{cf['left']:.0%}, right {cf['right']:.0%}, both {cf['both']:.0%}, neither "
+        f"{cf['none']:.0%}; {summary['contact_changes']} contact changes"
+    )
+    return 0

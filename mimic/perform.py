@@ -1,0 +1,304 @@
+"""``mimic perform``: the avatar follows a performer from a camera, a video or masks; the
+BVH, the side-by-side MP4, the decision log and the live view; a stop writes what was
+performed."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import itertools
+import json
+import os
+import signal
+import sys
+import threading
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from control.artifacts import atomic_write
+from control.motion import write_bvh
+from vision import (
+    METHODS,
+    LivePainter,
+    LiveView,
+    MaskTape,
+    SourceError,
+    Truth,
+    agreement,
+    library_actions,
+    open_source,
+    perform,
+    truth_for,
+    write_video,
+)
+
+from .run import (
+    add_run_args,
+    prepare,
+    print_actions,
+    silhouette_flag,
+    warn_own_take,
+    warn_source,
+)
+
+__all__ = ["DecisionLog", "StopOnSignal", "add_perform_command"]
+
+
+def add_perform_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser(
+        "perform",
+        help="the avatar follows a performer: camera, video, or masks in; BVH, MP4, log out",
+        description="Every 0.1 s of media time the performer's last silhouettes are matched "
+        "against the avatar's possible next actions (the silhouette bank); the best is taken.",
+    )
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--camera", type=int, help="webcam index")
+    src.add_argument("--video", help="a video file (colour, or a silhouette video)")
+    src.add_argument("--masks", help="a folder of mask images")
+    add_run_args(p)
+    p.add_argument("--realtime", action="store_true", help="pace a file like a camera")
+    p.add_argument("--out", help="BVH of the avatar's motion")
+    p.add_argument("--video-out", help="MP4: performer silhouette beside the avatar")
+    p.add_argument("--log", help="JSON-lines decision log")
+    p.add_argument(
+        "--labels",
+        help="a labels CSV (file,start,end,label; times in seconds) with the performer's "
+        "actions in --video: the summary then gives the avatar's agreement with them "
+        "(a recording's own sidecar is used without it)",
+    )
+    p.add_argument(
+        "--live-port",
+        type=int,
+        default=8765,
+        help="with --camera or --realtime, a live view at http://127.0.0.1:PORT/ (0: none)",
+    )
+    p.set_defaults(func=_perform)
+
+
+_SIGNALS = {"SIGINT": 2, "SIGHUP": 1, "SIGTERM": 15}
+
+
+class StopOnSignal:
+    """While in use, Ctrl-C (SIGINT), SIGTERM and SIGHUP ask the performance to stop at
+    its next frame (``__call__`` says which came) instead of killing it, so that what was
+    performed is still written. A second Ctrl-C interrupts at once."""
+
+    def __init__(self) -> None:
+        self.got = ""
+        self._old: dict[int, Any] = {}
+
+    def __call__(self) -> str:
+        return self.got
+
+    def _handle(self, signum: int, frame: Any) -> None:
+        name = signal.Signals(signum).name
+        if self.got == "SIGINT" and name == "SIGINT":
+            raise KeyboardInterrupt
+        if not self.got:
+            self.got = name
+            print(f"\n{name}: stopping after this frame (Ctrl-C again to abort)", file=sys.stderr)
+
+    def __enter__(self) -> StopOnSignal:
+        if threading.current_thread() is threading.main_thread():
+            for name in _SIGNALS:
+                sig = getattr(signal, name, None)
+                if sig is not None:
+                    self._old[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+
+
+class DecisionLog:
+    """The JSON-lines decision log, written line by line (each line flushed) to a
+    temporary file beside ``path`` and moved onto ``path`` when the run ends, stopped or
+    not: an old log is replaced only by a run that logged something, never destroyed by
+    a run that failed to start."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self._tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
+        self._fh = open(self._tmp, "w", buffering=1, encoding="utf-8")  # noqa: SIM115
+        self.lines = 0
+
+    def write(self, text: str) -> int:
+        n = self._fh.write(text)
+        self._fh.flush()
+        self.lines += text.count("\n")
+        return n
+
+    def __enter__(self) -> DecisionLog:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._fh.close()
+        if self.lines:
+            os.replace(self._tmp, self.path)
+        else:
+            self._tmp.unlink(missing_ok=True)
+
+
+def _write_timing(out: str, result: Any, frames: int, fps: float, source: str) -> Path:
+    """``OUT.json`` beside the BVH: where its frames lie in the input's media time (a BVH
+    has no field for it), so that the avatar lines up with the input after a late start."""
+    path = Path(out).expanduser()
+    path = path.with_name(path.name + ".json")
+    timing = {
+        "bvh": Path(out).name,
+        "source": source,
+        "media_start_s": round(float(result.avatar_start_s), 4),
+        "fps": fps,
+        "frames": frames,
+        "media_end_s": round(float(result.avatar_start_s) + frames / fps, 4),
+        "stopped": result.stopped or None,
+    }
+    with atomic_write(path) as fh:
+        json.dump(timing, fh, indent=1)
+        fh.write("\n")
+    return path
+
+
+def _perform(args: argparse.Namespace) -> int:
+    if args.labels and not args.video:
+        raise ValueError("--labels needs --video (the labels name its file)")
+    truth = truth_for(args.video, args.labels) if args.video else None  # bad: LabelFileError
+    for name in ("out", "video_out", "log"):  # outputs into a missing folder work alike
+        if getattr(args, name):
+            Path(getattr(args, name)).expanduser().parent.mkdir(parents=True, exist_ok=True)
+    source = open_source(
+        args.camera,
+        args.video,
+        args.masks,
+        silhouette=silhouette_flag(args),
+        realtime=args.realtime,
+    )
+    if args.camera is not None and args.seconds is None:
+        print("a camera never ends: stop with Ctrl-C (or give --seconds)", file=sys.stderr)
+    ready = prepare(args, source)
+    plate = args.segmentation in METHODS or (
+        args.segmentation == "auto" and ready.descriptor != "pose"
+    )
+    if args.camera is not None and plate:
+        print(
+            "step out of view for two seconds so that the background can be learned",
+            file=sys.stderr,
+        )
+    clips, graph, layer, bank = ready.clips, ready.graph, ready.layer, ready.bank
+    live = args.live_port != 0 and (args.camera is not None or args.realtime)
+    with contextlib.ExitStack() as stack:
+        log: Any = stack.enter_context(DecisionLog(args.log)) if args.log else None
+        tape = stack.enter_context(MaskTape(fps=graph.fps)) if args.video_out else None
+        stops = stack.enter_context(StopOnSignal())
+        painter = None
+        if live:
+            try:
+                view = stack.enter_context(LiveView(port=args.live_port))
+            except OSError as exc:
+                raise OSError(
+                    f"--live-port {args.live_port}: cannot serve the live view ({exc})"
+                ) from None
+            painter = LivePainter(view, clips, graph, bank)
+            print(f"live view: {view.url} (this machine only)", file=sys.stderr, flush=True)
+        try:
+            result = perform(
+                source,
+                layer,
+                bank,
+                clips,
+                ready.settings,
+                start=ready.start,
+                seed=args.seed,
+                log=log,
+                tape=tape,
+                on_frame=painter.on_frame if painter else None,
+                on_decision=painter.on_decision if painter else None,
+                stop=stops,
+            )
+        finally:
+            source.close()
+        if result.frames_with_media == 0:
+            raise SourceError(
+                f"{source.name}: no frame came from the source in "
+                f"{result.media_seconds:.1f} s (a camera that does not open, or is in use?)"
+            )
+        warn_source(source)
+        if result.stopped:
+            print(
+                f"stopped by {result.stopped} at {result.media_seconds:.1f} s of media: "
+                "writing what was performed",
+                file=sys.stderr,
+                flush=True,
+            )
+        made = [c for c in result.decisions if c.get("decision") is not None]
+        if args.out:
+            motion = result.avatar.motion().motion
+            write_bvh(motion, args.out)
+            _write_timing(args.out, result, motion.n_frames, motion.fps, source.name)
+        if tape is not None:
+            write_video(result, bank, clips, args.video_out, tape)
+    lat = [c["latency_ms"] for c in made]
+    jumps = sum("jump" in c for c in made)
+    clips_seen = [c["clip"] for c in result.decisions]
+    changes = sum(a != b for a, b in itertools.pairwise(clips_seen))
+    minutes = max(result.media_seconds, 1e-9) / 60.0
+    print(  # the one summary line
+        f"{result.media_seconds:.1f} s of media ({result.frames_read} frames): "
+        f"{len(made)} decisions of {len(result.decisions)}"
+        + (
+            f" (p50 {np.percentile(lat, 50):.2f} ms, p99 {np.percentile(lat, 99):.2f} ms)"
+            if lat
+            else ""
+        )
+        + f"; the avatar moved {result.avatar.time:.1f} s, {jumps} direct jumps, "
+        f"{changes / minutes:.1f} clip changes a minute"
+        + ("; bank built" if ready.bank_built else "")
+    )
+    if result.avatar_start_s > ready.settings.match.window + 0.5:  # a late start
+        print(
+            f"the avatar's motion (BVH, MP4) starts at {result.avatar_start_s:.2f} s of media, "
+            "where the performer was first matched (the log's times are media times; "
+            + (f"{args.out}.json says so for the BVH" if args.out else "the MP4 shows them")
+            + ")"
+        )
+    print_actions(result.decisions, clips)
+    if truth is not None:
+        _print_agreement(result.decisions, clips, truth)
+        warn_own_take(args.video, clips)
+    skipped = getattr(source, "skipped", [])
+    if skipped:
+        shown = ", ".join(skipped[:5]) + (" ..." if len(skipped) > 5 else "")
+        print(
+            f"skipped {len(skipped)} unreadable mask files (each a frame without a silhouette, "
+            f"in the log as such): {shown}",
+            file=sys.stderr,
+        )
+    for name in ("out", "video_out", "log"):
+        if getattr(args, name):
+            print(f"wrote {getattr(args, name)}")
+            if name == "out":
+                print(f"wrote {args.out}.json (the BVH's place in the input's media time)")
+    # Ctrl-C is how a camera session ends; another signal is reported as such
+    return 0 if result.stopped in ("", "SIGINT") else 128 + _SIGNALS[result.stopped]
+
+
+def _print_agreement(decisions: list[dict[str, Any]], clips: list[Any], truth: Truth) -> None:
+    known = library_actions(clips)
+    got = agreement(decisions, clips, truth, known=known)
+    if got["best_at_lag_le_1s"] is None:
+        print(f"agreement: no decision falls on an action of {truth.source} the library has")
+        return
+    curve = ", ".join(
+        f"{lag} s {got['by_lag_s'][lag]:.2f}"
+        for lag in ("0", "0.5", "1")
+        if got["by_lag_s"][lag] is not None
+    )
+    n = got["decisions_by_lag_s"][f"{got['best_lag_s']:g}"]
+    print(
+        f"agreement with {truth.source}: {got['best_at_lag_le_1s']:.2f} of the decisions "
+        f"do the performer's action (best lag within 1 s: {got['best_lag_s']:g} s; "
+        f"by lag {curve}; {n} decisions)"
+    )
