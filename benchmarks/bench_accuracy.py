@@ -58,14 +58,20 @@ from silhouette_bank import (
     robust_settings,
     silhouette_features,
 )
-from vision._evaluate import evaluation
-from vision._library import on_the_floor
-from vision._matcher import Matcher, MatchSettings, performer_sequence
-from vision._perform import PerformSettings, perform
-from vision._record import RecordSettings, record_clip
-from vision._segment import clean_mask
-from vision._sources import VideoSource
-from vision._truth import truth_for
+from vision import (
+    Matcher,
+    MatchSettings,
+    PerformSettings,
+    RecordSettings,
+    VideoSource,
+    clean_mask,
+    evaluation,
+    on_the_floor,
+    perform,
+    performer_sequence,
+    record_clip,
+    truth_for,
+)
 
 LAGS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0)
 SETTINGS = ((1.0, 1.5), (1.0, 3.0), (2.0, 3.0), (2.0, 5.0))

@@ -48,14 +48,20 @@ from silhouette_bank import (
     ensure_bank,
     robust_settings,
 )
-from vision._evaluate import evaluation
-from vision._library import on_the_floor
-from vision._matcher import MatchSettings
-from vision._perform import PerformSettings, perform
-from vision._person import PersonSegmenter, person_segmentation_available
-from vision._segment import Segmenter
-from vision._sources import VideoSource
-from vision._truth import LAGS, LabelFileError, Truth
+from vision import (
+    LAGS,
+    LabelFileError,
+    MatchSettings,
+    PerformSettings,
+    PersonSegmenter,
+    Segmenter,
+    Truth,
+    VideoSource,
+    evaluation,
+    on_the_floor,
+    perform,
+    person_segmentation_available,
+)
 from vision._truth import read_span_labels as read_labels
 
 HERE = Path(__file__).resolve().parent

@@ -60,16 +60,17 @@ from silhouette_bank import (
     silhouette_features,
 )
 from silhouette_bank._pose import joint_points
-from vision._landmarks import PoseReader
-from vision._matcher import (
+from vision import (
+    PersonSegmenter,
+    PoseReader,
+    RecordSettings,
     best_window,
     per_frame_cost,
+    performer_masks,
     performer_queries,
     shape_stats,
     window_tables,
 )
-from vision._person import PersonSegmenter
-from vision._record import RecordSettings, performer_masks
 
 HERE = Path(__file__).resolve().parent
 CENTRE_WEIGHT = 3.0

@@ -24,8 +24,7 @@ from benchmarks._report import machine, save
 from control.graph import GraphOptions, build_graph
 from control.motion import default_library_path, load_library
 from silhouette_bank import BankSettings, ensure_bank, robust_settings, silhouette_features
-from vision._matcher import Matcher, MatchSettings
-from vision._sources import VideoSource
+from vision import Matcher, MatchSettings, VideoSource
 
 RECORDING = Path("recordings/13_29_first12s_160x120.mkv")
 

@@ -43,11 +43,17 @@ from silhouette_bank import (
     robust_settings,
     silhouette_features,
 )
-from vision._matcher import Matcher, MatchSettings
-from vision._perform import PerformSettings, perform
-from vision._record import RecordSettings, record_clip
-from vision._segment import METHODS, Segmenter
-from vision._sources import VideoSource
+from vision import (
+    METHODS,
+    Matcher,
+    MatchSettings,
+    PerformSettings,
+    RecordSettings,
+    Segmenter,
+    VideoSource,
+    perform,
+    record_clip,
+)
 
 RECORDING = Path("recordings/13_29_first12s_160x120.mkv")
 

@@ -1,16 +1,13 @@
 """Offline half of the vision interface (Lee et al. §5.3): the silhouette bank."""
 
 from ._bank import (
-    BANK_VERSION,
     Bank,
     BankFileError,
-    BankSettings,
     StaleBankError,
     bank_cache_dir,
     build_bank,
     ensure_bank,
     load_bank,
-    robust_settings,
 )
 from ._body import BodyShape, CapsuleBody, capsule_body, capsule_segments
 from ._camera import CameraRing
@@ -42,12 +39,14 @@ from ._render import (
     shaded_frames,
     write_mp4,
 )
+from ._settings import BANK_VERSION, METRIC_DIMS, BankSettings, robust_settings
 
 __all__ = [
     "BANK_VERSION",
     "DEFAULT_DESCRIPTOR",
     "DESCRIPTORS",
     "HU_SCALE",
+    "METRIC_DIMS",
     "POSE_JOINTS",
     "SHIN_RATIO",
     "THIGH_RATIO",

@@ -5,6 +5,10 @@ ground truth and evaluation, and synthetic recordings."""
 
 from __future__ import annotations
 
+from ._decision import (
+    Decision,
+    MatchSettings,
+)
 from ._evaluate import (
     evaluation,
     plot_evaluation,
@@ -28,15 +32,7 @@ from ._live import (
     LiveView,
 )
 from ._matcher import (
-    Decision,
     Matcher,
-    MatchSettings,
-    best_window,
-    per_frame_cost,
-    performer_queries,
-    performer_sequence,
-    shape_stats,
-    window_tables,
 )
 from ._perform import (
     MAX_COVER,
@@ -88,6 +84,14 @@ from ._video import (
     PANE,
     MaskTape,
     write_video,
+)
+from ._windows import (
+    best_window,
+    per_frame_cost,
+    performer_queries,
+    performer_sequence,
+    shape_stats,
+    window_tables,
 )
 
 __all__ = [

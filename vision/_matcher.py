@@ -20,213 +20,30 @@ costing more than ``reject`` per frame is no match: ``why`` says so.
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
 from control.avatar import JUMP, JumpCosts
 from control.clusters import HigherLayer
-from control.dtw import dtw_batch, dtw_best_window
-from silhouette_bank import DEFAULT_DESCRIPTOR, Bank, Descriptor, get_descriptor
+from control.dtw import dtw_batch
+from silhouette_bank import Bank
 
+from ._decision import Decision, MatchSettings
 from ._index import WindowIndex
+from ._windows import (
+    best_window,
+    per_frame_cost,
+    performer_queries,
+    shape_stats,
+    window_tables,
+)
 
-__all__ = [
-    "Decision",
-    "MatchSettings",
-    "Matcher",
-    "best_window",
-    "per_frame_cost",
-    "performer_queries",
-    "performer_sequence",
-    "shape_stats",
-    "window_tables",
-]
+__all__ = ["Matcher"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
-
-
-@dataclass(frozen=True)
-class MatchSettings:
-    """``window`` seconds of performer compared; candidates reached within ``lookahead``
-    seconds; DTW band ``band`` frames; ``centre_weight`` against the shape numbers."""
-
-    window: float = 1.0
-    lookahead: float = 1.5
-    band: int = 4
-    centre_weight: float = 3.0
-    max_candidates: int = 64
-    locate: bool = True  # start the avatar where the library looks most like the performer
-    #: every ``relocate`` seconds (0: never) the whole component is searched too; when its
-    #: best window costs less than ``relocate_ratio`` times the best candidate's, the
-    #: avatar takes the shortest way there through the graph (at most ``route`` seconds)
-    relocate: float = 1.0
-    relocate_ratio: float = 0.8
-    route: float = 4.0
-    #: the temporal prior: a path that plays on in the avatar's clip, without a
-    #: transition in its first ``window`` seconds, has its cost multiplied by ``1 - stay``
-    #: (0: no prior), so the avatar keeps its action unless another fits clearly better
-    stay: float = 0.0
-    #: also match the performer mirrored (left and right exchanged), and for landmarks
-    #: with left and right labels swapped: the best reading wins
-    mirror: bool = True
-    #: per-frame cost above which a window matches nothing real and no decision is made
-    #: (``None``: the descriptor's own threshold, ``Descriptor.reject``)
-    reject: float | None = None
-    #: motion matching: at every decision the ``top`` best windows of the whole library
-    #: (the fast index) are candidates too, as direct blended jumps to the frame after
-    #: each window (where the performer is now). A jump's score is its DTW cost times
-    #: ``1 + blend_weight * D / (D + D_max)`` (``D``: the graph's distance from the
-    #: avatar's frame, ``D_max`` the largest a transition may have); it is taken when
-    #: that is below ``jump_ratio`` times the cost of the avatar's own last ``window``
-    #: seconds (always at the end of a clip)
-    jumps: bool = True
-    top: int = 8
-    blend_weight: float = 0.3
-    jump_ratio: float = 0.9
-    #: no jump until the avatar has played ``hold`` seconds on since its last move (it
-    #: would flicker between windows of near cost); at a clip's end it jumps anyway
-    hold: float = 1.0
-    #: with jumps, when no jump is taken: ``True``, the paper's cluster paths (their
-    #: future against the performer's past); ``False`` (default: as accurate on the
-    #: folds, and three times faster), the avatar plays on
-    cluster_paths: bool = False
-
-    def __post_init__(self) -> None:
-        if not 0.0 <= self.stay < 1.0:
-            raise ValueError(f"stay must lie in [0, 1), got {self.stay}")
-        if not (
-            self.top >= 1 and self.blend_weight >= 0 and self.jump_ratio > 0 and self.hold >= 0
-        ):
-            raise ValueError("top must be >= 1, blend_weight, hold >= 0 and jump_ratio > 0")
-        if self.reject is not None and not self.reject > 0:
-            raise ValueError(f"reject must be positive, got {self.reject}")
-
-
-@dataclass(frozen=True, eq=False)
-class Decision:
-    """The chosen path (``frames``, ``edges`` from the avatar's frame) and the costs."""
-
-    frames: IntArray
-    edges: IntArray
-    cluster_path: IntArray
-    cost: float
-    runner_up: float
-    view: int
-    candidates: int
-    latency_ms: float
-    extra: dict[str, float] = field(default_factory=dict)
-
-
-def shape_stats(bank: Bank) -> tuple[FloatArray, FloatArray]:
-    """``(mean (S,), proj (S, d))``: DTW compares shape numbers ``x`` as
-    ``(x - mean) @ proj``. With the bank's learned metric: its projection, scaled so that
-    the ``d`` numbers vary as much in all as 7 standardised numbers; otherwise the
-    descriptor's standardiser (``proj`` diagonal, ``d = S``)."""
-    desc = bank.settings.features
-    x = desc.shape(bank.features).reshape(-1, desc.n_shape)
-    x = x[:: max(1, x.shape[0] // 200_000)].astype(np.float64)  # a large bank: a sample
-    x = x[np.isfinite(x).all(axis=1)]
-    if bank.metric is not None:
-        mean, proj = bank.metric
-        z = (x - mean) @ proj
-        spread = float(np.sqrt(z.var(axis=0).sum() / 7.0)) if z.size else 1.0
-        return mean, proj / max(spread, 1e-9)
-    mean, scale = desc.standardiser(x)
-    return mean, np.diag(1.0 / scale)
-
-
-def performer_sequence(
-    features: FloatArray,
-    mean: FloatArray,
-    proj: FloatArray,
-    centre_weight: float,
-    descriptor: Descriptor | str = DEFAULT_DESCRIPTOR,
-) -> FloatArray:
-    """DTW features ``(n, d + 2)`` of a performer's raw features ``(n, F)`` of
-    ``descriptor`` (shape numbers, then the centre in image coordinates / body size):
-    the shape numbers mapped by ``shape_stats``'s ``(mean, proj)``, the centre's
-    displacement since the first frame times ``centre_weight``."""
-    desc = get_descriptor(descriptor)
-    d = proj.shape[1]
-    out = np.empty((features.shape[0], d + 2))
-    out[:, :d] = (desc.shape(features) - mean) @ proj
-    c = desc.centre(features)
-    out[:, d:] = (c - c[0]) * centre_weight
-    return out
-
-
-def performer_queries(
-    performer: FloatArray,
-    desc: Descriptor,
-    mean: FloatArray,
-    proj: FloatArray,
-    centre_weight: float,
-    mirror: bool = True,
-) -> list[FloatArray]:
-    """DTW queries of a performer's features ``(n, F)`` without NaN rows: one per
-    reading of ``desc.variants`` (as seen; mirrored; for landmarks, sides swapped)."""
-    return [
-        performer_sequence(np.asarray(v, dtype=np.float64), mean, proj, centre_weight, desc)
-        for v in desc.variants(performer, mirror)
-    ]
-
-
-def window_tables(
-    bank: Bank,
-    frames: IntArray,
-    clip_start: IntArray,
-    mean: FloatArray,
-    proj: FloatArray,
-    centre_weight: float,
-) -> tuple[FloatArray, FloatArray]:
-    """What the whole-library window search compares: for rows ``frames`` (bank frames;
-    ``clip_start`` splits them into clips), the mapped shape numbers ``(N, V, d)``
-    and the centre accumulated along each clip ``(N, V, 2)``, times ``centre_weight``
-    (a window's centre is taken relative to its first frame by the DTW kernel)."""
-    desc = bank.settings.features
-    n, v = frames.size, bank.features.shape[1]
-    shape = np.empty((n, v, proj.shape[1]))
-    place = np.empty((n, v, 2))
-    for a in range(0, n, 2048):  # in blocks: a bank of many views is large in float64
-        f = bank.features[frames[a : a + 2048]].astype(np.float64)  # (b, V, F)
-        shape[a : a + f.shape[0]] = (desc.shape(f) - mean) @ proj
-        place[a : a + f.shape[0]] = desc.centre(f)
-    np.nan_to_num(shape, copy=False, nan=0.0)
-    move = bank.root_motion[frames].astype(np.float64)
-    centre = np.empty_like(move)
-    for a, b in itertools.pairwise(clip_start):
-        centre[a:b] = np.cumsum(move[a:b], axis=0) - move[a]
-    centre = np.nan_to_num((centre + place) * centre_weight, nan=0.0)
-    return shape, centre
-
-
-def per_frame_cost(cost: float, length: int) -> float:
-    """A DTW cost of a query of ``length`` frames as a per-frame cost (over the square
-    root of the length): the scale of ``Descriptor.reject``."""
-    return cost / float(np.sqrt(max(length, 1)))
-
-
-def best_window(
-    queries: list[FloatArray],
-    shape: FloatArray,
-    centre: FloatArray,
-    starts: IntArray,
-    length: int,
-    band: int,
-) -> tuple[int, int, float]:
-    """``(start, view, cost)`` of the window nearest any of ``queries`` by DTW
-    (``control.dtw.dtw_best_window``), over ``starts``, every view."""
-    best = (-1, -1, float("inf"))
-    for q in queries:
-        got = dtw_best_window(q, shape, centre, starts, length, band)
-        if got[2] < best[2]:
-            best = got
-    return best
 
 
 class Matcher:

@@ -31,14 +31,15 @@ from control.clusters import HigherLayer
 from control.motion import Clip
 from silhouette_bank import Bank, silhouette_features
 
+from ._decision import Decision, MatchSettings
 from ._landmarks import PoseReader
-from ._matcher import Matcher, MatchSettings
+from ._matcher import Matcher
 from ._person import make_segmenter, resolve_segmentation
 from ._segment import clean_mask
-from ._sources import CameraSource, Source
+from ._sources import CameraSource, Frame, Source
 from ._video import MaskTape
 
-__all__ = ["MAX_COVER", "PerformResult", "PerformSettings", "perform"]
+__all__ = ["MAX_COVER", "PerformResult", "PerformSettings", "Performance", "perform"]
 
 #: a silhouette mask covering more of the frame than this is no performer (a white
 #: frame, the lights going on under a background subtractor): treated as no silhouette
@@ -98,248 +99,312 @@ def perform(
     called for every media frame, ``on_decision(entry)`` with every decision log entry
     (the live view uses both). ``stop()`` is asked before every frame: a non-empty
     answer (why) ends the run there, and what was performed is returned as usual."""
-    settings = settings or PerformSettings()
-    graph = layer.graph
-    matcher = Matcher(layer, bank, settings.match)
-    jumps = settings.match.jumps  # motion matching: relocation is every decision's
-    # one set of jump costs for every avatar of the run, its frame features computed
-    # before the first frame rather than at the first jump
-    costs = JumpCosts(graph, clips, anywhere=jumps)
-    if jumps:  # built now, not at the first decision (a camera would stall there)
-        _ = costs.features
-        matcher.index()
+    run = Performance(source, layer, bank, clips, settings, start, seed)
+    return run.run(log=log, tape=tape, on_frame=on_frame, on_decision=on_decision, stop=stop)
 
-    def new_avatar(at: int | None) -> Avatar:
+
+class Performance:
+    """One performance, a step a method: ``features`` of a frame, ``advance`` the buffer
+    and the avatar's clock to it, ``decide`` at a decision point (``locate`` the
+    performer first, ``relocate`` now and then without jumps), and ``run`` the loop."""
+
+    def __init__(
+        self,
+        source: Source,
+        layer: HigherLayer,
+        bank: Bank,
+        clips: Sequence[Clip],
+        settings: PerformSettings | None = None,
+        start: int | None = None,
+        seed: int = 0,
+    ) -> None:
+        self.source, self.clips, self.start, self.seed = source, clips, start, seed
+        self.settings = settings = settings or PerformSettings()
+        self.graph = layer.graph
+        self.matcher = matcher = Matcher(layer, bank, settings.match)
+        self.jumps = jumps = settings.match.jumps  # motion matching: relocation at every
+        # decision. One set of jump costs for every avatar of the run, its frame features
+        # computed before the first frame rather than at the first jump
+        self.costs = JumpCosts(self.graph, clips, anywhere=jumps)
+        if jumps:  # built now, not at the first decision (a camera would stall there)
+            _ = self.costs.features
+            matcher.index()
+        self.avatar = self.new_avatar(start)
+        if jumps and bank.features.shape[0] >= matcher.n:
+            # one throwaway decision on a window of the library itself, so that the first
+            # real one does not pay for loading or compiling the search and DTW kernels
+            # (0.5 s on a fresh install: a stall a performer would see)
+            probe = np.asarray(bank.features[: matcher.n, 0], dtype=np.float64)
+            avatar = self.avatar
+            matcher.decide(avatar.frame, probe, avatar.recent(matcher.recent_frames), self.costs)
+            matcher.why, matcher.last_own = "", float("inf")
+        self.segmenter: Any = None
+        self.landmarks = matcher.desc.kind == "pose"
+        self.reader = PoseReader() if self.landmarks else None
+        self.why_blank = ""  # why the latest frame has no features
+        self.period = 1.0 / self.graph.fps
+        self.buffer: deque[NDArray[np.float64]] = deque(maxlen=matcher.n)
+        self.blank = np.full(matcher.n_features, np.nan)  # a frame without a silhouette
+        self.latest = self.blank
+        self.latest_mask: NDArray[np.bool_] | None = None
+        self.next_tick = 0.0
+        self.next_decision = settings.decide_every
+        self.t_avatar = 0.0
+        self.decisions: list[dict[str, Any]] = []
+        self.views: list[int] = [0]
+        self.view = 0
+        self.located = False
+        self.last_relocate = 0.0
+        self.en_route = 0.0  # media time at which the avatar reaches a relocation's window
+        background = settings.background_search
+        if background is None:
+            background = isinstance(source, CameraSource) or bool(
+                getattr(source, "realtime", False)
+            )
+        # with jumps the fast index answers within the decision; without, relocation's
+        # brute force search may run in a thread
+        self.searcher = (
+            ThreadPoolExecutor(1, thread_name_prefix="mimic-search")
+            if background and not jumps
+            else None
+        )
+        self.pending: Future[tuple[int, int, float] | None] | None = None
+        self.t_start = 0.0
+        self.tape: MaskTape | None = None
+
+    def new_avatar(self, at: int | None) -> Avatar:
         return Avatar(
-            graph,
-            clips,
+            self.graph,
+            self.clips,
             start=at,
-            seed=seed,
-            anywhere=jumps,
-            jump_costs=costs,
-            blend=settings.blend,
+            seed=self.seed,
+            anywhere=self.jumps,
+            jump_costs=self.costs,
+            blend=self.settings.blend,
         )
 
-    avatar = new_avatar(start)
-    if jumps and bank.features.shape[0] >= matcher.n:
-        # one throwaway decision on a window of the library itself, so that the first
-        # real one does not pay for loading or compiling the search and DTW kernels
-        # (0.5 s on a fresh install: a stall a performer would see)
-        probe = np.asarray(bank.features[: matcher.n, 0], dtype=np.float64)
-        matcher.decide(avatar.frame, probe, avatar.recent(matcher.recent_frames), costs)
-        matcher.why, matcher.last_own = "", float("inf")
-    segmenter: Any = None
-    landmarks = matcher.desc.kind == "pose"
-    reader = PoseReader() if landmarks else None
-    why_blank = ""  # why the latest frame has no features
-    period = 1.0 / graph.fps
-    buffer: deque[NDArray[np.float64]] = deque(maxlen=matcher.n)
-    blank = np.full(matcher.n_features, np.nan)  # a frame without a silhouette
-    latest = blank
-    latest_mask: NDArray[np.bool_] | None = None
-    next_tick = 0.0
-    next_decision = settings.decide_every
-    t_avatar = 0.0
-    decisions: list[dict[str, Any]] = []
-    if tape is not None:
-        tape.append(None)  # the avatar's first frame comes before any media
-    views: list[int] = [0]
-    view = 0
-    located = False
-    last_relocate = 0.0
-    en_route = 0.0  # media time at which the avatar reaches a relocation's window
-    background = settings.background_search
-    if background is None:
-        background = isinstance(source, CameraSource) or bool(getattr(source, "realtime", False))
-    # with jumps the fast index answers within the decision; without, relocation's brute
-    # force search may run in a thread
-    searcher = (
-        ThreadPoolExecutor(1, thread_name_prefix="mimic-search")
-        if background and not jumps
-        else None
-    )
-    pending: Future[tuple[int, int, float] | None] | None = None
-    n_read = 0
-    t = 0.0
-    stopped = ""
-    n_media = 0
-    t_start = 0.0
-    try:
-        while True:
-            if stop is not None and (stopped := stop()):
-                break
-            frame = source.read()
-            if frame is None:
-                break
-            n_read += 1
-            t = frame.t
-            if settings.seconds is not None and t > settings.seconds:
-                break
-            mask: NDArray[np.bool_] | None
-            if frame.mask is not None:
-                if landmarks:
-                    raise ValueError(
-                        f"{source.name}: the pose descriptor needs "
-                        "colour frames, and this source gives silhouettes (use a silhouette "
-                        "descriptor: --descriptor multigrid)"
-                    )
-                mask = clean_mask(frame.mask)
-            elif frame.image is not None:
-                if segmenter is None:
-                    method = resolve_segmentation(
-                        settings.segmentation, isinstance(source, CameraSource), landmarks
-                    )
-                    segmenter = make_segmenter(method, settings.learn_frames)
-                mask = segmenter.apply(frame.image)
-            else:
-                mask = None
-            problem = frame.problem  # e.g. an unreadable mask file: no silhouette, said why
-            if frame.image is not None or frame.mask is not None:
-                n_media += 1
-            cover = float(mask.mean()) if mask is not None and mask.size else 0.0
-            if not landmarks and cover > MAX_COVER:
-                # a lighting change, a white frame, a bad mask: no performer looks so
-                mask, problem = None, f"the mask covers {cover:.0%} of the frame"
-            if reader is not None:
-                lm = getattr(segmenter, "landmarks", None) if frame.image is not None else None
-                h_px, w_px = frame.image.shape[:2] if frame.image is not None else (1, 1)
-                latest = reader.read(lm, (w_px, h_px))
-                why_blank = reader.why
-            elif mask is not None:
-                latest = silhouette_features(mask, descriptor=matcher.desc)
-            else:
-                latest, why_blank = blank, problem or "no silhouette"
-            latest_mask = mask
-            if on_frame is not None:
-                on_frame(t, mask, avatar)
-            # the library-rate buffer, and the avatar's clock
-            while next_tick <= t + 1e-9:
-                buffer.append(latest)
-                next_tick += period
-            while t_avatar + period <= t + 1e-9:
-                avatar.step()
-                t_avatar += period
-                if tape is not None:
-                    tape.append(latest_mask)
-                views.append(view)
-            if next_decision <= t + 1e-9:
-                # at most one decision a frame: after a stall (a camera that froze, a slow
-                # frame) the points missed are skipped and said, not made in a burst on
-                # the same frame
-                missed = int((t + 1e-9 - next_decision) // settings.decide_every)
-                next_decision += (missed + 1) * settings.decide_every
-                clip, f = graph.locate(avatar.frame)
-                entry: dict[str, Any] = {
-                    "t": round(t, 3),
-                    "frame": avatar.frame,
-                    "clip": clip,
-                    "clip_frame": f,
-                }
-                if missed:
-                    entry["skipped"] = missed
-                full = len(buffer) == matcher.n
-                if full and not located and settings.match.locate and start is None:
-                    # the first full buffer: start the avatar where the library looks most
-                    # like the performer (its motion so far is dropped), unless told where
-                    got = matcher.locate(np.array(buffer))
-                    if got is not None:
-                        located = True
-                        last_relocate = t  # that was this second's global search
-                        # with jumps, where the performer is now: the window's last frame
-                        at = got[0] + matcher.n - 1 if jumps else got[0]
-                        avatar = new_avatar(at)
-                        views, view = [got[1]], got[1]
-                        t_start = t
-                        if tape is not None:  # the avatar restarts: so does its video
-                            tape.reset()
-                            tape.append(latest_mask)
-                        entry.update(frame=avatar.frame, located=round(got[2], 4))
-                        entry["clip"], entry["clip_frame"] = graph.locate(avatar.frame)
-                # on the way to a relocation's window: no decision may turn it aside
-                routing = t < en_route - 1e-9
-                d = None
-                if full and not routing:
-                    d = (
-                        matcher.decide(
-                            avatar.frame,
-                            np.array(buffer),
-                            avatar.recent(matcher.recent_frames),
-                            avatar.jump_costs,
-                        )
-                        if jumps
-                        else matcher.decide(avatar.frame, np.array(buffer))
-                    )
-                every = 0.0 if jumps else settings.match.relocate
-                got = None
-                if d is not None and every > 0:
-                    due = t - last_relocate >= every - 1e-9
-                    if searcher is None and due:
-                        last_relocate = t
-                        got = matcher.locate(np.array(buffer))
-                    elif searcher is not None and pending is not None and pending.done():
-                        got, pending = pending.result(), None
-                    elif searcher is not None and pending is None and due:
-                        last_relocate = t
-                        pending = searcher.submit(matcher.locate, np.array(buffer))
-                    if got is not None and got[2] < settings.match.relocate_ratio * d.cost:
-                        way = matcher.route(avatar.frame, got[0])
-                        if way is None:  # better elsewhere, but too far away through the graph
-                            entry["relocation_unreachable"] = int(got[0])
-                        else:
-                            # the way there, then the window that matched
-                            tail = np.arange(got[0] + 1, got[0] + matcher.n, dtype=np.int64)
-                            frames = np.concatenate((way[0], tail))
-                            edges = np.concatenate((way[1], np.full(tail.size, -1, np.int64)))
-                            d = dataclasses.replace(
-                                d,
-                                frames=frames,
-                                edges=edges,
-                                cost=got[2],
-                                view=got[1],
-                                cluster_path=np.zeros(0, dtype=np.int64),
-                            )
-                            entry["relocated"] = int(got[0])
-                            en_route = t + (way[0].size - 1) * period
-                if d is None:
-                    entry["decision"] = None
-                    entry["reason"] = (
-                        why_blank  # nothing to match, on the way or not
-                        if not np.isfinite(latest).all()
-                        else "en route"
-                        if routing
-                        else "filling buffer"
-                        if not full
-                        else matcher.why or "no decision"
-                    )
-                    if routing:
-                        entry["en_route"] = True
-                else:
-                    avatar.take(d.frames, d.edges)
-                    view = d.view if d.view >= 0 else view
-                    if "plays_on" in d.extra:
-                        entry["plays_on"] = True
-                    if "jump" in d.extra:
-                        entry.update(
-                            jump=int(d.extra["jump"]),
-                            own_cost=round(d.extra["own"], 4)
-                            if np.isfinite(d.extra["own"])
-                            else None,
-                            blend=round(d.extra["blend"], 4),
-                        )
-                    entry.update(
-                        decision=[int(c) for c in d.cluster_path],
-                        cost=round(d.cost, 4) if np.isfinite(d.cost) else None,
-                        runner_up=round(d.runner_up, 4) if np.isfinite(d.runner_up) else None,
-                        view=view,
-                        candidates=d.candidates,
-                        latency_ms=round(d.latency_ms, 3),
-                    )
-                decisions.append(entry)
-                if on_decision is not None:
-                    on_decision(entry)
-                if log is not None:
-                    log.write(json.dumps(entry) + "\n")
-    finally:
-        if searcher is not None:  # a search still running is left to finish alone
-            searcher.shutdown(wait=False, cancel_futures=True)
-    return PerformResult(avatar, decisions, views, t, n_read, stopped, n_media, t_start)
+    # --- the steps -------------------------------------------------------------------------
+
+    def features(self, frame: Frame) -> NDArray[np.bool_] | None:
+        """The performer's features of ``frame`` into ``latest`` (NaN, and ``why_blank``
+        says why, when there are none); returns its cleaned mask."""
+        mask: NDArray[np.bool_] | None
+        if frame.mask is not None:
+            if self.landmarks:
+                raise ValueError(
+                    f"{self.source.name}: the pose descriptor needs "
+                    "colour frames, and this source gives silhouettes (use a silhouette "
+                    "descriptor: --descriptor multigrid)"
+                )
+            mask = clean_mask(frame.mask)
+        elif frame.image is not None:
+            if self.segmenter is None:
+                method = resolve_segmentation(
+                    self.settings.segmentation,
+                    isinstance(self.source, CameraSource),
+                    self.landmarks,
+                )
+                self.segmenter = make_segmenter(method, self.settings.learn_frames)
+            mask = self.segmenter.apply(frame.image)
+        else:
+            mask = None
+        problem = frame.problem  # e.g. an unreadable mask file: no silhouette, said why
+        cover = float(mask.mean()) if mask is not None and mask.size else 0.0
+        if not self.landmarks and cover > MAX_COVER:
+            # a lighting change, a white frame, a bad mask: no performer looks so
+            mask, problem = None, f"the mask covers {cover:.0%} of the frame"
+        if self.reader is not None:
+            lm = getattr(self.segmenter, "landmarks", None) if frame.image is not None else None
+            h_px, w_px = frame.image.shape[:2] if frame.image is not None else (1, 1)
+            self.latest = self.reader.read(lm, (w_px, h_px))
+            self.why_blank = self.reader.why
+        elif mask is not None:
+            self.latest = silhouette_features(mask, descriptor=self.matcher.desc)
+        else:
+            self.latest, self.why_blank = self.blank, problem or "no silhouette"
+        self.latest_mask = mask
+        return mask
+
+    def advance(self, t: float) -> None:
+        """The library-rate buffer, and the avatar's clock, up to media time ``t``."""
+        while self.next_tick <= t + 1e-9:
+            self.buffer.append(self.latest)
+            self.next_tick += self.period
+        while self.t_avatar + self.period <= t + 1e-9:
+            self.avatar.step()
+            self.t_avatar += self.period
+            if self.tape is not None:
+                self.tape.append(self.latest_mask)
+            self.views.append(self.view)
+
+    def locate(self, t: float, entry: dict[str, Any]) -> None:
+        """At the first full buffer: start the avatar where the library looks most like
+        the performer (its motion so far is dropped)."""
+        matcher = self.matcher
+        got = matcher.locate(np.array(self.buffer))
+        if got is None:
+            return
+        self.located = True
+        self.last_relocate = t  # that was this second's global search
+        # with jumps, where the performer is now: the window's last frame
+        at = got[0] + matcher.n - 1 if self.jumps else got[0]
+        self.avatar = self.new_avatar(at)
+        self.views, self.view = [got[1]], got[1]
+        self.t_start = t
+        if self.tape is not None:  # the avatar restarts: so does its video
+            self.tape.reset()
+            self.tape.append(self.latest_mask)
+        entry.update(frame=self.avatar.frame, located=round(got[2], 4))
+        entry["clip"], entry["clip_frame"] = self.graph.locate(self.avatar.frame)
+
+    def relocate(self, t: float, d: Decision, entry: dict[str, Any]) -> Decision:
+        """Without jumps, now and then: the way through the graph to a better window
+        than the decision's, when the global search finds one (in a thread for a live
+        source, its answer taken at a later decision)."""
+        matcher, settings = self.matcher, self.settings
+        got = None
+        due = t - self.last_relocate >= settings.match.relocate - 1e-9
+        if self.searcher is None and due:
+            self.last_relocate = t
+            got = matcher.locate(np.array(self.buffer))
+        elif self.searcher is not None and self.pending is not None and self.pending.done():
+            got, self.pending = self.pending.result(), None
+        elif self.searcher is not None and self.pending is None and due:
+            self.last_relocate = t
+            self.pending = self.searcher.submit(matcher.locate, np.array(self.buffer))
+        if got is None or not got[2] < settings.match.relocate_ratio * d.cost:
+            return d
+        way = matcher.route(self.avatar.frame, got[0])
+        if way is None:  # better elsewhere, but too far away through the graph
+            entry["relocation_unreachable"] = int(got[0])
+            return d
+        # the way there, then the window that matched
+        tail = np.arange(got[0] + 1, got[0] + matcher.n, dtype=np.int64)
+        frames = np.concatenate((way[0], tail))
+        edges = np.concatenate((way[1], np.full(tail.size, -1, np.int64)))
+        entry["relocated"] = int(got[0])
+        self.en_route = t + (way[0].size - 1) * self.period
+        return dataclasses.replace(
+            d,
+            frames=frames,
+            edges=edges,
+            cost=got[2],
+            view=got[1],
+            cluster_path=np.zeros(0, dtype=np.int64),
+        )
+
+    def decide(self, t: float) -> dict[str, Any]:
+        """The decision at media time ``t``: its log entry, the avatar told."""
+        settings, matcher, avatar = self.settings, self.matcher, self.avatar
+        # at most one decision a frame: after a stall (a camera that froze, a slow
+        # frame) the points missed are skipped and said, not made in a burst on the
+        # same frame
+        missed = int((t + 1e-9 - self.next_decision) // settings.decide_every)
+        self.next_decision += (missed + 1) * settings.decide_every
+        clip, f = self.graph.locate(avatar.frame)
+        entry: dict[str, Any] = {
+            "t": round(t, 3),
+            "frame": avatar.frame,
+            "clip": clip,
+            "clip_frame": f,
+        }
+        if missed:
+            entry["skipped"] = missed
+        full = len(self.buffer) == matcher.n
+        if full and not self.located and settings.match.locate and self.start is None:
+            self.locate(t, entry)  # unless told where to start
+            avatar = self.avatar
+        # on the way to a relocation's window: no decision may turn it aside
+        routing = t < self.en_route - 1e-9
+        d = None
+        if full and not routing:
+            buffer = np.array(self.buffer)
+            d = (
+                matcher.decide(
+                    avatar.frame, buffer, avatar.recent(matcher.recent_frames), avatar.jump_costs
+                )
+                if self.jumps
+                else matcher.decide(avatar.frame, buffer)
+            )
+        if d is not None and not self.jumps and settings.match.relocate > 0:
+            d = self.relocate(t, d, entry)
+        if d is None:
+            entry["decision"] = None
+            entry["reason"] = (
+                self.why_blank  # nothing to match, on the way or not
+                if not np.isfinite(self.latest).all()
+                else "en route"
+                if routing
+                else "filling buffer"
+                if not full
+                else matcher.why or "no decision"
+            )
+            if routing:
+                entry["en_route"] = True
+            return entry
+        avatar.take(d.frames, d.edges)
+        self.view = d.view if d.view >= 0 else self.view
+        if "plays_on" in d.extra:
+            entry["plays_on"] = True
+        if "jump" in d.extra:
+            own = d.extra["own"]
+            entry.update(
+                jump=int(d.extra["jump"]),
+                own_cost=round(own, 4) if np.isfinite(own) else None,
+                blend=round(d.extra["blend"], 4),
+            )
+        entry.update(
+            decision=[int(c) for c in d.cluster_path],
+            cost=round(d.cost, 4) if np.isfinite(d.cost) else None,
+            runner_up=round(d.runner_up, 4) if np.isfinite(d.runner_up) else None,
+            view=self.view,
+            candidates=d.candidates,
+            latency_ms=round(d.latency_ms, 3),
+        )
+        return entry
+
+    def run(
+        self,
+        log: IO[str] | None = None,
+        tape: MaskTape | None = None,
+        on_frame: Callable[[float, NDArray[np.bool_] | None, Avatar], None] | None = None,
+        on_decision: Callable[[dict[str, Any]], None] | None = None,
+        stop: Callable[[], str] | None = None,
+    ) -> PerformResult:
+        """The loop (``perform`` says what the arguments do)."""
+        self.tape = tape
+        if tape is not None:
+            tape.append(None)  # the avatar's first frame comes before any media
+        n_read = n_media = 0
+        t = 0.0
+        stopped = ""
+        try:
+            while True:
+                if stop is not None and (stopped := stop()):
+                    break
+                frame = self.source.read()
+                if frame is None:
+                    break
+                n_read += 1
+                t = frame.t
+                if self.settings.seconds is not None and t > self.settings.seconds:
+                    break
+                mask = self.features(frame)
+                if frame.image is not None or frame.mask is not None:
+                    n_media += 1
+                if on_frame is not None:
+                    on_frame(t, mask, self.avatar)
+                self.advance(t)
+                if self.next_decision <= t + 1e-9:
+                    entry = self.decide(t)
+                    self.decisions.append(entry)
+                    if on_decision is not None:
+                        on_decision(entry)
+                    if log is not None:
+                        log.write(json.dumps(entry) + "\n")
+        finally:
+            if self.searcher is not None:  # a search still running is left to finish alone
+                self.searcher.shutdown(wait=False, cancel_futures=True)
+        return PerformResult(
+            self.avatar, self.decisions, self.views, t, n_read, stopped, n_media, self.t_start
+        )

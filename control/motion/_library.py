@@ -17,45 +17,31 @@ a key hashed from the file's bytes (and its ASF's), the reader version and setti
 
 from __future__ import annotations
 
-import csv
 import fnmatch
-import hashlib
-import io
-import json
 import logging
 import os
-import re
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..artifacts import (
-    atomic_write,
     bound_cache,
     cache_root,
-    checksum,
-    read_npz,
-    touch,
-    verify_checksum,
 )
-from ._amc import read_amc
-from ._arrays import ARRAYS_SUFFIX, read_motion_arrays
-from ._asf import read_asf
-from ._bvh import read_bvh
 from ._contacts import Contacts, detect_contacts
 from ._embedded import EMBEDDED_LIBRARY
 from ._errors import MotionFormatError
 from ._fk import forward_kinematics
+from ._metadata import descriptions, label_files, read_labels
 from ._ops import mirror as mirror_motion
 from ._ops import resample, resample_positions
+from ._parsed import Source, cache_key, discover, is_arrays, load_cached, parse, parse_job
 from ._quat import FloatArray
-from ._text import decode, read_bytes
 from ._types import Motion, Skeleton
 
 __all__ = [
@@ -69,8 +55,6 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: Bump when a reader's output changes, so stale cache entries are never used.
-READER_VERSION = "2"  # 2: cache entries carry a checksum
 ENV_LIBRARY = "MIMIC_MOCAP"
 
 
@@ -168,236 +152,6 @@ def default_cache_dir() -> Path:
     return cache_root() / "motion"
 
 
-# --- discovery -----------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class _Source:
-    name: str
-    path: Path
-    asf: Path | None  # for AMC
-
-
-def _discover(root: Path, prefer: str) -> list[_Source]:
-    files = sorted(p for p in root.rglob("*") if p.is_file())
-    by_suffix: dict[str, list[Path]] = {}
-    for p in files:
-        by_suffix.setdefault(p.suffix.lower(), []).append(p)
-    amc: list[_Source] = []
-    for p in by_suffix.get(".amc", []):
-        asfs = sorted(q for q in p.parent.iterdir() if q.suffix.lower() == ".asf")
-        if len(asfs) == 1:
-            asf = asfs[0]
-        else:
-            matches = [q for q in asfs if p.stem.startswith(q.stem)]
-            if not matches:
-                raise MotionFormatError(p, f"no ASF skeleton for this AMC in {p.parent}")
-            asf = max(matches, key=lambda q: len(q.stem))
-        amc.append(_Source(p.stem, p, asf))
-    bvh = [_Source(p.stem, p, None) for p in by_suffix.get(".bvh", [])]
-    arrays = [
-        _Source(p.name[: -len(ARRAYS_SUFFIX)], p, None)
-        for p in by_suffix.get(".npz", [])
-        if p.name.endswith(ARRAYS_SUFFIX) and len(p.name) > len(ARRAYS_SUFFIX)
-    ]
-    first, second = (amc, bvh) if prefer == "amc" else (bvh, amc)
-    taken = {s.name for s in first}
-    sources = first + [s for s in second if s.name not in taken]
-    taken |= {s.name for s in sources}
-    sources += [s for s in arrays if s.name not in taken]
-    names = [s.name for s in sources]
-    dupes = sorted({n for n in names if names.count(n) > 1})
-    if dupes:
-        raise MotionFormatError(root, f"clip names occur twice: {', '.join(dupes)}")
-    return sorted(sources, key=lambda s: s.name)
-
-
-# --- metadata ------------------------------------------------------------------------------
-
-
-def _expand(cell: str, names: set[str]) -> list[str]:
-    """Clip names a table cell refers to: ``02_01``, ``03_01..03_04``, ``09_01 (BVH only)``."""
-    cell = re.sub(r"\(.*?\)", "", cell).strip()
-    m = re.fullmatch(r"(\S+)\.\.(\S+)", cell)
-    if m:
-        lo, hi = m.groups()
-        return sorted(n for n in names if lo <= n <= hi and len(n) == len(lo))
-    return [cell] if cell in names else []
-
-
-def _descriptions(root: Path, names: set[str]) -> dict[str, str]:
-    out: dict[str, str] = {}
-    for readme in sorted(root.rglob("README.md")):
-        text = readme.read_text(encoding="utf-8", errors="replace")
-        header: list[str] | None = None
-        for line in text.splitlines():
-            cells = (
-                [c.strip() for c in line.strip().strip("|").split("|")]
-                if line.lstrip().startswith("|")
-                else None
-            )
-            if cells is None:
-                header = None
-                continue
-            low = [c.lower() for c in cells]
-            if "clip" in low and "description" in low:
-                header = low
-                continue
-            if header is None or len(cells) != len(header) or set(cells[0]) <= set("-: "):
-                continue
-            for n in _expand(cells[header.index("clip")], names):
-                out.setdefault(n, cells[header.index("description")])
-    for table in sorted(root.rglob("descriptions.csv")):
-        try:
-            data = table.read_bytes()
-        except OSError as exc:
-            raise MotionFormatError(table, f"cannot read: {exc.strerror or exc}") from None
-        if not data.strip():
-            continue
-        text = decode(table, data)  # not UTF-8: an error naming the file
-        try:
-            for row in csv.DictReader(io.StringIO(text)):
-                if row.get("clip") in names and row.get("description"):
-                    out[row["clip"]] = row["description"]
-        except csv.Error as exc:
-            raise MotionFormatError(table, f"not a descriptions CSV ({exc})") from None
-    return out
-
-
-def _label_files(root: Path) -> dict[str, Path]:
-    return {p.stem: p for p in sorted(root.rglob("*.csv")) if p.parent.name == "labels"}
-
-
-def read_labels(path: Path, n_frames: int) -> tuple[NDArray[np.int64], tuple[str, ...]]:
-    """Per source frame ``(n_frames,)`` label index (-1 unlabelled) and the label names."""
-    text = decode(path, read_bytes(path))
-    try:
-        rows = list(csv.reader(io.StringIO(text)))
-    except csv.Error as exc:  # a huge field, a stray quote
-        raise MotionFormatError(path, f"not a labels CSV ({exc})") from None
-    if not rows or [c.strip() for c in rows[0]] != ["first_frame", "last_frame", "action"]:
-        raise MotionFormatError(path, "header must be first_frame,last_frame,action", 1)
-    labels = np.full(n_frames, -1, dtype=np.int64)
-    names: list[str] = []
-    for n, row in enumerate(rows[1:], start=2):
-        if not row or not "".join(row).strip():
-            continue
-        if len(row) != 3:
-            raise MotionFormatError(path, f"expected 3 fields, got {len(row)}", n)
-        try:
-            first, last = int(row[0]), int(row[1])
-        except ValueError:
-            raise MotionFormatError(
-                path, f"frame numbers must be whole numbers: {row[:2]}", n
-            ) from None
-        action = row[2].strip()
-        if not action:
-            raise MotionFormatError(path, "empty action name", n)
-        if first < 1 or last < first:
-            raise MotionFormatError(path, f"bad frame range {first}..{last}", n)
-        if first > n_frames:
-            raise MotionFormatError(
-                path, f"range starts at frame {first}, the clip has {n_frames}", n
-            )
-        if action not in names:
-            names.append(action)
-        k = names.index(action)
-        span = labels[first - 1 : min(last, n_frames)]
-        clash = (span >= 0) & (span != k)
-        if clash.any():
-            raise MotionFormatError(path, f"range {first}..{last} overlaps another action", n)
-        span[:] = k
-    return labels, tuple(names)
-
-
-# --- cache ---------------------------------------------------------------------------------
-
-
-def _cache_key(src: _Source, bvh_units: str | float, asf_digests: dict[Path, bytes]) -> str:
-    h = hashlib.sha256()
-    h.update(f"mimic-motion/{READER_VERSION}/{src.path.suffix.lower()}/{bvh_units}\0".encode())
-    h.update(read_bytes(src.path))
-    if src.asf is not None:
-        if src.asf not in asf_digests:  # one ASF serves many AMC files
-            asf_digests[src.asf] = hashlib.sha256(read_bytes(src.asf)).digest()
-        h.update(b"\0asf\0" + asf_digests[src.asf])
-    return h.hexdigest()[:32]
-
-
-_CACHED = ("meta", "parents", "offsets", "end_parents", "end_offsets", "root_pos", "quats")
-
-
-def _save(path: Path, m: Motion) -> None:
-    sk = m.skeleton
-    arrays = {
-        "parents": np.asarray(sk.parents),
-        "offsets": np.asarray(sk.offsets),
-        "end_parents": np.asarray(sk.end_parents),
-        "end_offsets": np.asarray(sk.end_offsets),
-        "root_pos": np.asarray(m.root_pos),
-        "quats": np.asarray(m.quats),
-    }
-    meta: dict[str, Any] = {
-        "names": sk.names,
-        "channels": sk.channels,
-        "fps": m.fps,
-        "name": m.name,
-        "source": m.source,
-    }
-    meta["checksum"] = checksum(meta, arrays)
-    with atomic_write(path, "wb") as fh:
-        np.savez(fh, meta=np.array(json.dumps(meta)), **arrays)  # type: ignore[arg-type]
-
-
-def _load(path: Path) -> Motion | None:
-    """The motion in a cache entry, or ``None`` (with a warning naming the file) when it
-    is unreadable, inconsistent, or fails its checksum: it is then parsed again."""
-    try:
-        z = read_npz(path, _CACHED, MotionFormatError, "motion cache entry")
-        meta = json.loads(str(z.pop("meta")))
-        if not isinstance(meta, dict):
-            raise MotionFormatError(path, "meta is not a JSON object")
-        verify_checksum(meta, z, path, MotionFormatError)
-        sk = Skeleton(
-            tuple(meta["names"]),
-            z["parents"],
-            z["offsets"],
-            tuple(tuple(c) for c in meta["channels"]),
-            z["end_parents"],
-            z["end_offsets"],
-        )
-        motion = Motion(sk, z["root_pos"], z["quats"], meta["fps"], meta["name"], meta["source"])
-    except (MotionFormatError, ValueError, KeyError, TypeError, IndexError) as exc:
-        said = str(exc) if isinstance(exc, MotionFormatError) else f"{path}: {exc!r}"
-        log.warning("ignoring a bad cache entry (parsing again): %s", said)
-        return None
-    touch(path)
-    return motion
-
-
-def _is_arrays(src: _Source) -> bool:
-    return src.path.name.endswith(ARRAYS_SUFFIX)
-
-
-def _parse(src: _Source, bvh_units: str | float) -> Motion:
-    if _is_arrays(src):
-        return read_motion_arrays(src.path, name=src.name)
-    if src.asf is not None:
-        return read_amc(src.path, read_asf(src.asf), name=src.name)
-    return read_bvh(src.path, units=bvh_units, name=src.name)
-
-
-def _parse_job(args: tuple[_Source, str | float, str | None]) -> Motion:
-    src, bvh_units, cache_file = args
-    motion = _parse(src, bvh_units)
-    if cache_file is not None:
-        try:
-            _save(Path(cache_file), motion)
-        except OSError as exc:  # a read-only or full cache only costs speed
-            log.warning("cannot write cache entry %s: %s", cache_file, exc)
-    return motion
-
-
 # --- loading -------------------------------------------------------------------------------
 
 
@@ -440,7 +194,7 @@ def load_library(
     root = Path(root) if root is not None else default_library_path()
     if not root.is_dir():
         raise FileNotFoundError(f"motion library {root} is not a directory")
-    sources = _discover(root, prefer)
+    sources = discover(root, prefer)
     if not sources:
         raise MotionFormatError(root, "no .amc, .bvh or .motion.npz clips found")
     if clips is not None:
@@ -450,19 +204,19 @@ def load_library(
             raise MotionFormatError(root, f"no clip matches {', '.join(patterns)}")
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     motions: dict[str, Motion] = {}
-    todo: list[tuple[_Source, str | float, str | None]] = []
+    todo: list[tuple[Source, str | float, str | None]] = []
     asf_digests: dict[Path, bytes] = {}
     used: list[Path] = []  # this library's cache entries, never evicted for it
     for src in sources:
-        if _is_arrays(src):  # already compact arrays: read directly, never cached
-            motions[src.name] = _parse(src, bvh_units)
+        if is_arrays(src):  # already compact arrays: read directly, never cached
+            motions[src.name] = parse(src, bvh_units)
             continue
         if not use_cache:
             todo.append((src, bvh_units, None))
             continue
-        cache_file = cache / f"{_cache_key(src, bvh_units, asf_digests)}.npz"
+        cache_file = cache / f"{cache_key(src, bvh_units, asf_digests)}.npz"
         used.append(cache_file)
-        hit = _load(cache_file) if cache_file.is_file() else None
+        hit = load_cached(cache_file) if cache_file.is_file() else None
         if hit is not None:
             motions[src.name] = hit
         else:
@@ -471,7 +225,7 @@ def load_library(
     if n_workers > 1:
         try:
             with ProcessPoolExecutor(n_workers) as pool:
-                for (src, _, _), motion in zip(todo, pool.map(_parse_job, todo), strict=True):
+                for (src, _, _), motion in zip(todo, pool.map(parse_job, todo), strict=True):
                     motions[src.name] = motion
                     if progress:
                         progress(f"parsed {src.path.name}")
@@ -481,21 +235,21 @@ def load_library(
             log.warning("parsing worker processes failed; parsing in this process")
     for job in todo:
         if job[0].name not in motions:
-            motions[job[0].name] = _parse_job(job)
+            motions[job[0].name] = parse_job(job)
             if progress:
                 progress(f"parsed {job[0].path.name}")
     if cache_dir is None and any(job[2] for job in todo):  # new entries: bound the cache
         bound_cache(keep=used)
 
     names = {s.name for s in sources}
-    descriptions = _descriptions(root, names)
-    label_files = _label_files(root)
+    described = descriptions(root, names)
+    labelled = label_files(root)
     kept: list[Clip] = []
     for src in sources:
         raw = motions[src.name]
         labels, label_names = (
-            read_labels(label_files[src.name], raw.n_frames)
-            if src.name in label_files
+            read_labels(labelled[src.name], raw.n_frames)
+            if src.name in labelled
             else (np.full(raw.n_frames, -1, dtype=np.int64), ())
         )
         variants = [(raw, False)]
@@ -506,7 +260,7 @@ def load_library(
                 _make_clip(
                     motion,
                     fps,
-                    descriptions.get(src.name, ""),
+                    described.get(src.name, ""),
                     labels,
                     label_names,
                     str(src.path),

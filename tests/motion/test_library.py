@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from control.motion import MotionFormatError, _library, load_library, read_labels
+from control.motion import MotionFormatError, _parsed, load_library, read_labels
 from mimic.cli import main
 from tests.conftest import BVH_DIR, SUBJECTS
 
@@ -72,7 +72,7 @@ def test_cache_hit_skips_parsing_and_a_changed_file_is_reparsed(
     def no_parse(*args: object) -> None:
         raise AssertionError("parsed although cached")
 
-    monkeypatch.setattr(_library, "_parse", no_parse)
+    monkeypatch.setattr(_parsed, "parse", no_parse)
     warm = load_library(small_lib, cache_dir=cache, workers=1)
     for a, b in zip(first.clips, warm.clips, strict=True):
         np.testing.assert_array_equal(a.motion.quats, b.motion.quats)
@@ -82,8 +82,8 @@ def test_cache_hit_skips_parsing_and_a_changed_file_is_reparsed(
     amc = small_lib / "asf" / "02_04.amc"
     amc.write_bytes(amc.read_bytes().replace(b"\r\n1\r\nroot ", b"\r\n1\r\nroot 1", 1))
     parsed: list[str] = []
-    real = _library._parse
-    monkeypatch.setattr(_library, "_parse", lambda src, u: parsed.append(src.name) or real(src, u))
+    real = _parsed.parse
+    monkeypatch.setattr(_parsed, "parse", lambda src, u: parsed.append(src.name) or real(src, u))
     changed = load_library(small_lib, cache_dir=cache, workers=1)
     assert parsed == ["02_04"]
     assert not np.allclose(

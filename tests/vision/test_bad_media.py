@@ -12,8 +12,7 @@ import pytest
 from control.motion import read_bvh
 from mimic.cli import main
 from tests.vision.conftest import RECORDING
-from vision._perform import PerformSettings, perform
-from vision._sources import MaskFolderSource, VideoSource, looks_like_silhouettes
+from vision import MaskFolderSource, PerformSettings, VideoSource, looks_like_silhouettes, perform
 
 
 def _video(path: Path, frames: list[np.ndarray], fps: float = 30.0) -> Path:

@@ -12,11 +12,17 @@ from control.graph import off_floor_seconds
 from control.motion import load_library, read_bvh
 from mimic.cli import main
 from tests.vision.conftest import RECORDING
-from vision._library import FLOOR_ABOVE, floor_level, on_the_floor
-from vision._matcher import MatchSettings
-from vision._perform import PerformSettings, perform
-from vision._record import RecordSettings, record_clip
-from vision._sources import VideoSource
+from vision import (
+    FLOOR_ABOVE,
+    MatchSettings,
+    PerformSettings,
+    RecordSettings,
+    VideoSource,
+    floor_level,
+    on_the_floor,
+    perform,
+    record_clip,
+)
 
 
 def test_clips_that_leave_the_floor_are_found(mocap: Path) -> None:

@@ -8,9 +8,7 @@ import pytest
 from control.dtw import dtw, dtw_windows
 from silhouette_bank import silhouette_features
 from tests.vision.conftest import RECORDING
-from vision._index import WindowIndex
-from vision._matcher import Matcher, MatchSettings, best_window
-from vision._sources import VideoSource
+from vision import Matcher, MatchSettings, VideoSource, WindowIndex, best_window
 
 
 def _performer(bank) -> np.ndarray:

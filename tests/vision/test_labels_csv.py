@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import REPO
-from vision._truth import LabelFileError
+from vision import LabelFileError
 from vision._truth import read_span_labels as read_labels
 
 

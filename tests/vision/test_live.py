@@ -18,10 +18,7 @@ import numpy as np
 import pytest
 
 from tests.vision.conftest import RECORDING
-from vision._live import LivePainter, LiveView
-from vision._matcher import MatchSettings
-from vision._perform import PerformSettings, perform
-from vision._sources import VideoSource
+from vision import LivePainter, LiveView, MatchSettings, PerformSettings, VideoSource, perform
 
 
 def test_page_state_frames_and_the_mjpeg_stream() -> None:

@@ -17,9 +17,15 @@ from control.motion import read_bvh
 from mimic.cli import main
 from silhouette_bank import Bank, BankSettings, build_bank, silhouette_features
 from tests.vision.conftest import RECORDING
-from vision._matcher import Matcher, MatchSettings
-from vision._perform import PerformSettings, perform
-from vision._sources import CameraSource, MaskFolderSource, VideoSource
+from vision import (
+    CameraSource,
+    MaskFolderSource,
+    Matcher,
+    MatchSettings,
+    PerformSettings,
+    VideoSource,
+    perform,
+)
 
 
 @pytest.fixture(scope="module")
@@ -456,7 +462,7 @@ def test_perform_with_landmarks_logs_why_a_frame_has_no_pose(
 ) -> None:
     """Colour footage with the pose descriptor: decisions from MediaPipe's landmarks;
     a stretch with nobody in view makes none, and the log says why."""
-    from vision._person import person_segmentation_available
+    from vision import person_segmentation_available
 
     if not person_segmentation_available():
         pytest.fail("MediaPipe is needed here (see the README's install line)")

@@ -9,14 +9,14 @@ import cv2
 import numpy as np
 import pytest
 
-from vision._landmarks import PoseReader
-from vision._person import (
+from vision import (
     PersonSegmenter,
+    PoseReader,
+    Segmenter,
     make_segmenter,
     person_segmentation_available,
     resolve_segmentation,
 )
-from vision._segment import Segmenter
 
 
 def _frames(path: Path, every: int = 10) -> list[np.ndarray]:

@@ -9,8 +9,15 @@ import numpy as np
 import pytest
 
 from tests.conftest import REPO
-from vision._segment import Segmenter, clean_mask
-from vision._sources import CameraSource, MaskFolderSource, SourceError, VideoSource, open_source
+from vision import (
+    CameraSource,
+    MaskFolderSource,
+    Segmenter,
+    SourceError,
+    VideoSource,
+    clean_mask,
+    open_source,
+)
 
 RECORDING = REPO / "recordings" / "13_29_first12s_160x120.mkv"
 REAL = REPO.parent / "shared" / "video" / "pose_1.mp4"

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from tests.vision.conftest import RECORDING
-from vision._truth import LabelFileError, Truth, action_runs, agreement, truth_for
+from vision import LabelFileError, Truth, action_runs, agreement, truth_for
 from vision._video import PANE, MaskTape, _frame_decisions
 
 

@@ -1,0 +1,85 @@
+"""What the matcher is told (``MatchSettings``) and what it answers (``Decision``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["Decision", "MatchSettings"]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class MatchSettings:
+    """``window`` seconds of performer compared; candidates reached within ``lookahead``
+    seconds; DTW band ``band`` frames; ``centre_weight`` against the shape numbers."""
+
+    window: float = 1.0
+    lookahead: float = 1.5
+    band: int = 4
+    centre_weight: float = 3.0
+    max_candidates: int = 64
+    locate: bool = True  # start the avatar where the library looks most like the performer
+    #: every ``relocate`` seconds (0: never) the whole component is searched too; when its
+    #: best window costs less than ``relocate_ratio`` times the best candidate's, the
+    #: avatar takes the shortest way there through the graph (at most ``route`` seconds)
+    relocate: float = 1.0
+    relocate_ratio: float = 0.8
+    route: float = 4.0
+    #: the temporal prior: a path that plays on in the avatar's clip, without a
+    #: transition in its first ``window`` seconds, has its cost multiplied by ``1 - stay``
+    #: (0: no prior), so the avatar keeps its action unless another fits clearly better
+    stay: float = 0.0
+    #: also match the performer mirrored (left and right exchanged), and for landmarks
+    #: with left and right labels swapped: the best reading wins
+    mirror: bool = True
+    #: per-frame cost above which a window matches nothing real and no decision is made
+    #: (``None``: the descriptor's own threshold, ``Descriptor.reject``)
+    reject: float | None = None
+    #: motion matching: at every decision the ``top`` best windows of the whole library
+    #: (the fast index) are candidates too, as direct blended jumps to the frame after
+    #: each window (where the performer is now). A jump's score is its DTW cost times
+    #: ``1 + blend_weight * D / (D + D_max)`` (``D``: the graph's distance from the
+    #: avatar's frame, ``D_max`` the largest a transition may have); it is taken when
+    #: that is below ``jump_ratio`` times the cost of the avatar's own last ``window``
+    #: seconds (always at the end of a clip)
+    jumps: bool = True
+    top: int = 8
+    blend_weight: float = 0.3
+    jump_ratio: float = 0.9
+    #: no jump until the avatar has played ``hold`` seconds on since its last move (it
+    #: would flicker between windows of near cost); at a clip's end it jumps anyway
+    hold: float = 1.0
+    #: with jumps, when no jump is taken: ``True``, the paper's cluster paths (their
+    #: future against the performer's past); ``False`` (default: as accurate on the
+    #: folds, and three times faster), the avatar plays on
+    cluster_paths: bool = False
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.stay < 1.0:
+            raise ValueError(f"stay must lie in [0, 1), got {self.stay}")
+        if not (
+            self.top >= 1 and self.blend_weight >= 0 and self.jump_ratio > 0 and self.hold >= 0
+        ):
+            raise ValueError("top must be >= 1, blend_weight, hold >= 0 and jump_ratio > 0")
+        if self.reject is not None and not self.reject > 0:
+            raise ValueError(f"reject must be positive, got {self.reject}")
+
+
+@dataclass(frozen=True, eq=False)
+class Decision:
+    """The chosen path (``frames``, ``edges`` from the avatar's frame) and the costs."""
+
+    frames: IntArray
+    edges: IntArray
+    cluster_path: IntArray
+    cost: float
+    runner_up: float
+    view: int
+    candidates: int
+    latency_ms: float
+    extra: dict[str, float] = field(default_factory=dict)

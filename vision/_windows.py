@@ -1,0 +1,133 @@
+"""The performer's query sequences and the library's window tables, as the matcher and
+its global search compare them: the shape numbers mapped by the bank's metric (or the
+descriptor's standardisation), the centre's displacement in body sizes, the per-frame
+cost and the best window by exact DTW."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+from numpy.typing import NDArray
+
+from control.dtw import dtw_best_window
+from silhouette_bank import DEFAULT_DESCRIPTOR, Bank, Descriptor, get_descriptor
+
+__all__ = [
+    "best_window",
+    "per_frame_cost",
+    "performer_queries",
+    "performer_sequence",
+    "shape_stats",
+    "window_tables",
+]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+def shape_stats(bank: Bank) -> tuple[FloatArray, FloatArray]:
+    """``(mean (S,), proj (S, d))``: DTW compares shape numbers ``x`` as
+    ``(x - mean) @ proj``. With the bank's learned metric: its projection, scaled so that
+    the ``d`` numbers vary as much in all as 7 standardised numbers; otherwise the
+    descriptor's standardiser (``proj`` diagonal, ``d = S``)."""
+    desc = bank.settings.features
+    x = desc.shape(bank.features).reshape(-1, desc.n_shape)
+    x = x[:: max(1, x.shape[0] // 200_000)].astype(np.float64)  # a large bank: a sample
+    x = x[np.isfinite(x).all(axis=1)]
+    if bank.metric is not None:
+        mean, proj = bank.metric
+        z = (x - mean) @ proj
+        spread = float(np.sqrt(z.var(axis=0).sum() / 7.0)) if z.size else 1.0
+        return mean, proj / max(spread, 1e-9)
+    mean, scale = desc.standardiser(x)
+    return mean, np.diag(1.0 / scale)
+
+
+def performer_sequence(
+    features: FloatArray,
+    mean: FloatArray,
+    proj: FloatArray,
+    centre_weight: float,
+    descriptor: Descriptor | str = DEFAULT_DESCRIPTOR,
+) -> FloatArray:
+    """DTW features ``(n, d + 2)`` of a performer's raw features ``(n, F)`` of
+    ``descriptor`` (shape numbers, then the centre in image coordinates / body size):
+    the shape numbers mapped by ``shape_stats``'s ``(mean, proj)``, the centre's
+    displacement since the first frame times ``centre_weight``."""
+    desc = get_descriptor(descriptor)
+    d = proj.shape[1]
+    out = np.empty((features.shape[0], d + 2))
+    out[:, :d] = (desc.shape(features) - mean) @ proj
+    c = desc.centre(features)
+    out[:, d:] = (c - c[0]) * centre_weight
+    return out
+
+
+def performer_queries(
+    performer: FloatArray,
+    desc: Descriptor,
+    mean: FloatArray,
+    proj: FloatArray,
+    centre_weight: float,
+    mirror: bool = True,
+) -> list[FloatArray]:
+    """DTW queries of a performer's features ``(n, F)`` without NaN rows: one per
+    reading of ``desc.variants`` (as seen; mirrored; for landmarks, sides swapped)."""
+    return [
+        performer_sequence(np.asarray(v, dtype=np.float64), mean, proj, centre_weight, desc)
+        for v in desc.variants(performer, mirror)
+    ]
+
+
+def window_tables(
+    bank: Bank,
+    frames: IntArray,
+    clip_start: IntArray,
+    mean: FloatArray,
+    proj: FloatArray,
+    centre_weight: float,
+) -> tuple[FloatArray, FloatArray]:
+    """What the whole-library window search compares: for rows ``frames`` (bank frames;
+    ``clip_start`` splits them into clips), the mapped shape numbers ``(N, V, d)``
+    and the centre accumulated along each clip ``(N, V, 2)``, times ``centre_weight``
+    (a window's centre is taken relative to its first frame by the DTW kernel)."""
+    desc = bank.settings.features
+    n, v = frames.size, bank.features.shape[1]
+    shape = np.empty((n, v, proj.shape[1]))
+    place = np.empty((n, v, 2))
+    for a in range(0, n, 2048):  # in blocks: a bank of many views is large in float64
+        f = bank.features[frames[a : a + 2048]].astype(np.float64)  # (b, V, F)
+        shape[a : a + f.shape[0]] = (desc.shape(f) - mean) @ proj
+        place[a : a + f.shape[0]] = desc.centre(f)
+    np.nan_to_num(shape, copy=False, nan=0.0)
+    move = bank.root_motion[frames].astype(np.float64)
+    centre = np.empty_like(move)
+    for a, b in itertools.pairwise(clip_start):
+        centre[a:b] = np.cumsum(move[a:b], axis=0) - move[a]
+    centre = np.nan_to_num((centre + place) * centre_weight, nan=0.0)
+    return shape, centre
+
+
+def per_frame_cost(cost: float, length: int) -> float:
+    """A DTW cost of a query of ``length`` frames as a per-frame cost (over the square
+    root of the length): the scale of ``Descriptor.reject``."""
+    return cost / float(np.sqrt(max(length, 1)))
+
+
+def best_window(
+    queries: list[FloatArray],
+    shape: FloatArray,
+    centre: FloatArray,
+    starts: IntArray,
+    length: int,
+    band: int,
+) -> tuple[int, int, float]:
+    """``(start, view, cost)`` of the window nearest any of ``queries`` by DTW
+    (``control.dtw.dtw_best_window``), over ``starts``, every view."""
+    best = (-1, -1, float("inf"))
+    for q in queries:
+        got = dtw_best_window(q, shape, centre, starts, length, band)
+        if got[2] < best[2]:
+            best = got
+    return best
