@@ -118,9 +118,9 @@ def _placed_feet(t: SketchTracker) -> tuple[np.ndarray, np.ndarray]:
         if i in jumps:
             al = t.graph.align[jumps[i]].astype(np.float64)
             yaw, trans = compose(yaw, trans, float(al[0]), al[1:])
-        toes.append(rotate_y(t._toe[f], yaw) + trans)
+        toes.append(rotate_y(t.blocks.toe[f], yaw) + trans)
         s = np.zeros((2, 3))
-        s[:, [0, 2]] = t._support[f]
+        s[:, [0, 2]] = t.blocks.support[f]
         support.append((rotate_y(s, yaw) + trans)[:, [0, 2]])
     return np.array(toes), np.array(support)
 
@@ -132,13 +132,13 @@ def test_tracker_keeps_planted_feet_on_blocks(blocks) -> None:
     t.run(40.0)
     assert t.goal >= len(t.goals) and not t.stuck
     toe, support = _placed_feet(t)
-    states = t._states[np.array(t.frames)]
+    states = t.blocks.states[np.array(t.frames)]
     levels = env.terrain.level_at(support.reshape(-1, 2)).reshape(-1, 2)
     # every planted foot of the plan stands on a block top: its height above the captured
     # ground matches the block's level to a fraction of a block (the captured levels are
     # not exactly evenly spaced, and a toe is not always flat)
-    err = np.abs(toe[..., 1] - cap.toe_floor - levels * t._rise)[states]
-    assert err.max() < 0.6 * t._rise and np.percentile(err, 95) < 0.4 * t._rise
+    err = np.abs(toe[..., 1] - cap.toe_floor - levels * t.blocks.rise)[states]
+    assert err.max() < 0.6 * t.blocks.rise and np.percentile(err, 95) < 0.4 * t.blocks.rise
     # and the synthesized motion keeps them there at most planted frames
     report = t.terrain_report(t.motion())
     assert report["planted_off_block"] <= 0.1 * report["planted_frames"]
