@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .avatar import Avatar
-from .clusters import HigherLayer
+from .clusters import ClusterTree, HigherLayer
 from .graph import FrameData, compose, rotate_y
 
 __all__ = ["Option", "offer"]
@@ -61,6 +61,28 @@ def _root_path(
     return rotate_y(data.root[frames], yaws[seg]) + trans[seg]
 
 
+def _candidates(
+    tree: ClusterTree, selected: NDArray[np.bool_], t: NDArray[np.float64]
+) -> tuple[list[int], int]:
+    """One tree node per cluster, leaves of the selected subtree first (earliest first),
+    then, for when there are fewer than wanted, its other selected nodes: reaching an
+    intermediate cluster is an action as well. Also the number of the leaves' clusters."""
+    # the leaves of the selected subtree; ancestors must be selected for a node to count
+    reachable, leaves = tree.subtree(selected)
+    if leaves.size > 1:
+        leaves = leaves[leaves != 0]
+    inner = np.setdiff1d(np.flatnonzero(reachable), leaves)
+    inner = inner[inner != 0]
+    order = np.concatenate(
+        (leaves[np.argsort(t[leaves], kind="stable")], inner[np.argsort(t[inner], kind="stable")])
+    )
+    # one node per cluster: the first in that order
+    first: dict[int, int] = {}
+    for node in order:
+        first.setdefault(int(tree.cluster[node]), int(node))
+    return list(first.values()), len({int(tree.cluster[x]) for x in leaves})
+
+
 def offer(
     layer: HigherLayer,
     avatar: Avatar,
@@ -94,23 +116,7 @@ def offer(
         t_min, t_max = lookahead
         selected = (t >= t_min) & (t <= t_max)
         bound = int(np.floor(t_max * fps + 1e-9))
-    # the leaves of the selected subtree; ancestors must be selected for a node to count
-    reachable, leaves = tree.subtree(selected)
-    if leaves.size > 1:
-        leaves = leaves[leaves != 0]
-    # leaves first; when there are fewer than n, other selected nodes (earliest first) too:
-    # reaching an intermediate cluster is an action as well
-    inner = np.setdiff1d(np.flatnonzero(reachable), leaves)
-    inner = inner[inner != 0]
-    order = np.concatenate(
-        (leaves[np.argsort(t[leaves], kind="stable")], inner[np.argsort(t[inner], kind="stable")])
-    )
-    # one node per cluster: the first in that order
-    first: dict[int, int] = {}
-    for node in order:
-        first.setdefault(int(tree.cluster[node]), int(node))
-    candidates = list(first.values())
-    n_leaf = len({int(tree.cluster[x]) for x in leaves})
+    candidates, n_leaf = _candidates(tree, selected, t)
     means = layer.clustering.means
     chosen: list[Option] = []
     picked: list[int] = []

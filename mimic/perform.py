@@ -35,6 +35,7 @@ from vision import (
 )
 
 from .run import (
+    Prepared,
     add_run_args,
     prepare,
     print_actions,
@@ -187,6 +188,15 @@ def _perform(args: argparse.Namespace) -> int:
             "step out of view for two seconds so that the background can be learned",
             file=sys.stderr,
         )
+    result = _run(args, source, ready)
+    _summary(args, source, ready, result, truth)
+    # Ctrl-C is how a camera session ends; another signal is reported as such
+    return 0 if result.stopped in ("", "SIGINT") else 128 + _SIGNALS[result.stopped]
+
+
+def _run(args: argparse.Namespace, source: Any, ready: Prepared) -> Any:
+    """The performance, with its log, tape, live view and signal handling; its outputs
+    (BVH and timing, MP4) written, also after a stop."""
     clips, graph, layer, bank = ready.clips, ready.graph, ready.layer, ready.bank
     live = args.live_port != 0 and (args.camera is not None or args.realtime)
     with contextlib.ExitStack() as stack:
@@ -233,13 +243,22 @@ def _perform(args: argparse.Namespace) -> int:
                 file=sys.stderr,
                 flush=True,
             )
-        made = [c for c in result.decisions if c.get("decision") is not None]
         if args.out:
             motion = result.avatar.motion().motion
             write_bvh(motion, args.out)
             _write_timing(args.out, result, motion.n_frames, motion.fps, source.name)
         if tape is not None:
             write_video(result, bank, clips, args.video_out, tape)
+    return result
+
+
+def _summary(
+    args: argparse.Namespace, source: Any, ready: Prepared, result: Any, truth: Truth | None
+) -> None:
+    """The one summary line, what the avatar did, its agreement with the labels, and
+    what was written."""
+    clips = ready.clips
+    made = [c for c in result.decisions if c.get("decision") is not None]
     lat = [c["latency_ms"] for c in made]
     jumps = sum("jump" in c for c in made)
     clips_seen = [c["clip"] for c in result.decisions]
@@ -281,8 +300,6 @@ def _perform(args: argparse.Namespace) -> int:
             print(f"wrote {getattr(args, name)}")
             if name == "out":
                 print(f"wrote {args.out}.json (the BVH's place in the input's media time)")
-    # Ctrl-C is how a camera session ends; another signal is reported as such
-    return 0 if result.stopped in ("", "SIGINT") else 128 + _SIGNALS[result.stopped]
 
 
 def _print_agreement(decisions: list[dict[str, Any]], clips: list[Any], truth: Truth) -> None:

@@ -177,6 +177,39 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
     """The library (the clips on the floor unless ``--off-floor``), its graph, higher
     layer and bank for ``source`` with the defaults of the vision interface, saying on
     stderr what was chosen and what was left out."""
+    clips = _clips(args)
+    t0 = time.perf_counter()
+    with step("motion graph"):
+        graph, _, _ = cached_graph(clips, graph_options(args), rebuild=args.rebuild)
+    _say_unreachable(graph, args.no_jumps)
+    # the matcher looks no further ahead than the look-ahead: trees that reach that far
+    # (the paper's 15 s trees of a dense graph are truncated, and slow to build)
+    bound = max(2.0, args.lookahead + 0.5)
+    with step("higher layer (clusters and trees)"):
+        layer, _, layer_built = cached_higher_layer(graph, clips, k=args.k, bound_seconds=bound)
+    print(
+        f"library: {len(graph.clip_names)} clips, {graph.n_frames} frames "
+        f"({int(graph.in_scc.sum())} reachable); graph coords {graph.options.coords}; "
+        f"{layer.clustering.k} clusters ({'built' if layer_built else 'cached'}); "
+        f"{time.perf_counter() - t0:.1f} s",
+        file=sys.stderr,
+    )
+    descriptor, bank, built = _bank(args, clips, source)
+    settings = PerformSettings(
+        segmentation=args.segmentation,
+        learn_frames=args.learn_frames,
+        match=MatchSettings(window=args.window, lookahead=args.lookahead, jumps=not args.no_jumps),
+        seconds=args.seconds,
+        blend=blend_seconds(args),
+    )
+    return Prepared(
+        descriptor, clips, graph, layer, bank, built, settings, start_frame(graph, args.start)
+    )
+
+
+def _clips(args: argparse.Namespace) -> list[Any]:
+    """The library's clips, less those left out (``--leave-out``) and, unless
+    ``--off-floor``, those whose feet leave the floor; said on stderr."""
     if args.fps is None or args.fps <= 0:
         raise ValueError("--fps must be positive")
     with step("motion library"):
@@ -201,9 +234,11 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
             )
         if not clips:
             raise SystemExit("mimic perform: every clip leaves the floor (use --off-floor)")
-    t0 = time.perf_counter()
-    with step("motion graph"):
-        graph, _, _ = cached_graph(clips, graph_options(args), rebuild=args.rebuild)
+    return clips
+
+
+def _say_unreachable(graph: Any, no_jumps: bool) -> None:
+    """Warn about clips mostly outside the graph's connected component."""
     unreachable = [
         f"{name} ({graph.in_scc[a:b].mean():.0%} reachable)"
         for name, a, b in zip(
@@ -211,7 +246,7 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
         )
         if graph.in_scc[a:b].mean() < 0.5
     ]
-    if unreachable and args.no_jumps:
+    if unreachable and no_jumps:
         print(
             "warning: these clips are mostly outside the graph's connected component, and "
             f"without jumps the avatar cannot reach them: {', '.join(unreachable)}",
@@ -223,18 +258,11 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
             f"avatar reaches them by direct jumps only: {', '.join(unreachable)}",
             file=sys.stderr,
         )
-    # the matcher looks no further ahead than the look-ahead: trees that reach that far
-    # (the paper's 15 s trees of a dense graph are truncated, and slow to build)
-    bound = max(2.0, args.lookahead + 0.5)
-    with step("higher layer (clusters and trees)"):
-        layer, _, layer_built = cached_higher_layer(graph, clips, k=args.k, bound_seconds=bound)
-    print(
-        f"library: {len(graph.clip_names)} clips, {graph.n_frames} frames "
-        f"({int(graph.in_scc.sum())} reachable); graph coords {graph.options.coords}; "
-        f"{layer.clustering.k} clusters ({'built' if layer_built else 'cached'}); "
-        f"{time.perf_counter() - t0:.1f} s",
-        file=sys.stderr,
-    )
+
+
+def _bank(args: argparse.Namespace, clips: list[Any], source: Any) -> tuple[str, Any, bool]:
+    """The descriptor and the bank: ``--bank``'s (its own settings), else the cache's
+    for the chosen descriptor (with ``--variants``, the robust settings)."""
     if args.bank:  # a bank built by mimic bank build, with its own settings
         try:
             bank, built = load_bank(args.bank, clips), False
@@ -248,24 +276,15 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
             ) from None
         descriptor = choose_descriptor(bank.settings.descriptor, source)
         print(f"descriptor: {descriptor} (the bank's, {args.bank})", file=sys.stderr)
-    else:
-        descriptor = choose_descriptor(args.descriptor, source)
-        print(f"descriptor: {descriptor}", file=sys.stderr)
-        base = BankSettings(descriptor=descriptor)
-        if args.variants and descriptor == "pose":
-            print("--variants: body variants do not apply to the pose descriptor", file=sys.stderr)
-        bank_settings = robust_settings(base) if args.variants and descriptor != "pose" else base
-        bank, built = ensure_bank(clips, bank_settings, progress=bar("silhouette bank", "shards"))
-    settings = PerformSettings(
-        segmentation=args.segmentation,
-        learn_frames=args.learn_frames,
-        match=MatchSettings(window=args.window, lookahead=args.lookahead, jumps=not args.no_jumps),
-        seconds=args.seconds,
-        blend=blend_seconds(args),
-    )
-    return Prepared(
-        descriptor, clips, graph, layer, bank, built, settings, start_frame(graph, args.start)
-    )
+        return descriptor, bank, built
+    descriptor = choose_descriptor(args.descriptor, source)
+    print(f"descriptor: {descriptor}", file=sys.stderr)
+    base = BankSettings(descriptor=descriptor)
+    if args.variants and descriptor == "pose":
+        print("--variants: body variants do not apply to the pose descriptor", file=sys.stderr)
+    bank_settings = robust_settings(base) if args.variants and descriptor != "pose" else base
+    bank, built = ensure_bank(clips, bank_settings, progress=bar("silhouette bank", "shards"))
+    return descriptor, bank, built
 
 
 def silhouette_flag(args: argparse.Namespace) -> bool | None:

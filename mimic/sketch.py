@@ -148,24 +148,29 @@ def _sketch(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps({"out": str(args.out), **summary}, indent=2))
     else:
-        for name, s in summary.items():
-            state = "followed" if s["followed"] else ("stuck" if s["stuck"] else "out of time")
-            near = f"; nearest obstacle {s['min_clearance_m']} m" if "min_clearance_m" in s else ""
-            print(
-                f"{name}: {state} after {s['motion_seconds']} s; deviation mean "
-                f"{s['deviation_mean_m']} m, max {s['deviation_max_m']} m; planned "
-                f"{s['realtime_factor']}x real time{near}"
-            )
-            if "terrain" in s:
-                t = s["terrain"]
-                print(
-                    f"  feet at contacts, height above the block top: mean |error| "
-                    f"{t['foot_height_error_mean_m']} m, 95% {t['foot_height_error_p95_m']} m, "
-                    f"max {t['foot_height_error_max_m']} m; {t['planted_off_block']} of "
-                    f"{t['planted_frames']} planted frames off by more than half a block"
-                )
+        _print_summary(summary)
         print(f"wrote {args.out}" + "".join(f", {p}" for p in (args.png, args.video) if p))
     return 0 if main.goal >= len(main.goals) else 1
+
+
+def _print_summary(summary: dict[str, Any]) -> None:
+    """A line per approach (and the feet on the blocks, on terrain)."""
+    for name, s in summary.items():
+        state = "followed" if s["followed"] else ("stuck" if s["stuck"] else "out of time")
+        near = f"; nearest obstacle {s['min_clearance_m']} m" if "min_clearance_m" in s else ""
+        print(
+            f"{name}: {state} after {s['motion_seconds']} s; deviation mean "
+            f"{s['deviation_mean_m']} m, max {s['deviation_max_m']} m; planned "
+            f"{s['realtime_factor']}x real time{near}"
+        )
+        if "terrain" in s:
+            t = s["terrain"]
+            print(
+                f"  feet at contacts, height above the block top: mean |error| "
+                f"{t['foot_height_error_mean_m']} m, 95% {t['foot_height_error_p95_m']} m, "
+                f"max {t['foot_height_error_max_m']} m; {t['planted_off_block']} of "
+                f"{t['planted_frames']} planted frames off by more than half a block"
+            )
 
 
 def _terrain_graph(

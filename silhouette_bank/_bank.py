@@ -202,6 +202,32 @@ def build_bank(
     folder.mkdir(parents=True, exist_ok=True)
     if shard_frames < 1:
         raise ValueError("shard_frames must be at least 1")
+    manifest = _start_manifest(clips, settings, folder, shard_frames)
+    shards: list[dict[str, Any]] = manifest["shards"]
+    todo = _shards_to_render(clips, settings, folder, manifest)
+    t0 = time.perf_counter()
+    _render(todo, len(shards), workers, progress)
+    arrays = _merge(clips, settings, folder, manifest)
+    manifest["complete"] = True
+    manifest["built"] = {
+        "seconds": round(time.perf_counter() - t0, 3),
+        "rendered_shards": len(todo),
+    }
+    manifest["checksum"] = checksum(manifest, arrays)
+    with atomic_write(folder / "bank.npz", "wb") as fh:
+        np.savez(fh, **arrays)  # type: ignore[arg-type]  # (numpy's hints: allow_pickle)
+    with atomic_write(folder / "manifest.json") as fh:
+        json.dump(manifest, fh, indent=1)
+    for s in shards:  # merged: the shards would only double the bank's size on disk
+        (folder / str(s["file"])).unlink(missing_ok=True)
+    return load_bank(folder)
+
+
+def _start_manifest(
+    clips: Sequence[Clip], settings: BankSettings, folder: Path, shard_frames: int
+) -> dict[str, Any]:
+    """The manifest of an incomplete bank with its shard table, written (the files of
+    another library's or settings' bank in ``folder`` removed first)."""
     digest = clips_digest(clips)
     key = _key(digest, settings)
     sizes = [c.motion.n_frames for c in clips]
@@ -240,10 +266,20 @@ def build_bank(
             (folder / "bank.npz").unlink(missing_ok=True)
     with atomic_write(old) as fh:
         json.dump(manifest, fh, indent=1)
-    views = settings.n_views
-    size = settings.features.size
-    todo = []
-    for s in shards:
+    return manifest
+
+
+_Job = tuple[int, list[tuple[Motion, int, int]], BankSettings, str]
+
+
+def _shards_to_render(
+    clips: Sequence[Clip], settings: BankSettings, folder: Path, manifest: dict[str, Any]
+) -> list[_Job]:
+    """The jobs of the shards not yet (or not soundly) on disk."""
+    starts = manifest["clip_start"]
+    views, size = settings.n_views, settings.features.size
+    todo: list[_Job] = []
+    for s in manifest["shards"]:
         path = folder / str(s["file"])
         if _shard_ok(path, int(s["stop"]) - int(s["start"]), views, size):
             continue
@@ -254,11 +290,20 @@ def build_bank(
             if a < b:
                 pieces.append((clip.motion, a - int(starts[c]), b - int(starts[c])))
         todo.append((int(s["index"]), pieces, settings, str(path)))
-    done = len(shards) - len(todo)
+    return todo
+
+
+def _render(
+    todo: list[_Job],
+    n_shards: int,
+    workers: int | None,
+    progress: Callable[[int, int], None] | None,
+) -> None:
+    """Render the ``todo`` shards, in processes when more than one worker."""
+    done = n_shards - len(todo)
     if progress:
-        progress(done, len(shards))
+        progress(done, n_shards)
     n_workers = min(workers or min(os.cpu_count() or 1, 4), max(len(todo), 1))
-    t0 = time.perf_counter()
     if n_workers > 1:
         # spawn, not fork: numba's OpenMP threads in this process make fork unsafe
         ctx = multiprocessing.get_context("spawn")
@@ -266,46 +311,40 @@ def build_bank(
             for _ in pool.map(_shard_job, todo):
                 done += 1
                 if progress:
-                    progress(done, len(shards))
+                    progress(done, n_shards)
     else:
         for job in todo:
             _shard_job(job)
             done += 1
             if progress:
-                progress(done, len(shards))
+                progress(done, n_shards)
+
+
+def _merge(
+    clips: Sequence[Clip], settings: BankSettings, folder: Path, manifest: dict[str, Any]
+) -> dict[str, np.ndarray]:
+    """The bank's arrays: every shard (checked again) concatenated, and the learned
+    metric when the settings ask for one."""
+    views, size = settings.n_views, settings.features.size
     parts = []
-    for s in shards:  # checked again: a shard may have been damaged since it was written
+    for s in manifest["shards"]:  # checked again: a shard may have been damaged since
         path = folder / str(s["file"])
         if not _shard_ok(path, int(s["stop"]) - int(s["start"]), views, size):
             raise BankFileError(path, "a shard damaged during the build: build again")
         parts.append(_read_npz(path, ("features", "root_motion")))
-    features = np.concatenate([p["features"] for p in parts])
-    root_motion = np.concatenate([p["root_motion"] for p in parts])
-    del parts
     arrays: dict[str, np.ndarray] = {
-        "features": features,
-        "root_motion": root_motion,
-        "clip_start": starts,
-        "key": np.array(key),
+        "features": np.concatenate([p["features"] for p in parts]),
+        "root_motion": np.concatenate([p["root_motion"] for p in parts]),
+        "clip_start": np.asarray(manifest["clip_start"], dtype=np.int64),
+        "key": np.array(manifest["key"]),
     }
+    del parts
     if settings.metric_dims:
         mean, proj = learn_metric(
             clips, settings.descriptor, settings.ring, settings.body, settings.metric_dims
         )
         arrays.update(metric_mean=mean, metric=proj)
-    manifest["complete"] = True
-    manifest["built"] = {
-        "seconds": round(time.perf_counter() - t0, 3),
-        "rendered_shards": len(todo),
-    }
-    manifest["checksum"] = checksum(manifest, arrays)
-    with atomic_write(folder / "bank.npz", "wb") as fh:
-        np.savez(fh, **arrays)  # type: ignore[arg-type]  # (numpy's hints: allow_pickle)
-    with atomic_write(old) as fh:
-        json.dump(manifest, fh, indent=1)
-    for s in shards:  # merged: the shards would only double the bank's size on disk
-        (folder / str(s["file"])).unlink(missing_ok=True)
-    return load_bank(folder)
+    return arrays
 
 
 def load_bank(

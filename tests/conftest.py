@@ -37,12 +37,26 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(20021122)
 
 
+@pytest.fixture(scope="session")
+def session_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The cache the tests share: what one test builds (a graph, a layer, a bank), the
+    next loads, as a user's second run does. Entries are content-addressed and checked
+    on load (``control.artifacts``), so a loaded one is the one a build would make."""
+    return tmp_path_factory.mktemp("cache")
+
+
 @pytest.fixture(autouse=True)
-def _private_cache(
-    tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def _private_cache(session_cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     # Tests never read or write the user's cache.
-    monkeypatch.setenv("MIMIC_CACHE", str(tmp_path_factory.mktemp("cache")))
+    monkeypatch.setenv("MIMIC_CACHE", str(session_cache))
+
+
+@pytest.fixture
+def fresh_cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """An empty cache of the test's own, for a test about building or about the cache."""
+    path = tmp_path / "fresh-cache"
+    monkeypatch.setenv("MIMIC_CACHE", str(path))
+    return path
 
 
 def amc_path(clip: str) -> Path:

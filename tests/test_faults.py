@@ -96,9 +96,9 @@ def test_the_cache_keeps_its_bound_least_recently_used_first(tmp_path: Path) -> 
 
 
 def test_a_new_graph_evicts_old_entries_beyond_the_limit(
-    mocap: Path, monkeypatch: pytest.MonkeyPatch
+    mocap: Path, monkeypatch: pytest.MonkeyPatch, fresh_cache: Path
 ) -> None:
-    root = Path(os.environ["MIMIC_CACHE"])
+    root = fresh_cache
     stale = _entry(root, "bank/stale", 10_000, 30)
     lib = load_library(mocap, clips=["02_0[1-4]"], workers=1)
     monkeypatch.setenv("MIMIC_CACHE_MAX_GB", "0.000005")  # 5 kB: only what is in use
@@ -109,8 +109,10 @@ def test_a_new_graph_evicts_old_entries_beyond_the_limit(
         bound_cache()
 
 
-def test_mimic_cache_shows_and_clears(mocap: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    root = Path(os.environ["MIMIC_CACHE"])
+def test_mimic_cache_shows_and_clears(
+    mocap: Path, capsys: pytest.CaptureFixture[str], fresh_cache: Path
+) -> None:
+    root = fresh_cache
     load_library(mocap, clips=["02_01"], workers=1)
     assert main(["cache"]) == 0
     out = capsys.readouterr().out

@@ -127,31 +127,10 @@ def load_layer(path: str | Path, graph: MotionGraph) -> HigherLayer:
     verify_checksum(manifest, a, path, LayerFileError)
     if manifest.get("graph") != graph_digest(graph):
         raise LayerFileError(path, "built on another graph")
-    n = graph.n_frames
+    _check_arrays(a, graph.n_frames, path)
     off = a["t_offset"].astype(np.int64)
     n_trees = a["t_root_frame"].size
     labels = a["c_labels"].astype(np.int64)
-    try:
-        ok = (
-            labels.shape == (n,)
-            and a["c_posterior"].shape == (n,)
-            and a["states"].shape[0] == n
-            and a["tree_of"].shape == (n,)
-            and off.shape == (n_trees + 1,)
-            and off[0] == 0
-            and bool(np.all(np.diff(off) >= 1))
-            and off[-1] == a["t_parent"].size == a["t_cluster"].size == a["t_arrival"].size
-            and a["t_truncated"].shape == a["t_horizon"].shape == (n_trees,)
-            and int(a["tree_of"].max(initial=-1)) < n_trees
-            and int(a["t_root_frame"].max(initial=0)) < n
-            and labels.min(initial=0) >= 0
-            and labels.max(initial=0) < a["c_means"].shape[0]
-            and all(np.isfinite(a[k]).all() for k in ("states", "c_posterior", "c_means"))
-        )
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise LayerFileError(path, "arrays of inconsistent shapes or values")
     trees = tuple(
         ClusterTree(
             root_frame=int(a["t_root_frame"][i]),
@@ -191,6 +170,34 @@ def load_layer(path: str | Path, graph: MotionGraph) -> HigherLayer:
         forest,
         transition_log_probs(graph),
     )
+
+
+def _check_arrays(a: dict[str, np.ndarray], n: int, path: Path) -> None:
+    """``LayerFileError`` unless the arrays fit one another and a graph of ``n`` frames."""
+    off = a["t_offset"].astype(np.int64)
+    n_trees = a["t_root_frame"].size
+    labels = a["c_labels"].astype(np.int64)
+    try:
+        ok = (
+            labels.shape == (n,)
+            and a["c_posterior"].shape == (n,)
+            and a["states"].shape[0] == n
+            and a["tree_of"].shape == (n,)
+            and off.shape == (n_trees + 1,)
+            and off[0] == 0
+            and bool(np.all(np.diff(off) >= 1))
+            and off[-1] == a["t_parent"].size == a["t_cluster"].size == a["t_arrival"].size
+            and a["t_truncated"].shape == a["t_horizon"].shape == (n_trees,)
+            and int(a["tree_of"].max(initial=-1)) < n_trees
+            and int(a["t_root_frame"].max(initial=0)) < n
+            and labels.min(initial=0) >= 0
+            and labels.max(initial=0) < a["c_means"].shape[0]
+            and all(np.isfinite(a[k]).all() for k in ("states", "c_posterior", "c_means"))
+        )
+    except (TypeError, ValueError, IndexError):
+        ok = False
+    if not ok:
+        raise LayerFileError(path, "arrays of inconsistent shapes or values")
 
 
 def cached_higher_layer(

@@ -212,6 +212,57 @@ def graph_sigma(feat: FrameFeatures, fps: float, options: GraphOptions) -> float
     return sigma
 
 
+def _candidates(
+    feat: FrameFeatures, options: GraphOptions, dmax: float
+) -> tuple[IntArray, IntArray, int]:
+    """Frame pairs ``(a, b)`` that the contact rule allows (their count is the third
+    value) and whose lower bound of the distance is within ``dmax``."""
+    groups = contact_groups(feat.states, feat.clip_start, options.contact)
+    n_contact = 0
+    for rows, cols in groups:
+        n_contact += rows.size * cols.size - np.intersect1d(rows, cols, assume_unique=True).size
+    x, norms = lower_bound_features(feat, options.nu)
+    cand_a, cand_b = [], []
+    for rows, cols in groups:
+        a, b = close_pairs(feat, rows, cols, dmax, options.nu, x, norms)
+        cand_a.append(a)
+        cand_b.append(b)
+    a = np.concatenate(cand_a) if cand_a else np.zeros(0, dtype=np.int64)
+    b = np.concatenate(cand_b) if cand_b else np.zeros(0, dtype=np.int64)
+    return a, b, int(n_contact)
+
+
+def _prune_rules(
+    feat: FrameFeatures,
+    options: GraphOptions,
+    fps: float,
+    a: IntArray,
+    b: IntArray,
+    d: NDArray[np.float64],
+    align: NDArray[np.float64],
+) -> tuple[tuple[Any, Any, Any, Any], int | None, int | None]:
+    """The similarity rule (local maxima) and case 4 when the options ask for them: the
+    transitions left, and how many after each (``None`` for a rule not applied)."""
+    n_similar: int | None = None
+    if options.use_similarity:
+        keep = local_maxima(a, b, d, feat.clip_start)
+        a, b, d, align = a[keep], b[keep], d[keep], align[keep]
+        n_similar = int(a.size)
+    n_case4: int | None = None
+    if options.case4 == "prune":
+        drop = case4(feat.states, feat.clip_start, a, b + 1, max(1, round(options.blend * fps)))
+        a, b, d, align = a[~drop], b[~drop], d[~drop], align[~drop]
+        n_case4 = int(a.size)
+    return (a, b, d, align), n_similar, n_case4
+
+
+def _one_rate(clips: Sequence[Clip]) -> float:
+    rates = {c.motion.fps for c in clips}
+    if len(rates) != 1:
+        raise ValueError(f"clips must share one frame rate, got {sorted(rates)}")
+    return rates.pop()
+
+
 def build_graph(
     clips: Sequence[Clip],
     options: GraphOptions | None = None,
@@ -227,10 +278,7 @@ def build_graph(
     options = options or GraphOptions()
     t0 = time.perf_counter()
     chosen, excluded = select_clips(list(clips))
-    rates = {c.motion.fps for c in chosen}
-    if len(rates) != 1:
-        raise ValueError(f"clips must share one frame rate, got {sorted(rates)}")
-    fps = rates.pop()
+    fps = _one_rate(chosen)
     if excluded:
         log.warning("left out %d clips with other joints: %s", len(excluded), ", ".join(excluded))
     feat = frame_features(chosen, options.coords)
@@ -239,18 +287,7 @@ def build_graph(
     dmax = sigma * math.log(1.0 / options.threshold)
     t_feat = time.perf_counter()
 
-    groups = contact_groups(feat.states, feat.clip_start, options.contact)
-    n_contact = 0
-    for rows, cols in groups:
-        n_contact += rows.size * cols.size - np.intersect1d(rows, cols, assume_unique=True).size
-    x, norms = lower_bound_features(feat, options.nu)
-    cand_a, cand_b = [], []
-    for rows, cols in groups:
-        a, b = close_pairs(feat, rows, cols, dmax, options.nu, x, norms)
-        cand_a.append(a)
-        cand_b.append(b)
-    a = np.concatenate(cand_a) if cand_a else np.zeros(0, dtype=np.int64)
-    b = np.concatenate(cand_b) if cand_b else np.zeros(0, dtype=np.int64)
+    a, b, n_contact = _candidates(feat, options, dmax)
     n_candidates = a.size
     t_search = time.perf_counter()
     d, align = pair_distances(feat, a, b, options.nu, **options.terrain_args())
@@ -259,16 +296,7 @@ def build_graph(
     n_likely = a.size
     if progress:
         progress(f"{n_likely} transitions under the likelihood threshold")
-    n_similar: int | None = None
-    if options.use_similarity:
-        keep = local_maxima(a, b, d, feat.clip_start)
-        a, b, d, align = a[keep], b[keep], d[keep], align[keep]
-        n_similar = int(a.size)
-    n_case4: int | None = None
-    if options.case4 == "prune":
-        drop = case4(feat.states, feat.clip_start, a, b + 1, max(1, round(options.blend * fps)))
-        a, b, d, align = a[~drop], b[~drop], d[~drop], align[~drop]
-        n_case4 = int(a.size)
+    (a, b, d, align), n_similar, n_case4 = _prune_rules(feat, options, fps, a, b, d, align)
     t_prune = time.perf_counter()
     in_scc, n_comp = largest_scc(n, a, b + 1, feat.clip_start)
     keep = in_scc[a] & in_scc[b + 1]

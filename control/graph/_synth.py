@@ -147,7 +147,6 @@ def synthesize(
     frames = np.asarray(frames, dtype=np.int64)
     jumps = np.asarray(jumps, dtype=np.int64)
     edges = np.asarray(edges, dtype=np.int64)
-    n_out = frames.size
     src_of, dst_of, align_of = _edge_tables(graph, extra)
     _check_path(graph, frames, jumps, edges, src_of, dst_of)
     if not blend > 0 or not fade >= 0 or not max_offset >= 0:
@@ -156,6 +155,53 @@ def synthesize(
         raise ValueError(f"anchor must be 'output' or 'source', not {anchor!r}")
     b = max(1, round(blend * graph.fps))
 
+    src_p, src_q, out_p, out_q, blended, v1 = _place_and_blend(
+        data, graph, frames, jumps, edges, align_of, b
+    )
+    states = data.states[frames]
+    unreachable = 0
+    if ik and jumps.size:
+        out_q, unreachable = _plant_feet(
+            data.skeleton,
+            graph.fps,
+            out_p,
+            out_q,
+            src_p,
+            src_q,
+            jumps,
+            v1,
+            states,
+            round(fade * graph.fps),
+            max_offset,
+            anchor == "source",
+        )
+    if ik and blended.any():
+        # feet at the source's height: blending the root's height between a squat and a
+        # stance would otherwise lift both feet off the floor for the whole blend (after
+        # the leg IK, so that planted feet only move up or down with the body)
+        out_p = out_p.copy()
+        out_p[blended, 1] += _sole_lift(
+            data.skeleton, graph.fps, src_p, src_q, out_p, out_q, blended
+        )
+    motion = Motion(data.skeleton, out_p, out_q, graph.fps, name="walk", source="graph")
+    return Synthesis(motion, frames, jumps, edges, states, blended, unreachable)
+
+
+def _place_and_blend(
+    data: FrameData,
+    graph: MotionGraph,
+    frames: IntArray,
+    jumps: IntArray,
+    edges: IntArray,
+    align_of: FloatArray,
+    b: int,
+) -> tuple[
+    FloatArray, FloatArray, FloatArray, FloatArray, NDArray[np.bool_], tuple[FloatArray, FloatArray]
+]:
+    """Each segment of the path placed by its transitions' alignments (``src``), and
+    the output with each transition's jump in pose and root displaced away over ``b``
+    frames (``out``); the frames blended, and each new segment's virtual predecessor."""
+    n_out = frames.size
     # segment transforms
     n_seg = jumps.size + 1
     seg_yaw = np.zeros(n_seg)
@@ -195,33 +241,7 @@ def synthesize(
         out_p[t:end] = src_p[t:end] + hermite(p0, p0 - pp, k, b)
         blended[t:end] = True
 
-    states = data.states[frames]
-    unreachable = 0
-    if ik and jumps.size:
-        out_q, unreachable = _plant_feet(
-            data.skeleton,
-            graph.fps,
-            out_p,
-            out_q,
-            src_p,
-            src_q,
-            jumps,
-            (v1_p, v1_q),
-            states,
-            round(fade * graph.fps),
-            max_offset,
-            anchor == "source",
-        )
-    if ik and blended.any():
-        # feet at the source's height: blending the root's height between a squat and a
-        # stance would otherwise lift both feet off the floor for the whole blend (after
-        # the leg IK, so that planted feet only move up or down with the body)
-        out_p = out_p.copy()
-        out_p[blended, 1] += _sole_lift(
-            data.skeleton, graph.fps, src_p, src_q, out_p, out_q, blended
-        )
-    motion = Motion(data.skeleton, out_p, out_q, graph.fps, name="walk", source="graph")
-    return Synthesis(motion, frames, jumps, edges, states, blended, unreachable)
+    return src_p, src_q, out_p, out_q, blended, (v1_p, v1_q)
 
 
 def _edge_tables(

@@ -22,9 +22,11 @@ from ._fk import Pose, forward_kinematics, rest_positions
 from ._library import (
     Clip,
     Library,
+    LibrarySpec,
     default_cache_dir,
     default_library_path,
     load_library,
+    load_spec,
     read_labels,
 )
 from ._names import ROLE_ALIASES, find_role, mirror_map, role_point
@@ -56,6 +58,7 @@ __all__ = [
     "Contacts",
     "FloatArray",
     "Library",
+    "LibrarySpec",
     "Motion",
     "MotionFormatError",
     "Pose",
@@ -74,6 +77,7 @@ __all__ = [
     "foot_points",
     "forward_kinematics",
     "load_library",
+    "load_spec",
     "mirror",
     "mirror_map",
     "q_to_R",

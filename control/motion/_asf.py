@@ -107,10 +107,7 @@ def read_asf(path: str | Path, metres_per_unit: float | None = None) -> AsfSkele
     text = decode(path, read_bytes(path))
     lines = text.splitlines()
     section = ""
-    length_unit = 1.0
-    degrees = True
-    root_order: tuple[str, ...] = ("tx", "ty", "tz", "rx", "ry", "rz")
-    root_axis = "XYZ"
+    head = _Header()
     bones: dict[str, _Bone] = {}
     current: _Bone | None = None
     hierarchy: list[tuple[int, list[str]]] = []
@@ -132,32 +129,9 @@ def read_asf(path: str | Path, metres_per_unit: float | None = None) -> AsfSkele
                 raise MotionFormatError(path, f"unexpected text after {tokens[0]}", n)
             continue
         if section == ":units":
-            if len(tokens) != 2:
-                raise MotionFormatError(path, f"units line needs a name and a value: {line!r}", n)
-            if key == "length":
-                (length_unit,) = parse_floats(path, tokens[1:], n, "units length")
-                if length_unit <= 0:
-                    raise MotionFormatError(path, "units length must be positive", n)
-            elif key == "angle":
-                if tokens[1].lower() not in ("deg", "rad"):
-                    raise MotionFormatError(path, f"angle unit {tokens[1]!r} is not deg or rad", n)
-                degrees = tokens[1].lower() == "deg"
+            _units_field(path, head, tokens, n, line)
         elif section == ":root":
-            if key == "order":
-                order = tuple(t.lower() for t in tokens[1:])
-                bad = [t for t in order if t not in ROT_DOFS + TRANS_DOFS]
-                if bad or len(set(order)) != len(order):
-                    raise MotionFormatError(path, f"bad root order {' '.join(tokens[1:])!r}", n)
-                root_order = order
-            elif key == "axis":
-                if len(tokens) != 2:
-                    raise MotionFormatError(path, "root axis needs one order like XYZ", n)
-                root_axis = tokens[1]
-                _axis_q(path, np.zeros(3), root_axis, degrees, n)
-            elif key in ("position", "orientation"):
-                parse_floats(path, tokens[1:], n, f"root {key}")
-            else:
-                raise MotionFormatError(path, f"unknown root field {tokens[0]!r}", n)
+            _root_field(path, head, tokens, n)
         elif section == ":bonedata":
             if key == "begin":
                 if current is not None:
@@ -171,7 +145,7 @@ def read_asf(path: str | Path, metres_per_unit: float | None = None) -> AsfSkele
             elif current is None:
                 raise MotionFormatError(path, f"{tokens[0]!r} outside a bone's begin/end", n)
             else:
-                _bone_field(path, current, tokens, n, degrees)
+                _bone_field(path, current, tokens, n, head.degrees)
         elif section == ":hierarchy":
             if key == "begin":
                 in_hierarchy_block = True
@@ -194,8 +168,51 @@ def read_asf(path: str | Path, metres_per_unit: float | None = None) -> AsfSkele
             raise MotionFormatError(path, f"no {required} section")
     if not hierarchy:
         raise MotionFormatError(path, "the hierarchy is empty")
-    metres = INCH / length_unit if metres_per_unit is None else float(metres_per_unit)
-    return _assemble(path, bones, hierarchy, root_order, root_axis, degrees, metres)
+    metres = INCH / head.length_unit if metres_per_unit is None else float(metres_per_unit)
+    return _assemble(path, bones, hierarchy, head.root_order, head.root_axis, head.degrees, metres)
+
+
+@dataclass
+class _Header:
+    """What the ``:units`` and ``:root`` sections say."""
+
+    length_unit: float = 1.0
+    degrees: bool = True
+    root_order: tuple[str, ...] = ("tx", "ty", "tz", "rx", "ry", "rz")
+    root_axis: str = "XYZ"
+
+
+def _units_field(path: str | Path, head: _Header, tokens: list[str], n: int, line: str) -> None:
+    key = tokens[0].lower()
+    if len(tokens) != 2:
+        raise MotionFormatError(path, f"units line needs a name and a value: {line!r}", n)
+    if key == "length":
+        (head.length_unit,) = parse_floats(path, tokens[1:], n, "units length")
+        if head.length_unit <= 0:
+            raise MotionFormatError(path, "units length must be positive", n)
+    elif key == "angle":
+        if tokens[1].lower() not in ("deg", "rad"):
+            raise MotionFormatError(path, f"angle unit {tokens[1]!r} is not deg or rad", n)
+        head.degrees = tokens[1].lower() == "deg"
+
+
+def _root_field(path: str | Path, head: _Header, tokens: list[str], n: int) -> None:
+    key = tokens[0].lower()
+    if key == "order":
+        order = tuple(t.lower() for t in tokens[1:])
+        bad = [t for t in order if t not in ROT_DOFS + TRANS_DOFS]
+        if bad or len(set(order)) != len(order):
+            raise MotionFormatError(path, f"bad root order {' '.join(tokens[1:])!r}", n)
+        head.root_order = order
+    elif key == "axis":
+        if len(tokens) != 2:
+            raise MotionFormatError(path, "root axis needs one order like XYZ", n)
+        head.root_axis = tokens[1]
+        _axis_q(path, np.zeros(3), head.root_axis, head.degrees, n)
+    elif key in ("position", "orientation"):
+        parse_floats(path, tokens[1:], n, f"root {key}")
+    else:
+        raise MotionFormatError(path, f"unknown root field {tokens[0]!r}", n)
 
 
 def _bone_field(path: str | Path, bone: _Bone, tokens: list[str], n: int, degrees: bool) -> None:

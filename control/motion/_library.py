@@ -23,7 +23,7 @@ import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -47,9 +47,11 @@ from ._types import Motion, Skeleton
 __all__ = [
     "Clip",
     "Library",
+    "LibrarySpec",
     "default_cache_dir",
     "default_library_path",
     "load_library",
+    "load_spec",
     "read_labels",
 ]
 
@@ -155,6 +157,39 @@ def default_cache_dir() -> Path:
 # --- loading -------------------------------------------------------------------------------
 
 
+@dataclass(frozen=True)
+class LibrarySpec:
+    """What to load (``load_library``'s arguments but the cache, workers and progress):
+    the folder, the clips, the rate, mirrored copies, the format preferred, BVH units and
+    the contact detector's options."""
+
+    root: Path
+    fps: float | None = 15.0
+    mirror: bool = False
+    prefer: str = "amc"
+    bvh_units: str | float = "auto"
+    clips: tuple[str, ...] | None = None
+    contact_options: dict[str, float | str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.prefer not in ("amc", "bvh"):
+            raise ValueError("prefer must be 'amc' or 'bvh'")
+        if not self.root.is_dir():
+            raise FileNotFoundError(f"motion library {self.root} is not a directory")
+
+    def sources(self) -> list[Source]:
+        """The files to load, in order (``MotionFormatError`` when none)."""
+        sources = discover(self.root, self.prefer)
+        if not sources:
+            raise MotionFormatError(self.root, "no .amc, .bvh or .motion.npz clips found")
+        if self.clips is not None:
+            patterns = list(self.clips)
+            sources = [s for s in sources if any(fnmatch.fnmatchcase(s.name, p) for p in patterns)]
+            if not sources:
+                raise MotionFormatError(self.root, f"no clip matches {', '.join(patterns)}")
+        return sources
+
+
 def load_library(
     root: str | Path | None = None,
     fps: float | None = 15.0,
@@ -184,24 +219,51 @@ def load_library(
     progress : called with a short message per clip parsed.
     clips : keep only clips whose name matches one of these shell patterns (``"01_*"``).
 
+    The first group of arguments is the ``LibrarySpec`` (what to load), the second how
+    (the cache, processes, progress): ``load_spec(spec, ...)`` takes them so.
+
     Raises
     ------
     MotionFormatError
         for the first file that cannot be read, naming it.
     """
-    if prefer not in ("amc", "bvh"):
-        raise ValueError("prefer must be 'amc' or 'bvh'")
-    root = Path(root) if root is not None else default_library_path()
-    if not root.is_dir():
-        raise FileNotFoundError(f"motion library {root} is not a directory")
-    sources = discover(root, prefer)
-    if not sources:
-        raise MotionFormatError(root, "no .amc, .bvh or .motion.npz clips found")
-    if clips is not None:
-        patterns = list(clips)
-        sources = [s for s in sources if any(fnmatch.fnmatchcase(s.name, p) for p in patterns)]
-        if not sources:
-            raise MotionFormatError(root, f"no clip matches {', '.join(patterns)}")
+    spec = LibrarySpec(
+        Path(root) if root is not None else default_library_path(),
+        fps,
+        mirror,
+        prefer,
+        bvh_units,
+        tuple(clips) if clips is not None else None,
+        dict(contact_options or {}),
+    )
+    return load_spec(spec, cache_dir, use_cache, workers, progress)
+
+
+def load_spec(
+    spec: LibrarySpec,
+    cache_dir: str | Path | None = None,
+    use_cache: bool = True,
+    workers: int | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> Library:
+    """The library ``spec`` names: its files parsed (or read from the cache), then its
+    clips made (labels, descriptions, mirrored copies, resampling, contacts)."""
+    sources = spec.sources()
+    motions = _parse_all(spec, sources, cache_dir, use_cache, workers, progress)
+    return _library_of(spec, sources, motions)
+
+
+def _parse_all(
+    spec: LibrarySpec,
+    sources: list[Source],
+    cache_dir: str | Path | None,
+    use_cache: bool,
+    workers: int | None,
+    progress: Callable[[str], None] | None,
+) -> dict[str, Motion]:
+    """Every source's motion: from the cache where it holds a good entry, else parsed
+    (in ``workers`` processes) and cached."""
+    bvh_units = spec.bvh_units
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     motions: dict[str, Motion] = {}
     todo: list[tuple[Source, str | float, str | None]] = []
@@ -240,10 +302,13 @@ def load_library(
                 progress(f"parsed {job[0].path.name}")
     if cache_dir is None and any(job[2] for job in todo):  # new entries: bound the cache
         bound_cache(keep=used)
+    return motions
 
-    names = {s.name for s in sources}
-    described = descriptions(root, names)
-    labelled = label_files(root)
+
+def _library_of(spec: LibrarySpec, sources: list[Source], motions: dict[str, Motion]) -> Library:
+    """The clips of the parsed ``motions``: labels, descriptions, mirrored copies."""
+    described = descriptions(spec.root, {s.name for s in sources})
+    labelled = label_files(spec.root)
     kept: list[Clip] = []
     for src in sources:
         raw = motions[src.name]
@@ -253,22 +318,23 @@ def load_library(
             else (np.full(raw.n_frames, -1, dtype=np.int64), ())
         )
         variants = [(raw, False)]
-        if mirror:
+        if spec.mirror:
             variants.append((mirror_motion(raw), True))
         for motion, mirrored in variants:
             kept.append(
                 _make_clip(
                     motion,
-                    fps,
+                    spec.fps,
                     described.get(src.name, ""),
                     labels,
                     label_names,
                     str(src.path),
                     mirrored,
-                    contact_options or {},
+                    spec.contact_options,
                 )
             )
-    return Library(str(root), None if fps is None else float(fps), tuple(kept))
+    fps = None if spec.fps is None else float(spec.fps)
+    return Library(str(spec.root), fps, tuple(kept))
 
 
 def _make_clip(

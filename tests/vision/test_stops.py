@@ -21,7 +21,7 @@ MIMIC = [sys.executable, "-m", "mimic"]
 
 
 def _start(argv: list[str], tmp_path: Path) -> subprocess.Popen[str]:
-    env = {**os.environ, "MIMIC_CACHE": str(tmp_path / "cache")}
+    env = dict(os.environ)  # the tests' shared cache (conftest.session_cache)
     return subprocess.Popen(
         [*MIMIC, *argv],
         cwd=REPO,
@@ -100,7 +100,7 @@ def test_sigterm_during_graph_walk_leaves_no_temporary_file(mocap: Path, tmp_pat
         "--clips",
         "13_30",
         "--seconds",
-        "36000",
+        "3600",  # an hour: about 2 s of writing to catch it in
         "--out",
         str(out),
     ]

@@ -1,5 +1,6 @@
-"""Package borders: no library module imports another package's private modules or
-names, and the command line lives in ``mimic`` alone."""
+"""Package borders and room sizes: no library module imports another package's private
+modules or names, the command line lives in ``mimic`` alone, and no file or function
+grows past what a newcomer can read."""
 
 from __future__ import annotations
 
@@ -89,3 +90,19 @@ def test_the_command_line_lives_in_mimic_alone() -> None:
             names = {t.split(".")[0] for _, t, _ in _imports(p)}
             assert "argparse" not in names, f"{p.relative_to(REPO)} holds command-line code"
             assert "mimic" not in names, f"{p.relative_to(REPO)} imports the command line"
+
+
+def test_no_file_over_500_lines_and_no_function_over_80() -> None:
+    """Rooms a newcomer can read: numba kernels may be long, nothing else."""
+    long = []
+    for p in _library_files():
+        src = p.read_text()
+        if len(src.splitlines()) > 500:
+            long.append(f"{p.relative_to(REPO)}: {len(src.splitlines())} lines")
+        for node in ast.walk(ast.parse(src)):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                kernel = any("jit" in ast.unparse(d) for d in node.decorator_list)
+                size = (node.end_lineno or node.lineno) - node.lineno + 1
+                if size > 80 and not kernel:
+                    long.append(f"{p.relative_to(REPO)}:{node.lineno}: {node.name} {size} lines")
+    assert not long, "\n".join(long)
