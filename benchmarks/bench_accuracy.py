@@ -126,7 +126,7 @@ def _recognition(
         hits: list[tuple[bool, bool, bool]] = []
         for end in range(m.n, len(x) + 1, max(1, round(0.5 * fps))):
             truth = labels[end - 1]
-            got = m.locate(x[end - m.n : end])
+            got = m.find_window(x[end - m.n : end])
             if truth is None or got is None:
                 continue
             rows = x[end - m.n : end]

@@ -78,7 +78,7 @@ class Matcher:
         self.n_features = self.desc.size
         reject = self.settings.reject
         self.reject = self.desc.reject if reject is None else reject
-        #: why the last ``decide`` or ``locate`` gave nothing ("" when it gave something)
+        #: why the last ``decide`` or ``find_window`` gave nothing ("" when it gave something)
         self.why = ""
         # the bank may hold several variants (bodies, shadows) of the ring's views
         self.ring_views = bank.settings.ring.n_views
@@ -169,7 +169,9 @@ class Matcher:
             return True
         return False
 
-    def locate(self, performer: FloatArray, exact: bool = False) -> tuple[int, int, float] | None:
+    def find_window(
+        self, performer: FloatArray, exact: bool = False
+    ) -> tuple[int, int, float] | None:
         """``(frame, view, cost)``: the library window (any frame of the component, any
         view and variant, the performer as seen or mirrored) that looks most like the
         performer's last features; ``frame`` is where the window starts, ``view`` the

@@ -105,8 +105,9 @@ def perform(
 
 class Performance:
     """One performance, a step a method: ``features`` of a frame, ``advance`` the buffer
-    and the avatar's clock to it, ``decide`` at a decision point (``locate`` the
-    performer first, ``relocate`` now and then without jumps), and ``run`` the loop."""
+    and the avatar's clock to it, ``decide`` at a decision point (``place_avatar`` where
+    the performer is first found, ``relocate`` now and then without jumps), and ``run``
+    the loop."""
 
     def __init__(
         self,
@@ -237,11 +238,11 @@ class Performance:
                 self.tape.append(self.latest_mask)
             self.views.append(self.view)
 
-    def locate(self, t: float, entry: dict[str, Any]) -> None:
+    def place_avatar(self, t: float, entry: dict[str, Any]) -> None:
         """At the first full buffer: start the avatar where the library looks most like
         the performer (its motion so far is dropped)."""
         matcher = self.matcher
-        got = matcher.locate(np.array(self.buffer))
+        got = matcher.find_window(np.array(self.buffer))
         if got is None:
             return
         self.located = True
@@ -266,12 +267,12 @@ class Performance:
         due = t - self.last_relocate >= settings.match.relocate - 1e-9
         if self.searcher is None and due:
             self.last_relocate = t
-            got = matcher.locate(np.array(self.buffer))
+            got = matcher.find_window(np.array(self.buffer))
         elif self.searcher is not None and self.pending is not None and self.pending.done():
             got, self.pending = self.pending.result(), None
         elif self.searcher is not None and self.pending is None and due:
             self.last_relocate = t
-            self.pending = self.searcher.submit(matcher.locate, np.array(self.buffer))
+            self.pending = self.searcher.submit(matcher.find_window, np.array(self.buffer))
         if got is None or not got[2] < settings.match.relocate_ratio * d.cost:
             return d
         way = matcher.route(self.avatar.frame, got[0])
@@ -312,7 +313,7 @@ class Performance:
             entry["skipped"] = missed
         full = len(self.buffer) == matcher.n
         if full and not self.located and settings.match.locate and self.start is None:
-            self.locate(t, entry)  # unless told where to start
+            self.place_avatar(t, entry)  # unless told where to start
             avatar = self.avatar
         # on the way to a relocation's window: no decision may turn it aside
         routing = t < self.en_route - 1e-9

@@ -4,7 +4,7 @@ from ._actions import ActionPlanner
 from ._blocks import BlockFit
 from ._draw import draw_top_down, environment_mesh
 from ._files import Environment, SketchFileError, read_environment, read_sketch
-from ._ground import SketchSettings, ground_path, path_deviation, resample, start_map
+from ._ground import SketchSettings, ground_path, path_deviation, resample_polyline, start_map
 from ._search import search_step
 from ._track import SketchTracker
 
@@ -21,7 +21,7 @@ __all__ = [
     "path_deviation",
     "read_environment",
     "read_sketch",
-    "resample",
+    "resample_polyline",
     "search_step",
     "start_map",
 ]

@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from ..clusters import HigherLayer
 from ..dtw import dtw
 from ..graph import compose
-from ._ground import SketchSettings, ground_path, resample
+from ._ground import SketchSettings, ground_path, resample_polyline
 
 if TYPE_CHECKING:
     from ._track import SketchTracker
@@ -40,7 +40,7 @@ class ActionPlanner:
 
     def set_sketch(self, sketch: FloatArray) -> None:
         """The sketch every ``dtw_spacing`` metres from its start, with arc lengths."""
-        self.fine = np.vstack((sketch[:1], resample(sketch, self.settings.dtw_spacing)))
+        self.fine = np.vstack((sketch[:1], resample_polyline(sketch, self.settings.dtw_spacing)))
         steps = np.linalg.norm(np.diff(self.fine, axis=0), axis=1)
         self.fine_s = np.concatenate(([0.0], np.cumsum(steps)))
 
@@ -77,7 +77,7 @@ class ActionPlanner:
             )
             if tr.env is not None and tr.env.clearance(ground).min() < s.body_radius:
                 continue
-            q = np.vstack((ground[:1], resample(ground, s.dtw_spacing)))
+            q = np.vstack((ground[:1], resample_polyline(ground, s.dtw_spacing)))
             length = float(np.linalg.norm(np.diff(ground, axis=0), axis=1).sum())
             # the part of the sketch it covers: up to the point nearest its end (no
             # further on than its own length and a metre)

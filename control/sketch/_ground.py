@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from ..graph import compose, rotate_y
 
-__all__ = ["SketchSettings", "ground_path", "path_deviation", "resample", "start_map"]
+__all__ = ["SketchSettings", "ground_path", "path_deviation", "resample_polyline", "start_map"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -43,7 +43,7 @@ class SketchSettings:
     max_actions: int = 128
 
 
-def resample(points: FloatArray, spacing: float) -> FloatArray:
+def resample_polyline(points: FloatArray, spacing: float) -> FloatArray:
     """Points ``spacing`` apart along a polyline ``(n, 2)``, the last point included."""
     seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
     s = np.concatenate(([0.0], np.cumsum(seg)))

@@ -51,7 +51,7 @@ from ..motion import Clip, Motion, qmul
 from ._actions import ActionPlanner
 from ._blocks import BlockFit
 from ._files import Environment
-from ._ground import SketchSettings, ground_path, path_deviation, resample, start_map
+from ._ground import SketchSettings, ground_path, path_deviation, resample_polyline, start_map
 from ._search import search_step
 
 __all__ = ["SketchTracker"]
@@ -144,7 +144,7 @@ class SketchTracker:
     # --- the sketch ------------------------------------------------------------------------
 
     def _set_goals(self) -> None:
-        self.goals = resample(self.sketch, self.settings.spacing)
+        self.goals = resample_polyline(self.sketch, self.settings.spacing)
         seg = np.linalg.norm(np.diff(np.vstack((self.goals, self.goals[-1:])), axis=0), axis=1)
         self._ahead = np.cumsum(seg[::-1])[::-1]  # sketch length beyond each goal
         if self.actions is not None:

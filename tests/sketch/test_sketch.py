@@ -22,7 +22,7 @@ from control.sketch import (
     path_deviation,
     read_environment,
     read_sketch,
-    resample,
+    resample_polyline,
 )
 from mimic.cli import main
 from tests.conftest import REPO
@@ -106,7 +106,7 @@ def test_clearance_agrees_with_matplotlib_inside_test(rng: np.random.Generator) 
 
 def test_resample_and_deviation() -> None:
     sketch = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0]])
-    goals = resample(sketch, 0.5)
+    goals = resample_polyline(sketch, 0.5)
     assert len(goals) == 6 and goals[-1] == pytest.approx([2, 1])
     assert np.allclose(np.linalg.norm(np.diff(goals, axis=0), axis=1), 0.5)
     d = path_deviation(np.array([[1.0, 0.3], [3.0, 0.5], [2.0, 2.0]]), sketch)

@@ -77,4 +77,4 @@ def test_index_top_windows_are_distinct_and_sorted(setup) -> None:
     assert 1 <= len(got) <= 6
     assert len({g[0] for g in got}) == len(got)
     assert [g[2] for g in got] == sorted(g[2] for g in got)
-    assert m.locate(perf[:15]) == (got[0][0], got[0][1] % 18, got[0][2])
+    assert m.find_window(perf[:15]) == (got[0][0], got[0][1] % 18, got[0][2])

@@ -88,14 +88,14 @@ def test_locate_finds_the_window_the_performer_replays(setup, banks, descriptor)
         centre = np.cumsum(move, axis=0) - move[0] + feats[:, -2:]
         # the silhouette centre is image position: any offset must not matter
         performer = np.concatenate((feats[:, :-2], centre + np.array([0.3, -0.1])), axis=1)
-        got = matcher.locate(performer)
+        got = matcher.find_window(performer)
         assert got is not None and got[2] < 1e-5
         assert got[0] == s or abs(got[0] - s) <= 1  # a held pose may match a neighbour
-    assert matcher.locate(np.full((matcher.n, matcher.n_features), np.nan)) is None
+    assert matcher.find_window(np.full((matcher.n, matcher.n_features), np.nan)) is None
     # features of the other descriptor are refused, with the way to make the right ones
     other = matcher.n_features + 1
     with pytest.raises(ValueError, match="silhouette_features"):
-        matcher.locate(np.zeros((matcher.n, other)))
+        matcher.find_window(np.zeros((matcher.n, other)))
     with pytest.raises(ValueError, match=f"{descriptor!r} descriptor"):
         matcher.decide(int(starts[0]), np.zeros((matcher.n, other)))
 
@@ -339,7 +339,7 @@ def test_a_bank_with_variants_reports_ring_views(setup, tmp_path: Path) -> None:
     feats = bank.features[b, view].astype(float)
     move = bank.root_motion[b, view].astype(float)
     centre = np.cumsum(move, axis=0) - move[0] + feats[:, -2:]
-    got = matcher.locate(np.concatenate((feats[:, :-2], centre), axis=1))
+    got = matcher.find_window(np.concatenate((feats[:, :-2], centre), axis=1))
     assert got is not None and got[1] == 5 and got[2] < 1e-5
     d = matcher.decide(s, np.concatenate((feats[:, :-2], centre), axis=1))
     assert d is not None and 0 <= d.view < 18
@@ -411,14 +411,14 @@ def test_garbage_is_rejected_and_the_log_says_why(setup) -> None:
         assert ok
         real.append(silhouette_features(img[..., 0] > 127, descriptor=matcher.desc))
     cap.release()
-    got = matcher.locate(np.array(real[::2]))
+    got = matcher.find_window(np.array(real[::2]))
     assert got is not None and matcher.why == ""
     noise = []
     for _ in range(matcher.n):
         m = (rng.random((120, 160)) < 0.5).astype(np.uint8)
         m[:10] = 0
         noise.append(silhouette_features(m, descriptor=matcher.desc))
-    assert matcher.locate(np.array(noise)) is None
+    assert matcher.find_window(np.array(noise)) is None
     assert matcher.why.startswith("no match (cost")
 
 
@@ -448,13 +448,13 @@ def test_the_pose_descriptor_finds_a_skeletons_own_frame_and_view(setup, tmp_pat
         px = ring.project(ring.to_camera(pts, np.broadcast_to(pose, (frames.size, 4, 4))))
         x = desc.from_points(px)  # the image corner as origin, as on the live side
         for reading in (x, desc.swap(x), desc.mirror(x)):
-            got = matcher.locate(reading)
+            got = matcher.find_window(reading)
             assert got is not None and abs(got[0] - s) <= 1
             if reading is x:
                 assert got[1] == view and matcher.per_frame(got[2], x) < 0.5
         upside = x.copy()
         upside[:, 1 : desc.n_shape : 2] *= -1.0
-        assert matcher.locate(upside) is None and "no match" in matcher.why
+        assert matcher.find_window(upside) is None and "no match" in matcher.why
 
 
 def test_perform_with_landmarks_logs_why_a_frame_has_no_pose(
