@@ -49,8 +49,7 @@ class JumpCosts:
     def __init__(self, graph: MotionGraph, clips: Sequence[Clip], anywhere: bool = False) -> None:
         self.graph = graph
         self.anywhere = anywhere
-        by_name = {c.name: c for c in clips}
-        self._clips = [by_name[n] for n in graph.clip_names]
+        self._clips = graph.clips_of(clips)
         self._feat: FrameFeatures | None = None
         first = np.zeros(graph.n_frames, dtype=bool)
         first[graph.clip_start[:-1]] = True

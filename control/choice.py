@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from .avatar import Avatar
 from .clusters import ClusterTree, HigherLayer
-from .graph import FrameData, compose, rotate_y
+from .graph import FrameData, rotate_y, segment_maps
 
 __all__ = ["Option", "offer"]
 
@@ -51,12 +51,7 @@ def _root_path(
     avatar: Avatar, data: FrameData, frames: IntArray, edges: IntArray
 ) -> NDArray[np.float64]:
     jumps = np.flatnonzero(edges >= 0)
-    yaws = np.empty(jumps.size + 1)
-    trans = np.empty((jumps.size + 1, 3))
-    yaws[0], trans[0] = avatar.root_transform()
-    for m, e in enumerate(edges[jumps]):
-        a = avatar.graph.align[e].astype(np.float64)
-        yaws[m + 1], trans[m + 1] = compose(float(yaws[m]), trans[m], float(a[0]), a[1:])
+    yaws, trans = segment_maps(avatar.graph.align[edges[jumps]], *avatar.root_transform())
     seg = np.searchsorted(jumps + 1, np.arange(frames.size), side="right")
     return rotate_y(data.root[frames], yaws[seg]) + trans[seg]
 

@@ -94,11 +94,8 @@ def build_higher_layer(
 ) -> HigherLayer:
     """Cluster the graph's frames (``k`` clusters, or chosen by effective BIC over ``ks``)
     and build the cluster forest with a ``bound_seconds`` time bound."""
-    by_name = {c.name: c for c in clips}
-    missing = [n for n in graph.clip_names if n not in by_name]
-    if missing:
-        raise KeyError(f"the graph needs clips the library lacks: {', '.join(missing)}")
-    feat = frame_features([by_name[n] for n in graph.clip_names], graph.options.coords)
+    chosen = graph.clips_of(clips)
+    feat = frame_features(chosen, graph.options.coords)
     x, q_hat = state_vectors(feat)
     if k is not None:
         best = fit_mixture(x, k, seeding=seeding, seed=seed)

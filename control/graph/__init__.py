@@ -34,7 +34,7 @@ from ._quality import (
     quality_summary,
     sole_speed,
 )
-from ._synth import FrameData, Synthesis, compose, hermite, synthesize
+from ._synth import FrameData, Synthesis, compose, hermite, segment_maps, synthesize
 from ._terrain import CapturedTerrain, FootTrack, captured_terrain, foot_track, terrain_options
 from ._walk import random_step, random_walk
 
@@ -82,6 +82,7 @@ __all__ = [
     "root_scales",
     "rotate_y",
     "save_graph",
+    "segment_maps",
     "select_clips",
     "sole_speed",
     "solve_leg",

@@ -181,6 +181,20 @@ class MotionGraph:
         ok[self.clip_start[1:] - 1] = False
         return ok
 
+    def playback_runs(self) -> IntArray:
+        """(n,) a number per frame, the same for frames that play on into one another:
+        ``f`` plays on to ``g > f`` without a transition when their numbers are equal."""
+        return np.cumsum(np.concatenate(([0], ~self.plays_on()[:-1])))
+
+    def clips_of(self, clips: Sequence[Clip]) -> list[Clip]:
+        """The graph's clips, in its order, from a library's ``clips`` (``KeyError``
+        naming those the library lacks)."""
+        by_name = {c.name: c for c in clips}
+        missing = [n for n in self.clip_names if n not in by_name]
+        if missing:
+            raise KeyError(f"the graph needs clips the library lacks: {', '.join(missing)}")
+        return [by_name[n] for n in self.clip_names]
+
 
 def select_clips(clips: Sequence[Clip]) -> tuple[list[Clip], list[str]]:
     """The clips the graph can join: the largest group (by frames) sharing joint names.

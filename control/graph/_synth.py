@@ -24,7 +24,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ..motion import (
     Clip,
@@ -76,11 +76,7 @@ class FrameData:
     clip's body), ``quats`` (n, J, 4), ``states`` (n, 2) contacts, and the ``skeleton``."""
 
     def __init__(self, graph: MotionGraph, clips: Sequence[Clip]) -> None:
-        by_name = {c.name: c for c in clips}
-        missing = [n for n in graph.clip_names if n not in by_name]
-        if missing:
-            raise KeyError(f"the graph needs clips the library lacks: {', '.join(missing)}")
-        chosen = [by_name[n] for n in graph.clip_names]
+        chosen = graph.clips_of(clips)
         sizes = np.array([c.motion.n_frames for c in chosen])
         if not np.array_equal(np.concatenate(([0], np.cumsum(sizes))), graph.clip_start):
             raise ValueError("the library's clips do not match the graph (frame counts differ)")
@@ -98,6 +94,23 @@ def compose(
 ) -> tuple[float, FloatArray]:
     """``T o A`` for the rigid maps ``p -> R_y(yaw) p + trans`` of the graph's alignments."""
     return yaw + a_yaw, rotate_y(a_trans, yaw) + trans
+
+
+def segment_maps(
+    align: ArrayLike, yaw: float = 0.0, trans: FloatArray | None = None
+) -> tuple[FloatArray, FloatArray]:
+    """The maps ``(yaws (M+1,), trans (M+1, 3))`` of a path's segments: the first is
+    ``(yaw, trans)``, each next one composed with the alignment ``align[m]`` (yaw, then
+    translation) of the transition that begins it."""
+    align = np.asarray(align, dtype=np.float64).reshape(-1, 4)
+    yaws = np.empty(len(align) + 1)
+    out = np.zeros((len(align) + 1, 3))
+    yaws[0] = yaw
+    if trans is not None:
+        out[0] = trans
+    for m, a in enumerate(align):
+        yaws[m + 1], out[m + 1] = compose(float(yaws[m]), out[m], float(a[0]), a[1:])
+    return yaws, out
 
 
 def hermite(e0: FloatArray, v0: FloatArray, k: FloatArray, b: int) -> FloatArray:
@@ -202,13 +215,8 @@ def _place_and_blend(
     the output with each transition's jump in pose and root displaced away over ``b``
     frames (``out``); the frames blended, and each new segment's virtual predecessor."""
     n_out = frames.size
-    # segment transforms
     n_seg = jumps.size + 1
-    seg_yaw = np.zeros(n_seg)
-    seg_trans = np.zeros((n_seg, 3))
-    for m, e in enumerate(edges):
-        a = align_of[e]
-        seg_yaw[m + 1], seg_trans[m + 1] = compose(seg_yaw[m], seg_trans[m], a[0], a[1:])
+    seg_yaw, seg_trans = segment_maps(align_of[edges])
     seg = np.searchsorted(jumps, np.arange(n_out), side="right")
 
     def aligned(g: IntArray, s: IntArray) -> tuple[FloatArray, FloatArray]:

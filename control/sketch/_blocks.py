@@ -48,8 +48,7 @@ class BlockFit:
                 f"the environment's blocks are {terrain.block} m but the graph's are "
                 f"{g.options.block} m"
             )
-        by_name = {c.name: c for c in clips}
-        chosen = [by_name[n] for n in g.clip_names]
+        chosen = g.clips_of(clips)
         feet = foot_track(chosen)
         if captured is None:
             captured = captured_terrain(chosen, terrain.block, feet=feet)

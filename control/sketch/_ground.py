@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..graph import compose, rotate_y
+from ..graph import rotate_y, segment_maps
 
 __all__ = ["SketchSettings", "ground_path", "path_deviation", "resample_polyline", "start_map"]
 
@@ -73,15 +73,16 @@ def ground_path(
     """Root on the ground ``(T, 2)`` and facing angles ``(T,)`` of a graph path
     (``edges[i]`` leads into ``frames[i + 1]``, -1 for playback) placed by the map
     ``p -> R_y(yaw) p + trans``."""
+    edges = np.asarray(edges)
+    jumps = np.flatnonzero(edges >= 0)  # frames[jumps + 1] begin new segments
+    yaws, moves = segment_maps(align[edges[jumps]], yaw, trans)
+    seg = np.searchsorted(jumps + 1, np.arange(len(frames)), side="right")
     out = np.empty((len(frames), 2))
     facing = np.empty(len(frames))
     for t, f in enumerate(frames):
-        if t > 0 and edges[t - 1] >= 0:
-            al = align[edges[t - 1]]
-            yaw, trans = compose(yaw, trans, float(al[0]), al[1:])
-        p = rotate_y(root[f], yaw) + trans
+        p = rotate_y(root[f], float(yaws[seg[t]])) + moves[seg[t]]
         out[t] = (p[0], p[2])
-        facing[t] = yaw + heading[f]
+        facing[t] = yaws[seg[t]] + heading[f]
     return out, facing
 
 

@@ -173,7 +173,7 @@ class SketchTracker:
         n = max(1, round(g.fps))
         scc = np.flatnonzero(g.in_scc)
         idx = scc[scc + n < g.n_frames]
-        runs = np.cumsum(np.concatenate(([0], ~self._plays)))
+        runs = g.playback_runs()
         idx = idx[runs[idx + n] == runs[idx]]
         if idx.size == 0:
             return scc
