@@ -10,18 +10,20 @@ import pytest
 from control.clusters import HigherLayer, build_higher_layer
 from control.graph import GraphOptions, build_graph
 from control.motion import Library, load_library
-from silhouette_bank import Bank, BankSettings, build_bank
+from silhouette_bank import Bank, BankSettings, ensure_bank
 from tests.conftest import REPO
 
 RECORDING = REPO / "recordings" / "13_29_first12s_160x120.mkv"
 
 
 @pytest.fixture(scope="session")
-def setup(
-    mocap: Path, tmp_path_factory: pytest.TempPathFactory
-) -> tuple[Library, HigherLayer, Bank]:
-    lib = load_library(mocap, clips=["13_30"], cache_dir=tmp_path_factory.mktemp("c"))
-    g = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.03))
-    layer = build_higher_layer(g, lib.clips, k=12)
-    bank = build_bank(lib.clips, BankSettings(), tmp_path_factory.mktemp("bank"), workers=1)
+def setup(mocap: Path, session_cache: Path) -> tuple[Library, HigherLayer, Bank]:
+    with pytest.MonkeyPatch.context() as mp:
+        # in the tests' shared cache: the bank is the one `mimic perform --clips 13_30`
+        # uses, so that the command-line tests load it rather than build it again
+        mp.setenv("MIMIC_CACHE", str(session_cache))
+        lib = load_library(mocap, clips=["13_30"])
+        g = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.03))
+        layer = build_higher_layer(g, lib.clips, k=12)
+        bank, _ = ensure_bank(lib.clips, BankSettings(), workers=1)
     return lib, layer, bank
