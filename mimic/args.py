@@ -20,6 +20,7 @@ __all__ = [
     "graph_for",
     "graph_options",
     "library_dir",
+    "library_for",
     "start_frame",
 ]
 
@@ -133,16 +134,23 @@ def blend_seconds(args: argparse.Namespace, default: float | None = None) -> flo
     return GraphOptions().blend if default is None else default
 
 
-def graph_for(args: argparse.Namespace) -> tuple[Library, MotionGraph, Path, bool]:
-    """The library and its (cached) graph, from ``add_library_args`` and ``add_graph_args``:
-    ``(library, graph, cache path, built)``."""
+def library_for(args: argparse.Namespace) -> Library:
+    """The library of ``add_library_args``'s arguments."""
     if args.fps is None or args.fps <= 0:
         raise ValueError("--fps must be positive")
-    options = graph_options(args)
     with step("motion library"):
-        library = load_library(
-            library_dir(args), fps=args.fps, mirror=args.mirror, clips=args.clips
-        )
+        return load_library(library_dir(args), fps=args.fps, mirror=args.mirror, clips=args.clips)
+
+
+def graph_for(
+    args: argparse.Namespace,
+    library: Library | None = None,
+    options: GraphOptions | None = None,
+) -> tuple[Library, MotionGraph, Path, bool]:
+    """The library (``library_for``, unless given) and its cached graph with ``options``
+    (``graph_options(args)``, unless given): ``(library, graph, cache path, built)``."""
+    options = options or graph_options(args)
+    library = library or library_for(args)
     with step("motion graph"):
         graph, path, built = cached_graph(library.clips, options, rebuild=args.rebuild)
     return library, graph, path, built

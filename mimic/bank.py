@@ -10,7 +10,6 @@ from typing import Any
 import cv2
 import numpy as np
 
-from control.motion import Library, load_library
 from control.progress import bar
 from silhouette_bank import (
     DEFAULT_DESCRIPTOR,
@@ -24,7 +23,7 @@ from silhouette_bank import (
     motion_silhouettes,
 )
 
-from .args import add_library_args, library_dir
+from .args import add_library_args, library_for
 
 __all__ = ["add_bank_args", "add_bank_commands", "bank_settings", "contact_sheet"]
 
@@ -101,12 +100,8 @@ def add_bank_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     show.set_defaults(func=_show)
 
 
-def _library(args: argparse.Namespace) -> Library:
-    return load_library(library_dir(args), fps=args.fps, mirror=args.mirror, clips=args.clips)
-
-
 def _build(args: argparse.Namespace) -> int:
-    library = _library(args)
+    library = library_for(args)
     settings = bank_settings(args)
     bank, built = ensure_bank(
         library.clips,
@@ -174,7 +169,7 @@ def contact_sheet(masks: np.ndarray, cols: int = 6) -> np.ndarray:
 
 
 def _show(args: argparse.Namespace) -> int:
-    library = _library(args)
+    library = library_for(args)
     settings = bank_settings(args)
     clip_name, _, frame = args.frame.rpartition(":")
     if not clip_name or not frame.isdigit():

@@ -15,7 +15,6 @@ from typing import Any
 
 from control.clusters import cached_higher_layer
 from control.graph import cached_graph
-from control.motion import load_library
 from control.progress import bar, step
 from silhouette_bank import (
     DEFAULT_DESCRIPTOR,
@@ -46,7 +45,7 @@ from .args import (
     add_library_args,
     blend_seconds,
     graph_options,
-    library_dir,
+    library_for,
     start_frame,
 )
 
@@ -210,12 +209,7 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
 def _clips(args: argparse.Namespace) -> list[Any]:
     """The library's clips, less those left out (``--leave-out``) and, unless
     ``--off-floor``, those whose feet leave the floor; said on stderr."""
-    if args.fps is None or args.fps <= 0:
-        raise ValueError("--fps must be positive")
-    with step("motion library"):
-        library = load_library(
-            library_dir(args), fps=args.fps, mirror=args.mirror, clips=args.clips
-        )
+    library = library_for(args)
     clips = [
         c for c in library.clips if not any(fnmatch.fnmatchcase(c.name, p) for p in args.leave_out)
     ]

@@ -10,8 +10,8 @@ from typing import Any
 import numpy as np
 
 from control.clusters import HigherLayer, cached_higher_layer
-from control.graph import CapturedTerrain, MotionGraph, cached_graph, terrain_options
-from control.motion import Library, load_library, write_bvh
+from control.graph import CapturedTerrain, MotionGraph, terrain_options
+from control.motion import Library, write_bvh
 from control.progress import step
 from control.sketch import (
     SketchSettings,
@@ -28,7 +28,7 @@ from .args import (
     blend_seconds,
     graph_for,
     graph_options,
-    library_dir,
+    library_for,
     start_frame,
 )
 
@@ -184,9 +184,7 @@ def _terrain_graph(
         )
     if args.mirror:
         raise ValueError("--mirror cannot be used on terrain: mirrored clips leave the block grid")
-    if args.fps is None or args.fps <= 0:
-        raise ValueError("--fps must be positive")
-    library = load_library(library_dir(args), fps=args.fps, clips=args.clips)
+    library = library_for(args)
     options, captured = terrain_options(library.clips, block, graph_options(args))
-    graph, _, _ = cached_graph(library.clips, options, rebuild=args.rebuild)
+    _, graph, _, _ = graph_for(args, library, options)
     return library, graph, captured
