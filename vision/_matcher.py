@@ -210,31 +210,8 @@ class Matcher:
         """The shortest way ``(frames, edges)`` from ``frame`` to ``target`` through the
         graph's component (playing on and transitions, one frame per step; breadth
         first), at most ``settings.route`` seconds long, or ``None``."""
-        g = self.graph
-        bound = max(1, round(self.settings.route * g.fps))
-        prev: dict[int, tuple[int, int]] = {frame: (-1, -1)}
-        layer = [frame]
-        depth = 0
-        indptr = g.indptr
-        while target not in prev and layer and depth < bound:
-            depth += 1
-            nxt = []
-            for u in layer:
-                steps = [(u + 1, -1)] if self.plays[u] else []
-                steps += [(int(g.dst[e]), e) for e in range(indptr[u], indptr[u + 1])]
-                for v, e in steps:
-                    if v not in prev and g.in_scc[v]:
-                        prev[v] = (u, e)
-                        nxt.append(v)
-            layer = nxt
-        if target not in prev:
-            return None
-        frames, edges = [target], []
-        while prev[frames[-1]][0] >= 0:
-            u, e = prev[frames[-1]]
-            edges.append(e)
-            frames.append(u)
-        return np.array(frames[::-1], dtype=np.int64), np.array(edges[::-1], dtype=np.int64)
+        bound = max(1, round(self.settings.route * self.graph.fps))
+        return self.graph.route(frame, target, bound, self.plays)
 
     def _path(self, frame: int, node: int) -> tuple[IntArray, IntArray] | None:
         tree = self.layer.forest.tree(frame)

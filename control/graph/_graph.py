@@ -186,6 +186,42 @@ class MotionGraph:
         ``f`` plays on to ``g > f`` without a transition when their numbers are equal."""
         return np.cumsum(np.concatenate(([0], ~self.plays_on()[:-1])))
 
+    def route(
+        self,
+        frame: int,
+        target: int,
+        max_steps: int,
+        plays: NDArray[np.bool_] | None = None,
+    ) -> tuple[IntArray, IntArray] | None:
+        """The shortest way ``(frames, edges)`` from ``frame`` to ``target`` through the
+        component (playing on where ``plays``, default ``plays_on()``, and transitions;
+        one frame per step, breadth first), at most ``max_steps`` steps, or ``None``.
+        ``edges[i]`` leads into ``frames[i + 1]`` (-1: playing on)."""
+        plays = self.plays_on() if plays is None else plays
+        prev: dict[int, tuple[int, int]] = {frame: (-1, -1)}
+        layer = [frame]
+        depth = 0
+        indptr = self.indptr
+        while target not in prev and layer and depth < max_steps:
+            depth += 1
+            nxt = []
+            for u in layer:
+                steps = [(u + 1, -1)] if plays[u] else []
+                steps += [(int(self.dst[e]), e) for e in range(indptr[u], indptr[u + 1])]
+                for v, e in steps:
+                    if v not in prev and self.in_scc[v]:
+                        prev[v] = (u, e)
+                        nxt.append(v)
+            layer = nxt
+        if target not in prev:
+            return None
+        frames, edges = [target], []
+        while prev[frames[-1]][0] >= 0:
+            u, e = prev[frames[-1]]
+            edges.append(e)
+            frames.append(u)
+        return np.array(frames[::-1], dtype=np.int64), np.array(edges[::-1], dtype=np.int64)
+
     def clips_of(self, clips: Sequence[Clip]) -> list[Clip]:
         """The graph's clips, in its order, from a library's ``clips`` (``KeyError``
         naming those the library lacks)."""

@@ -102,6 +102,28 @@ def test_walk_never_leaves_the_component(medium_lib: Library) -> None:
         random_walk(g, 10, start=int(np.flatnonzero(~g.in_scc)[0]))
 
 
+def test_route_is_the_shortest_way_through_the_component(medium_lib: Library) -> None:
+    g = build_graph(medium_lib.clips, GraphOptions(coords="relative"))
+    frames, _, _ = random_walk(g, 400, seed=3)
+    start, target = int(frames[0]), int(frames[-1])
+    way = g.route(start, target, 400)
+    assert way is not None
+    path, through = way
+    assert path[0] == start and path[-1] == target and through.size == path.size - 1
+    assert path.size <= frames.size  # no longer than the walk that got there
+    play = through < 0
+    assert np.all(path[1:][play] == path[:-1][play] + 1)  # playing on: the next frame
+    assert np.array_equal(g.src[through[~play]], path[:-1][~play])
+    assert np.array_equal(g.dst[through[~play]], path[1:][~play])
+    assert g.in_scc[path].all()
+    # shortest: breadth first finds nothing in fewer steps
+    assert g.route(start, target, path.size - 2) is None
+    here = g.route(start, start, 5)
+    assert here is not None and here[0].tolist() == [start] and here[1].size == 0
+    outside = int(np.flatnonzero(~g.in_scc)[0])
+    assert g.route(start, outside, 10_000) is None
+
+
 def test_artifact_round_trip_and_bad_files(walk_lib: Library, tmp_path: Path) -> None:
     g = build_graph(walk_lib.clips, GraphOptions(coords="relative"))
     path = save_graph(g, tmp_path / "g.npz")
