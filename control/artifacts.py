@@ -141,8 +141,10 @@ def read_npz(
         with path.open("rb") as fh, np.load(fh, allow_pickle=False) as z:
             missing = [k for k in keys if k not in z.files]
             arrays = {} if missing else {k: z[k] for k in keys}
-    except Exception as exc:  # a damaged zip or header raises anything
-        # (zlib.error, EOFError, tokenize.TokenError, NotImplementedError, MemoryError, ...)
+    except Exception as exc:
+        # a damaged zip or array header raises many kinds of exception: zlib.error,
+        # EOFError, BadZipFile, tokenize.TokenError, NotImplementedError, MemoryError;
+        # whichever it is, the file is named
         raise error(
             path, f"unreadable, truncated or damaged ({type(exc).__name__}: {exc})"
         ) from exc

@@ -114,7 +114,6 @@ class SketchTracker:
             if self.terrain is not None
             else None
         )
-        self.captured: CapturedTerrain | None = self.blocks.captured if self.blocks else None
         if start is not None and not (0 <= start < graph.n_frames and graph.in_scc[start]):
             raise ValueError(f"start frame {start} is not in the graph's component")
         if self.blocks is not None:
@@ -186,6 +185,11 @@ class SketchTracker:
         return np.asarray(idx[np.argsort(cost, kind="stable")], dtype=np.int64)
 
     # --- state -----------------------------------------------------------------------------
+
+    @property
+    def captured(self) -> CapturedTerrain | None:
+        """On block terrain, the terrain the library was captured on."""
+        return self.blocks.captured if self.blocks is not None else None
 
     @property
     def progress(self) -> float:
