@@ -25,15 +25,18 @@ from ._descriptor import (
     get_descriptor,
     grid_cells,
     hu_log,
+    mask_extents,
 )
 from ._features import feature_size, silhouette_features
 from ._gl import GLRenderer
+from ._metric import METRIC_FRAMES, lda_directions, learn_metric, metric_rings
 from ._raster import rasterize
 from ._render import (
     draw_ground_shadow,
     gl_features,
     gl_silhouettes,
     motion_features,
+    motion_features_both,
     motion_silhouettes,
     render_motion_video,
     shaded_frames,
@@ -47,6 +50,7 @@ __all__ = [
     "DESCRIPTORS",
     "HU_SCALE",
     "METRIC_DIMS",
+    "METRIC_FRAMES",
     "POSE_JOINTS",
     "SHIN_RATIO",
     "THIGH_RATIO",
@@ -74,8 +78,13 @@ __all__ = [
     "gl_silhouettes",
     "grid_cells",
     "hu_log",
+    "lda_directions",
+    "learn_metric",
     "load_bank",
+    "mask_extents",
+    "metric_rings",
     "motion_features",
+    "motion_features_both",
     "motion_silhouettes",
     "rasterize",
     "render_motion_video",

@@ -45,11 +45,11 @@ from control.artifacts import (
 )
 from control.motion import Clip, Motion, clips_digest
 
-from ._body import capsule_body
+from ._body import BodyShape, capsule_body
 from ._descriptor import get_descriptor
 from ._metric import learn_metric
 from ._pose import motion_pose_features
-from ._render import motion_features
+from ._render import motion_features_both
 from ._settings import BANK_VERSION, BankSettings
 
 __all__ = [
@@ -139,17 +139,7 @@ def _shard_job(
         if settings.descriptor == "pose":
             f, m = motion_pose_features(motion, settings.ring, frames)
         elif settings.renderer == "raster":
-            parts = [
-                motion_features(
-                    motion,
-                    capsule_body(motion.skeleton, shape),
-                    settings.ring,
-                    frames,
-                    shadow=sh,
-                    descriptor=settings.descriptor,
-                )
-                for shape, sh in settings.variants
-            ]
+            parts = _variant_features(motion, settings, frames)
             f = np.concatenate([p[0] for p in parts], axis=1)
             m = np.concatenate([p[1] for p in parts], axis=1)
         else:
@@ -167,6 +157,24 @@ def _shard_job(
     with atomic_write(path, "wb") as fh:
         np.savez(fh, checksum=np.array(checksum({}, arrays)), **arrays)  # type: ignore[arg-type]
     return index, path
+
+
+def _variant_features(
+    motion: Motion, settings: BankSettings, frames: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``motion_features`` of each of ``settings.variants``, in bank order; a body with
+    and without a shadow rasterized once (``motion_features_both``)."""
+    shadows: dict[BodyShape, list[bool]] = {}
+    for shape, sh in settings.variants:
+        shadows.setdefault(shape, []).append(sh)
+    got = {}
+    for shape, which in shadows.items():
+        body = capsule_body(motion.skeleton, shape)
+        seen = motion_features_both(
+            motion, body, settings.ring, frames, descriptor=settings.descriptor, shadows=(*which,)
+        )
+        got.update({(shape, sh): fm for sh, fm in zip(which, seen, strict=True)})
+    return [got[v] for v in settings.variants]
 
 
 def _read_npz(path: Path, keys: Sequence[str]) -> dict[str, np.ndarray]:

@@ -35,6 +35,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import cv2
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -52,6 +53,7 @@ __all__ = [
     "get_descriptor",
     "grid_cells",
     "hu_log",
+    "mask_extents",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -106,26 +108,85 @@ def grid_cells(
     columns (rounded) centred on ``cx`` (pixel-index coordinates, as the centroid of
     ``cv2.moments``; sampled to a fraction of a pixel, so the mirrored image gives the
     mirrored cells); cells beyond the image are empty."""
-    h = bottom - top
-    width = max(1, round(h * cols / rows))
+    return _cells(_crop(mask, top, bottom, cx, _grid_width(bottom - top, rows, cols)), rows, cols)
+
+
+def _grid_width(h: int, rows: int, cols: int) -> int:
+    return max(1, round(h * cols / rows))
+
+
+def _crop(
+    mask: NDArray[np.uint8], top: int, bottom: int, cx: float, width: int
+) -> NDArray[np.float32]:
+    """Image rows ``[top, bottom)`` and ``width`` columns centred on ``cx``, as float32."""
     shift = np.array([[1.0, 0.0, cx - (width - 1) / 2.0], [0.0, 1.0, float(top)]])
     crop = cv2.warpAffine(
         np.asarray(mask, dtype=np.float32),
         shift,
-        (width, h),
+        (width, bottom - top),
         flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
         borderMode=cv2.BORDER_CONSTANT,
         borderValue=0.0,
     )
+    return np.asarray(crop, dtype=np.float32)
+
+
+def _cells(crop: NDArray[np.float32], rows: int, cols: int) -> FloatArray:
     cells = cv2.resize(crop, (cols, rows), interpolation=cv2.INTER_AREA)
     # the area average of values in [0, 1], less float32's rounding (1.0000002 seen)
     return np.clip(np.asarray(cells, dtype=np.float64).ravel(), 0.0, 1.0)
 
 
-def _binary(mask: NDArray[np.generic]) -> NDArray[np.uint8]:
+@numba.njit(cache=True, parallel=True)
+def _extents_kernel(masks: NDArray[np.uint8], out: NDArray[np.int64]) -> None:
+    n, h, w = masks.shape
+    for k in numba.prange(n):
+        m00 = 0
+        m10 = 0
+        m01 = 0
+        top = -1
+        bottom = -1
+        for y in range(h):
+            row = 0
+            xs = 0
+            for x in range(w):
+                v = int(masks[k, y, x] != 0)
+                row += v
+                xs += v * x
+            if row > 0:
+                if top < 0:
+                    top = y
+                bottom = y + 1
+                m00 += row
+                m10 += xs
+                m01 += row * y
+        out[k, 0] = m00
+        out[k, 1] = m10
+        out[k, 2] = m01
+        out[k, 3] = top
+        out[k, 4] = bottom
+
+
+def mask_extents(masks: NDArray[np.generic]) -> NDArray[np.int64]:
+    """Per mask of ``masks`` ``(N, H, W)`` (nonzero = silhouette): ``(N, 5)`` integers
+    ``m00, m10, m01, top, bottom``, the raw image moments of order 0 and 1 (as
+    ``cv2.moments(mask, binaryImage=True)`` has them, exactly: they are sums of pixel
+    indices) and the rows ``[top, bottom)`` the silhouette spans (-1, -1 when empty)."""
+    m = np.asarray(masks)
+    if m.ndim != 3:
+        raise ValueError(f"masks must be (N, H, W), got shape {m.shape}")
+    if m.dtype != np.uint8:
+        m = (m != 0).view(np.uint8)
+    out = np.empty((m.shape[0], 5), dtype=np.int64)
+    _extents_kernel(np.ascontiguousarray(m), out)
+    return out
+
+
+def _binary(mask: NDArray[np.generic], ndim: int = 2) -> NDArray[np.uint8]:
     m = np.ascontiguousarray(mask)
-    if m.ndim != 2:
-        raise ValueError(f"mask must be 2-D, got shape {m.shape}")
+    if m.ndim != ndim:
+        what = "2-D" if ndim == 2 else "(N, H, W)"
+        raise ValueError(f"mask must be {what}, got shape {m.shape}")
     if m.dtype != np.uint8 or m.max(initial=0) > 1:
         m = (m != 0).astype(np.uint8)
     return m
@@ -185,25 +246,37 @@ class Descriptor:
         """The vector ``(size,)`` of a binary mask ``(H, W)`` (nonzero = silhouette), all
         NaN when it is empty; ``origin`` in pixels (x right, y down). The centre is the
         silhouette's centroid minus ``origin``, over the silhouette's height, y up."""
-        m = _binary(mask)
-        out = np.full(self.size, np.nan)
-        mom = cv2.moments(m, binaryImage=True)
-        if mom["m00"] <= 0:
-            return out
-        rows = np.flatnonzero(m.any(axis=1))
-        top, bottom = int(rows[0]), int(rows[-1]) + 1
-        height = float(bottom - top)
-        cx = mom["m10"] / mom["m00"]
-        cy = mom["m01"] / mom["m00"]
-        out[: self.n_shape] = self._shape_of(m, mom, top, bottom, cx)
-        out[-2] = (cx - origin[0]) / height
-        out[-1] = -(cy - origin[1]) / height
+        return self.from_masks(_binary(mask)[None], np.asarray([origin], dtype=np.float64))[0]
+
+    def from_masks(
+        self,
+        masks: NDArray[np.generic],
+        origins: NDArray[np.floating] | None = None,
+        extents: NDArray[np.int64] | None = None,
+    ) -> FloatArray:
+        """``from_mask`` of each of ``masks`` ``(N, H, W)``: ``(N, size)``; ``origins``
+        ``(N, 2)`` (default 0), ``extents`` the masks' ``mask_extents`` if the caller
+        has them."""
+        if self.kind != "silhouette":
+            raise ValueError(
+                f"the {self.name!r} descriptor is computed from body landmarks, not masks"
+            )
+        m = _binary(masks, ndim=3)
+        n = m.shape[0]
+        org = np.zeros((n, 2)) if origins is None else np.asarray(origins, dtype=np.float64)
+        ext = mask_extents(m) if extents is None else extents
+        out = np.full((n, self.size), np.nan)
+        for k in np.flatnonzero(ext[:, 0] > 0):
+            m00, m10, m01, top, bottom = (int(v) for v in ext[k])
+            height = float(bottom - top)
+            cx, cy = m10 / m00, m01 / m00
+            out[k, : self.n_shape] = self._shape_of(m[k], top, bottom, cx)
+            out[k, -2] = (cx - org[k, 0]) / height
+            out[k, -1] = -(cy - org[k, 1]) / height
         return out
 
-    def _shape_of(
-        self, m: NDArray[np.uint8], mom: dict[str, float], top: int, bottom: int, cx: float
-    ) -> FloatArray:
-        raise ValueError(f"the {self.name!r} descriptor is computed from body landmarks, not masks")
+    def _shape_of(self, m: NDArray[np.uint8], top: int, bottom: int, cx: float) -> FloatArray:
+        raise NotImplementedError
 
 
 @dataclass(frozen=True)
@@ -224,9 +297,8 @@ class HuDescriptor(Descriptor):
         out[..., 6] *= -1.0  # h7 is the skew invariant: it changes sign under reflection
         return out
 
-    def _shape_of(
-        self, m: NDArray[np.uint8], mom: dict[str, float], top: int, bottom: int, cx: float
-    ) -> FloatArray:
+    def _shape_of(self, m: NDArray[np.uint8], top: int, bottom: int, cx: float) -> FloatArray:
+        mom = cv2.moments(m, binaryImage=True)
         return hu_log(np.asarray(cv2.HuMoments(mom), dtype=np.float64).ravel())
 
 
@@ -244,10 +316,15 @@ class GridDescriptor(Descriptor):
         if sum(r * c for r, c in self.levels) != self.n_shape:
             raise ValueError(f"{self.name}: n_shape must be the number of cells of {self.levels}")
 
-    def _shape_of(
-        self, m: NDArray[np.uint8], mom: dict[str, float], top: int, bottom: int, cx: float
-    ) -> FloatArray:
-        return np.concatenate([grid_cells(m, top, bottom, cx, r, c) for r, c in self.levels])
+    def _shape_of(self, m: NDArray[np.uint8], top: int, bottom: int, cx: float) -> FloatArray:
+        crops: dict[int, NDArray[np.float32]] = {}  # levels of one aspect share a crop
+        cells = []
+        for r, c in self.levels:
+            width = _grid_width(bottom - top, r, c)
+            if width not in crops:
+                crops[width] = _crop(m, top, bottom, cx, width)
+            cells.append(_cells(crops[width], r, c))
+        return np.concatenate(cells)
 
     def mirror(self, x: NDArray[np.floating]) -> NDArray[np.floating]:
         out = super().mirror(x)

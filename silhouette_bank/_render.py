@@ -15,7 +15,8 @@ from control.motion import Motion
 
 from ._body import CapsuleBody, capsule_segments
 from ._camera import CameraRing
-from ._features import feature_size, silhouette_features
+from ._descriptor import get_descriptor, mask_extents
+from ._features import feature_size
 from ._gl import GLRenderer
 from ._raster import rasterize
 
@@ -23,6 +24,7 @@ __all__ = [
     "gl_features",
     "gl_silhouettes",
     "motion_features",
+    "motion_features_both",
     "motion_silhouettes",
     "render_motion_video",
     "shaded_frames",
@@ -85,18 +87,16 @@ def _features_of(
     """Features and root motion of masks ``(n, V, H, W)`` given the root's projection
     now and at the previous frame ``(n, V, 2)``; ``first`` marks clip starts."""
     n, v = masks.shape[:2]
-    feats = np.empty((n, v, feature_size(descriptor)), dtype=np.float32)
+    flat = masks.reshape(n * v, *masks.shape[2:])
+    extents = mask_extents(flat)
+    desc = get_descriptor(descriptor)
+    feats = desc.from_masks(flat, here.reshape(n * v, 2), extents).astype(np.float32)
+    height = (extents[:, 4] - extents[:, 3]).reshape(n, v, 1).astype(np.float64)
     moves = np.zeros((n, v, 2), dtype=np.float32)
-    for i in range(n):
-        for j in range(v):
-            feats[i, j] = silhouette_features(
-                masks[i, j], (float(here[i, j, 0]), float(here[i, j, 1])), descriptor
-            )
-            rows = np.flatnonzero(masks[i, j].any(axis=1))
-            if rows.size and not first[i]:
-                d = (here[i, j] - before[i, j]) / float(rows[-1] - rows[0] + 1)
-                moves[i, j] = (d[0], -d[1])
-    return feats, moves
+    seen = (extents[:, 0] > 0).reshape(n, v) & ~np.asarray(first, dtype=bool)[:, None]
+    d = (here - before)[seen] / height[seen]
+    moves[seen] = np.stack((d[:, 0], -d[:, 1]), axis=1)
+    return feats.reshape(n, v, desc.size), moves
 
 
 def _root_pixels(
@@ -126,9 +126,29 @@ def motion_features(
     the root's displacement since the previous frame as the current frame's camera sees
     it, in the same units (silhouette heights, x right, y up); 0 at a clip's first frame.
     """
+    return motion_features_both(motion, body, ring, frames, chunk, descriptor, (shadow,))[0]
+
+
+def motion_features_both(
+    motion: Motion,
+    body: CapsuleBody,
+    ring: CameraRing,
+    frames: NDArray[np.int64] | None = None,
+    chunk: int = 64,
+    descriptor: str = "hu",
+    shadows: tuple[bool, ...] = (False, True),
+) -> list[tuple[NDArray[np.float32], NDArray[np.float32]]]:
+    """``motion_features`` with each of ``shadows``, rasterizing each frame once: the
+    silhouettes with a shadow are those without plus the blob."""
     frames = np.arange(motion.n_frames) if frames is None else np.asarray(frames, dtype=np.int64)
-    feats = np.empty((frames.size, ring.n_views, feature_size(descriptor)), dtype=np.float32)
-    moves = np.zeros((frames.size, ring.n_views, 2), dtype=np.float32)
+    size = (frames.size, ring.n_views)
+    out = {
+        sh: (
+            np.empty((*size, feature_size(descriptor)), dtype=np.float32),
+            np.zeros((*size, 2), dtype=np.float32),
+        )
+        for sh in shadows
+    }
     for s in range(0, frames.size, chunk):
         fr = frames[s : s + chunk]
         cam, poses, _ = _camera_segments(motion, body, ring, fr)
@@ -136,16 +156,20 @@ def motion_features(
         masks = rasterize(cam.reshape(n * v, *cam.shape[2:]), body.radius, ring).reshape(
             n, v, ring.height_px, ring.width
         )
-        if shadow:
-            ground = motion.root_pos[fr].copy()
-            ground[:, 1] = 0.0
-            g_cam = ring.to_camera(ground[:, None, None, :], poses)[..., 0, :]  # (n, V, 3)
-            for i in range(n):
-                for j in range(v):
-                    draw_ground_shadow(masks[i, j], ring, g_cam[i, j])
         here, before = _root_pixels(motion, ring, fr, poses)
-        feats[s : s + n], moves[s : s + n] = _features_of(masks, here, before, fr == 0, descriptor)
-    return feats, moves
+        for sh in sorted(out):  # without the shadow first: it is drawn into the masks
+            if sh:
+                ground = motion.root_pos[fr].copy()
+                ground[:, 1] = 0.0
+                g_cam = ring.to_camera(ground[:, None, None, :], poses)[..., 0, :]  # (n, V, 3)
+                for i in range(n):
+                    for j in range(v):
+                        draw_ground_shadow(masks[i, j], ring, g_cam[i, j])
+            feats, moves = out[sh]
+            feats[s : s + n], moves[s : s + n] = _features_of(
+                masks, here, before, fr == 0, descriptor
+            )
+    return [out[sh] for sh in shadows]
 
 
 def gl_silhouettes(

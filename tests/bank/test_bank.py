@@ -26,6 +26,8 @@ from silhouette_bank import (
     capsule_body,
     ensure_bank,
     feature_size,
+    lda_directions,
+    learn_metric,
     load_bank,
     motion_features,
     robust_settings,
@@ -279,8 +281,6 @@ def test_a_pose_bank_projects_the_joints(lib: Library, tmp_path: Path) -> None:
 def test_the_learned_metric_discounts_the_body_and_keeps_the_pose(lib: Library) -> None:
     """Same frame and view, other body widths: near under the metric; other frames: far
     (measured against the plain standardised cells)."""
-    from silhouette_bank._metric import learn_metric
-
     ring = SMALL.ring
     mean, proj = learn_metric(lib.clips, "multigrid", ring, BodyShape(), 24)
     assert proj.shape == (168, 24) and np.isfinite(proj).all()
@@ -302,3 +302,22 @@ def test_the_learned_metric_discounts_the_body_and_keeps_the_pose(lib: Library) 
     plain = ratio(a, b)
     learned = ratio((a - mean) @ proj, (b - mean) @ proj)
     assert learned < 0.7 * plain
+
+
+@pytest.mark.parametrize(("classes", "numbers", "per"), [(40, 12, 5), (300, 30, 3)])
+def test_lda_directions_are_scikit_learns(classes: int, numbers: int, per: int) -> None:
+    """The one-pass solution against scikit-learn's LinearDiscriminantAnalysis (eigen
+    solver, the same shrinkage), on classes of unequal sizes and correlated spread."""
+    from sklearn.discriminant_analysis import LinearDiscriminantAnalysis
+
+    rng = np.random.default_rng(classes)
+    centres = rng.normal(size=(classes, numbers)) * rng.uniform(0.1, 3.0, size=numbers)
+    y = np.repeat(np.arange(classes), per)
+    y = np.concatenate((y, rng.integers(0, classes, size=classes)))  # unequal sizes
+    x = centres[y] + 0.3 * rng.normal(size=(y.size, numbers)) @ rng.normal(size=(numbers,) * 2)
+    want = LinearDiscriminantAnalysis(solver="eigen", shrinkage=1e-3).fit(x, y).scalings_[:, :6]
+    got = lda_directions(x, rng.permutation(classes)[y], 6)  # the class names do not matter
+    sign = np.sign((want * got).sum(axis=0))  # an eigenvector's sign is arbitrary
+    np.testing.assert_allclose(got * sign, want, atol=1e-9 * np.abs(want).max())
+    with pytest.raises(ValueError, match="dims must be in 1"):
+        lda_directions(x, y, numbers + 1)

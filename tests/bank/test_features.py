@@ -1,4 +1,5 @@
-"""Silhouette features: hand-worked shapes, skimage's Hu moments, invariances."""
+"""Silhouette features: hand-worked shapes, skimage's Hu moments, invariances, and the
+batch of masks against the masks one by one."""
 
 from __future__ import annotations
 
@@ -10,10 +11,12 @@ from skimage.measure import moments_central, moments_hu, moments_normalized
 from silhouette_bank import (
     DESCRIPTORS,
     THIGH_RATIO,
+    GridDescriptor,
     feature_size,
     get_descriptor,
     grid_cells,
     hu_log,
+    mask_extents,
     silhouette_features,
 )
 
@@ -194,3 +197,67 @@ def test_pose_descriptor_normalises_position_scale_and_swaps_sides() -> None:
     assert np.isnan(desc.from_points(np.zeros((12, 2)))).all()
     with pytest.raises(ValueError, match="landmarks, not masks"):
         silhouette_features(_figure(), descriptor="pose")
+
+
+def _masks(rng: np.random.Generator) -> list[np.ndarray]:
+    """Figures moved and cut at the image's edges, blobs, one pixel, an empty mask."""
+    out = [np.roll(_figure(), (dy, dx), axis=(0, 1)) for dy, dx in ((0, 0), (9, -70), (-25, 71))]
+    for _ in range(5):
+        m = np.zeros((120, 160), dtype=np.uint8)
+        for _ in range(3):
+            centre = (int(rng.integers(0, 160)), int(rng.integers(0, 120)))
+            axes = (int(rng.integers(1, 40)), int(rng.integers(1, 50)))
+            cv2.ellipse(m, centre, axes, float(rng.uniform(0, 180)), 0, 360, 1, -1)
+        out.append(m)
+    dot = np.zeros((120, 160), dtype=np.uint8)
+    dot[119, 0] = 1
+    return [*out, dot, np.zeros((120, 160), dtype=np.uint8)]
+
+
+def test_mask_extents_are_cv2s_moments_and_rows() -> None:
+    masks = np.stack(_masks(np.random.default_rng(3)))
+    ext = mask_extents(masks)
+    for m, (m00, m10, m01, top, bottom) in zip(masks, ext, strict=True):
+        mom = cv2.moments(m, binaryImage=True)
+        assert (m00, m10, m01) == (mom["m00"], mom["m10"], mom["m01"])
+        rows = np.flatnonzero(m.any(axis=1))
+        assert (top, bottom) == ((rows[0], rows[-1] + 1) if rows.size else (-1, -1))
+    # any nonzero value is silhouette, in any dtype
+    np.testing.assert_array_equal(mask_extents(masks * 255), ext)
+    np.testing.assert_array_equal(mask_extents(masks.astype(bool)), ext)
+    np.testing.assert_array_equal(mask_extents(masks.astype(np.float32) * 0.5), ext)
+    with pytest.raises(ValueError, match=r"\(N, H, W\)"):
+        mask_extents(masks[0])
+
+
+def _one_by_one(mask: np.ndarray, origin: tuple[float, float], name: str) -> np.ndarray:
+    """The vector of one mask written out with cv2's moments, as the bank had it."""
+    desc = get_descriptor(name)
+    out = np.full(desc.size, np.nan)
+    mom = cv2.moments(mask, binaryImage=True)
+    if mom["m00"] == 0:
+        return out
+    rows = np.flatnonzero(mask.any(axis=1))
+    top, bottom = int(rows[0]), int(rows[-1]) + 1
+    cx, cy = mom["m10"] / mom["m00"], mom["m01"] / mom["m00"]
+    if name == "hu":
+        out[:7] = hu_log(cv2.HuMoments(mom).ravel())
+    else:
+        assert isinstance(desc, GridDescriptor)
+        out[:-2] = np.concatenate([grid_cells(mask, top, bottom, cx, r, c) for r, c in desc.levels])
+    out[-2] = (cx - origin[0]) / (bottom - top)
+    out[-1] = -(cy - origin[1]) / (bottom - top)
+    return out
+
+
+@pytest.mark.parametrize("name", ["hu", "grid", "multigrid"])
+def test_a_batch_of_masks_is_each_mask_bit_for_bit(name: str) -> None:
+    masks = np.stack(_masks(np.random.default_rng(4)))
+    origins = np.random.default_rng(5).uniform(0, 160, size=(len(masks), 2))
+    got = get_descriptor(name).from_masks(masks, origins)
+    for m, o, g in zip(masks, origins, got, strict=True):
+        want = _one_by_one(m, (float(o[0]), float(o[1])), name)
+        assert want.tobytes() == g.tobytes()
+        assert silhouette_features(m, (float(o[0]), float(o[1])), name).tobytes() == g.tobytes()
+    with pytest.raises(ValueError, match="body landmarks"):
+        get_descriptor("pose").from_masks(masks)

@@ -13,6 +13,7 @@ from silhouette_bank import (
     capsule_body,
     capsule_segments,
     motion_features,
+    motion_features_both,
     motion_silhouettes,
 )
 
@@ -79,6 +80,23 @@ def test_root_motion_shows_a_walk(mocap, tmp_path_factory) -> None:
 
 
 @pytest.mark.gl
+@pytest.mark.parametrize("descriptor", ["hu", "multigrid"])
+def test_with_and_without_a_shadow_from_one_rasterization(exercise, descriptor: str) -> None:
+    ring = CameraRing(n_views=4)
+    body = capsule_body(exercise.skeleton, BodyShape())
+    frames = np.arange(0, 200, 9)
+    both = motion_features_both(exercise, body, ring, frames, chunk=7, descriptor=descriptor)
+    for shadow, (feats, moves) in zip((False, True), both, strict=True):
+        want = motion_features(exercise, body, ring, frames, shadow=shadow, descriptor=descriptor)
+        assert feats.tobytes() == want[0].tobytes() and moves.tobytes() == want[1].tobytes()
+    plain, shadowed = both
+    assert not np.array_equal(plain[0], shadowed[0])  # the shadow shows
+    (alone,) = motion_features_both(
+        exercise, body, ring, frames, shadows=(True,), descriptor=descriptor
+    )
+    assert alone[0].tobytes() == shadowed[0].tobytes()
+
+
 def test_pyrender_agrees_with_the_rasterizer(exercise) -> None:
     from silhouette_bank._gl import GLRenderer
 
