@@ -266,13 +266,17 @@ class Descriptor:
         org = np.zeros((n, 2)) if origins is None else np.asarray(origins, dtype=np.float64)
         ext = mask_extents(m) if extents is None else extents
         out = np.full((n, self.size), np.nan)
-        for k in np.flatnonzero(ext[:, 0] > 0):
-            m00, m10, m01, top, bottom = (int(v) for v in ext[k])
-            height = float(bottom - top)
-            cx, cy = m10 / m00, m01 / m00
-            out[k, : self.n_shape] = self._shape_of(m[k], top, bottom, cx)
-            out[k, -2] = (cx - org[k, 0]) / height
-            out[k, -1] = -(cy - org[k, 1]) / height
+        seen = np.flatnonzero(ext[:, 0] > 0)
+        if seen.size == 0:
+            return out
+        m00, m10, m01, top, bottom = ext[seen].T
+        height = (bottom - top).astype(np.float64)
+        cx, cy = m10 / m00, m01 / m00  # exactly cv2's centroid: the sums are exact
+        out[seen, -2] = (cx - org[seen, 0]) / height
+        out[seen, -1] = -(cy - org[seen, 1]) / height
+        tops, bottoms, cxs = top.tolist(), bottom.tolist(), cx.tolist()
+        for i, k in enumerate(seen.tolist()):
+            out[k, : self.n_shape] = self._shape_of(m[k], tops[i], bottoms[i], cxs[i])
         return out
 
     def _shape_of(self, m: NDArray[np.uint8], top: int, bottom: int, cx: float) -> FloatArray:
@@ -317,14 +321,17 @@ class GridDescriptor(Descriptor):
             raise ValueError(f"{self.name}: n_shape must be the number of cells of {self.levels}")
 
     def _shape_of(self, m: NDArray[np.uint8], top: int, bottom: int, cx: float) -> FloatArray:
+        rows = m[top:bottom]  # (the crop's rows: no other row is sampled)
         crops: dict[int, NDArray[np.float32]] = {}  # levels of one aspect share a crop
         cells = []
         for r, c in self.levels:
             width = _grid_width(bottom - top, r, c)
-            if width not in crops:
-                crops[width] = _crop(m, top, bottom, cx, width)
-            cells.append(_cells(crops[width], r, c))
-        return np.concatenate(cells)
+            crop = crops.get(width)
+            if crop is None:
+                crop = crops[width] = _crop(rows, 0, bottom - top, cx, width)
+            cells.append(cv2.resize(crop, (c, r), interpolation=cv2.INTER_AREA).ravel())
+        # the area averages of values in [0, 1], less float32's rounding (1.0000002 seen)
+        return np.clip(np.concatenate(cells).astype(np.float64), 0.0, 1.0)
 
     def mirror(self, x: NDArray[np.floating]) -> NDArray[np.floating]:
         out = super().mirror(x)

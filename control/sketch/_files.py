@@ -34,6 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -182,30 +183,56 @@ class Environment:
 
     def clearance(self, xz: FloatArray) -> FloatArray:
         """Signed distance ``(n,)`` of ground points ``(n, 2)`` to the nearest obstacle
-        edge or wall: negative inside an obstacle or outside the bounds."""
-        xz = np.asarray(xz, dtype=np.float64).reshape(-1, 2)
-        best = np.full(xz.shape[0], np.inf)
+        edge or wall: negative inside an obstacle or outside the bounds (even-odd rule:
+        a ray to +x crosses a polygon's edges an odd number of times from inside it).
+        The search asks this of every node it opens, one point at a time: a numba
+        kernel (``_clearance_kernel``)."""
+        xz = np.ascontiguousarray(xz, dtype=np.float64).reshape(-1, 2)
         a, ab, ids = self._edges  # type: ignore[attr-defined]
+        bounds = np.asarray(self.bounds if self.bounds is not None else (), dtype=np.float64)
+        out = np.empty(xz.shape[0])
+        _clearance_kernel(xz, a, ab, ids, len(self.obstacles), bounds, out)
+        return out
+
+
+@numba.njit(cache=True)
+def _clearance_kernel(
+    xz: FloatArray,
+    a: FloatArray,
+    ab: FloatArray,
+    ids: NDArray[np.int64],
+    n_polys: int,
+    bounds: FloatArray,
+    out: FloatArray,
+) -> None:
+    crossings = np.zeros(max(n_polys, 1), dtype=np.int64)
+    for i in range(xz.shape[0]):
+        px, py = xz[i, 0], xz[i, 1]
+        best = np.inf
         if ids.size:
-            ap = xz[:, None, :] - a[None]  # (n, E, 2)
-            t = np.clip((ap * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-12), 0.0, 1.0)
-            d = np.linalg.norm(ap - t[..., None] * ab, axis=-1).min(axis=1)
-            # even-odd rule: a ray to +x crosses a polygon's edges an odd number of times
-            # from inside it
-            y0, y1 = a[None, :, 1], a[None, :, 1] + ab[None, :, 1]
-            py = xz[:, None, 1]
-            crosses = (y0 > py) != (y1 > py)
-            xs = a[None, :, 0] + (py - y0) / np.where(y1 != y0, y1 - y0, 1.0) * ab[None, :, 0]
-            hit = (crosses & (xz[:, None, 0] < xs)).astype(np.int64)  # (n, E)
-            per_poly = np.zeros((xz.shape[0], len(self.obstacles)), dtype=np.int64)
-            np.add.at(per_poly.T, ids, hit.T)
-            inside = (per_poly % 2 == 1).any(axis=1)
-            best = np.where(inside, -d, d)
-        if self.bounds is not None:
-            x0, z0, x1, z1 = self.bounds
-            wall = np.minimum.reduce([xz[:, 0] - x0, x1 - xz[:, 0], xz[:, 1] - z0, z1 - xz[:, 1]])
-            best = np.minimum(best, wall)
-        return best
+            crossings[:] = 0
+            d = np.inf
+            for e in range(ids.size):
+                apx, apy = px - a[e, 0], py - a[e, 1]
+                t = (apx * ab[e, 0] + apy * ab[e, 1]) / max(
+                    ab[e, 0] * ab[e, 0] + ab[e, 1] * ab[e, 1], 1e-12
+                )
+                t = min(max(t, 0.0), 1.0)
+                dx, dy = apx - t * ab[e, 0], apy - t * ab[e, 1]
+                d = min(d, np.sqrt(dx * dx + dy * dy))
+                y0, y1 = a[e, 1], a[e, 1] + ab[e, 1]
+                if (y0 > py) != (y1 > py):
+                    x = a[e, 0] + (py - y0) / (y1 - y0) * ab[e, 0]
+                    if px < x:
+                        crossings[ids[e]] += 1
+            inside = False
+            for k in range(n_polys):
+                inside = inside or crossings[k] % 2 == 1
+            best = -d if inside else d
+        if bounds.size:
+            wall = min(px - bounds[0], bounds[2] - px, py - bounds[1], bounds[3] - py)
+            best = min(best, wall)
+        out[i] = best
 
 
 def read_environment(path: str | Path) -> Environment:

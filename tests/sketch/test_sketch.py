@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from matplotlib.path import Path as MplPath
+from scipy.spatial import cKDTree
 
 from control.clusters import build_higher_layer
 from control.graph import GraphOptions, build_graph
@@ -97,6 +98,20 @@ def test_clearance_agrees_with_matplotlib_inside_test(rng: np.random.Generator) 
     x0, z0, x1, z1 = env.bounds
     outside = (pts[:, 0] < x0) | (pts[:, 0] > x1) | (pts[:, 1] < z0) | (pts[:, 1] > z1)
     assert np.array_equal(got < 0, inside | outside)
+    # the distance: to the edges sampled every millimetre, and the walls (scipy's k-d tree)
+    edges = [np.roll(p, -1, axis=0) for p in env.obstacles]
+    dense = np.concatenate(
+        [
+            a + np.linspace(0, 1, int(np.ceil(np.linalg.norm(b - a) / 1e-3)) + 1)[:, None] * (b - a)
+            for poly, nxt in zip(env.obstacles, edges, strict=True)
+            for a, b in zip(poly, nxt, strict=True)
+        ]
+    )
+    near = cKDTree(dense).query(pts)[0]
+    wall = np.abs(np.stack([pts[:, 0] - x0, x1 - pts[:, 0], pts[:, 1] - z0, z1 - pts[:, 1]]))
+    want = np.minimum(near, wall.min(axis=0))
+    np.testing.assert_allclose(np.abs(got)[~outside], want[~outside], atol=1e-3)
+    assert (got[:5] == np.array([env.clearance(p[None])[0] for p in pts[:5]])).all()
     # distance of a free point: to the nearest edge
     e = Environment(obstacles=(np.array([[0.0, 0], [2, 0], [2, 1], [0, 1]]),))
     assert e.clearance(np.array([[3.0, 0.5], [1.0, 2.0], [1.0, 0.25]])) == pytest.approx(
