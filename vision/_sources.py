@@ -98,6 +98,7 @@ class VideoSource:
         n = self._cap.get(cv2.CAP_PROP_FRAME_COUNT)
         self.expected_frames = int(n) if np.isfinite(n) and 0 < n < 1e9 else 0
         self._i = 0
+        self._ended = False  # read to its end (not stopped early by --seconds or a stop)
         self._pacer = _Pacer(realtime)
         self.realtime = realtime  # paced like a camera
 
@@ -106,8 +107,9 @@ class VideoSource:
         return self._i
 
     def truncated(self) -> str:
-        """After the last frame: why the video seems cut short ("" when it does not)."""
-        if self.expected_frames and self._i < self.expected_frames - 1:
+        """After the last frame: why the video seems cut short ("" when it does not, or
+        when reading stopped before the video's end)."""
+        if self._ended and self.expected_frames and self._i < self.expected_frames - 1:
             return (
                 f"{self.path}: the video ended after {self._i} of the {self.expected_frames} "
                 "frames its header declares (a truncated or damaged file?)"
@@ -117,6 +119,7 @@ class VideoSource:
     def read(self) -> Frame | None:
         ok, img = self._cap.read()
         if not ok or img is None:
+            self._ended = True
             return None
         t = self._i / self.fps
         self._pacer.wait(t)

@@ -64,9 +64,15 @@ def test_a_truncated_video_is_said(mocap: Path, tmp_path: Path, capsys) -> None:
     while whole.read() is not None:
         pass
     assert whole.truncated() == ""
+    early = VideoSource(cut)  # stopped before its end (--seconds, a stop): nothing to say
+    for _ in range(5):
+        early.read()
+    assert early.truncated() == ""
     argv = ["perform", "--video", str(cut), str(mocap), "--clips", "13_30", "--k", "12"]
     assert main(argv) == 0
     assert "warning: " in capsys.readouterr().err
+    assert main([*argv, "--seconds", "1"]) == 0
+    assert "warning: " not in capsys.readouterr().err
 
 
 def test_a_late_start_says_where_the_avatar_begins(
