@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -45,10 +46,13 @@ def session_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return tmp_path_factory.mktemp("cache")
 
 
-@pytest.fixture(autouse=True)
-def _private_cache(session_cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    # Tests never read or write the user's cache.
-    monkeypatch.setenv("MIMIC_CACHE", str(session_cache))
+@pytest.fixture(scope="session", autouse=True)
+def _private_cache(session_cache: Path) -> Iterator[None]:
+    # Tests never read or write the user's cache: set for the whole session, before any
+    # module's fixture is made (a test's own monkeypatch may still point it elsewhere).
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("MIMIC_CACHE", str(session_cache))
+        yield
 
 
 @pytest.fixture

@@ -12,7 +12,7 @@ import pytest
 from matplotlib.path import Path as MplPath
 from scipy.spatial import cKDTree
 
-from control.clusters import build_higher_layer
+from control.clusters import cached_higher_layer
 from control.graph import GraphOptions, build_graph
 from control.motion import Library, load_library, read_bvh
 from control.sketch import (
@@ -186,9 +186,15 @@ def test_dead_end_is_backed_out_of_or_reported(walks) -> None:
 
 
 @pytest.fixture(scope="module")
-def actions(walks):
+def actions(walks, session_cache: Path):
+    """The walks' higher layer, in the tests' cache (named: a module's fixture is made
+    before each test's cache is set): the one ``mimic sketch --approach actions --k 10
+    --bound 3 --tree-nodes 512 --coords relative`` on the walks loads."""
     lib, g = walks
-    return build_higher_layer(g, lib.clips, k=10, bound_seconds=3.0, max_nodes=512)
+    layer, _, _ = cached_higher_layer(
+        g, lib.clips, k=10, bound_seconds=3.0, max_nodes=512, cache_dir=session_cache / "graph"
+    )
+    return layer
 
 
 @pytest.mark.parametrize("side", [1.0, -1.0])
@@ -234,8 +240,10 @@ def test_cli_sketch_writes_bvh_png(mocap: Path, tmp_path: Path, capsys) -> None:
     if check.is_file():  # the independent reader beside the data
         r = subprocess.run([sys.executable, str(check), str(out)], capture_output=True)
         assert r.returncode == 0, r.stdout + r.stderr
-    # the first approach, compared with the search
+    # the first approach, compared with the search (on the relative graph: the higher
+    # layer is the ``actions`` fixture's, from the tests' cache)
     actions = ["--approach", "actions", "--k", "10", "--bound", "3", "--tree-nodes", "512"]
+    actions += ["--coords", "relative"]
     assert main([*argv, "--out", str(out), *actions, "--baseline", "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert set(summary) == {"out", "actions (DTW)", "eq. 8"}

@@ -17,13 +17,12 @@ RECORDING = REPO / "recordings" / "13_29_first12s_160x120.mkv"
 
 
 @pytest.fixture(scope="session")
-def setup(mocap: Path, session_cache: Path) -> tuple[Library, HigherLayer, Bank]:
-    with pytest.MonkeyPatch.context() as mp:
-        # in the tests' shared cache: the bank is the one `mimic perform --clips 13_30`
-        # uses, so that the command-line tests load it rather than build it again
-        mp.setenv("MIMIC_CACHE", str(session_cache))
-        lib = load_library(mocap, clips=["13_30"])
-        g = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.03))
-        layer = build_higher_layer(g, lib.clips, k=12)
-        bank, _ = ensure_bank(lib.clips, BankSettings(), workers=1)
+def setup(mocap: Path) -> tuple[Library, HigherLayer, Bank]:
+    # the bank goes into the tests' shared cache (conftest's _private_cache): it is the
+    # one `mimic perform --clips 13_30` uses, so that the command-line tests load it
+    # rather than build it again
+    lib = load_library(mocap, clips=["13_30"])
+    g = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.03))
+    layer = build_higher_layer(g, lib.clips, k=12)
+    bank, _ = ensure_bank(lib.clips, BankSettings(), workers=1)
     return lib, layer, bank
