@@ -4,12 +4,18 @@ options, the blend and a start frame, and what they make (the options, the graph
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from control.graph import CONTACT_RULES, COORDS, GraphOptions, MotionGraph, cached_graph
-from control.motion import Library, load_library
+from control.motion import (
+    EMBEDDED_LIBRARY,
+    Library,
+    default_library_path,
+    load_library,
+)
 from control.progress import step
 
 __all__ = [
@@ -138,8 +144,15 @@ def library_for(args: argparse.Namespace) -> Library:
     """The library of ``add_library_args``'s arguments."""
     if args.fps is None or args.fps <= 0:
         raise ValueError("--fps must be positive")
+    folder = library_dir(args)
+    if folder is None and default_library_path() == EMBEDDED_LIBRARY:
+        print(
+            f"motion library: the embedded default library ({EMBEDDED_LIBRARY}): no "
+            "$MIMIC_MOCAP and no ../shared/mocap (pass a folder for your own mocap)",
+            file=sys.stderr,
+        )
     with step("motion library"):
-        return load_library(library_dir(args), fps=args.fps, mirror=args.mirror, clips=args.clips)
+        return load_library(folder, fps=args.fps, mirror=args.mirror, clips=args.clips)
 
 
 def graph_for(

@@ -109,7 +109,7 @@ def _build(args: argparse.Namespace) -> int:
         args.bank,
         shard_frames=args.shard_frames,
         workers=args.workers,
-        progress=bar("silhouette bank", "shards", quiet_s=0.0),
+        progress=bar("silhouette bank", "renders", quiet_s=0.0),
     )
     how = "built" if built else "up to date"
     print(

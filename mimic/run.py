@@ -277,7 +277,7 @@ def _bank(args: argparse.Namespace, clips: list[Any], source: Any) -> tuple[str,
     if args.variants and descriptor == "pose":
         print("--variants: body variants do not apply to the pose descriptor", file=sys.stderr)
     bank_settings = robust_settings(base) if args.variants and descriptor != "pose" else base
-    bank, built = ensure_bank(clips, bank_settings, progress=bar("silhouette bank", "shards"))
+    bank, built = ensure_bank(clips, bank_settings, progress=bar("silhouette bank", "renders"))
     return descriptor, bank, built
 
 

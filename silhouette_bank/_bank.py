@@ -47,7 +47,7 @@ from control.motion import Clip, Motion, clips_digest
 
 from ._body import BodyShape, capsule_body
 from ._descriptor import get_descriptor
-from ._metric import learn_metric
+from ._metric import MetricJob, fit_metric, metric_jobs, metric_samples
 from ._pose import motion_pose_features
 from ._render import motion_features_both
 from ._settings import BANK_VERSION, BankSettings
@@ -202,9 +202,10 @@ def build_bank(
 ) -> Bank:
     """Render every frame of ``clips`` into the bank at ``folder`` (resuming if possible).
 
-    With ``workers`` > 1 the shards are rendered in *spawned* processes (numba's OpenMP
-    threads make fork unsafe), so a script that calls this must guard its entry point
-    with ``if __name__ == "__main__":``.
+    With ``workers`` > 1 the shards and the learned metric's renders (``metric_jobs``)
+    are made in *spawned* processes (numba's OpenMP threads make fork unsafe), so a
+    script that calls this must guard its entry point with ``if __name__ ==
+    "__main__":``. ``progress(done, total)`` counts both.
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -214,8 +215,14 @@ def build_bank(
     shards: list[dict[str, Any]] = manifest["shards"]
     todo = _shards_to_render(clips, settings, folder, manifest)
     t0 = time.perf_counter()
-    _render(todo, len(shards), workers, progress)
-    arrays = _merge(clips, settings, folder, manifest)
+    metric = []
+    if settings.metric_dims:
+        metric = metric_jobs(clips, settings.descriptor, settings.ring, settings.body)
+    samples = _render(todo, len(shards), workers, progress, metric)
+    arrays = _merge(settings, folder, manifest)
+    if metric:
+        mean, proj = fit_metric(metric, samples, settings.metric_dims)
+        arrays.update(metric_mean=mean, metric=proj)
     manifest["complete"] = True
     manifest["built"] = {
         "seconds": round(time.perf_counter() - t0, 3),
@@ -301,38 +308,46 @@ def _shards_to_render(
     return todo
 
 
+def _run_job(job: _Job | MetricJob) -> tuple[int, str] | NDArray[np.float32]:
+    return metric_samples(job) if isinstance(job, MetricJob) else _shard_job(job)
+
+
 def _render(
     todo: list[_Job],
     n_shards: int,
     workers: int | None,
     progress: Callable[[int, int], None] | None,
-) -> None:
-    """Render the ``todo`` shards, in processes when more than one worker."""
+    metric: Sequence[MetricJob] = (),
+) -> list[NDArray[np.float32]]:
+    """Render the ``todo`` shards, then the ``metric`` jobs (their samples returned), in
+    processes when more than one worker; ``progress(done, shards + metric jobs)``."""
+    jobs: list[_Job | MetricJob] = [*todo, *metric]
+    total = n_shards + len(metric)
     done = n_shards - len(todo)
     if progress:
-        progress(done, n_shards)
-    n_workers = min(workers or min(os.cpu_count() or 1, 4), max(len(todo), 1))
+        progress(done, total)
+    results = []
+    n_workers = min(workers or min(os.cpu_count() or 1, 4), max(len(jobs), 1))
     if n_workers > 1:
         # spawn, not fork: numba's OpenMP threads in this process make fork unsafe
         ctx = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(n_workers, mp_context=ctx) as pool:
-            for _ in pool.map(_shard_job, todo):
+            for out in pool.map(_run_job, jobs):
+                results.append(out)
                 done += 1
                 if progress:
-                    progress(done, n_shards)
+                    progress(done, total)
     else:
-        for job in todo:
-            _shard_job(job)
+        for job in jobs:
+            results.append(_run_job(job))
             done += 1
             if progress:
-                progress(done, n_shards)
+                progress(done, total)
+    return [r for r in results[len(todo) :] if not isinstance(r, tuple)]
 
 
-def _merge(
-    clips: Sequence[Clip], settings: BankSettings, folder: Path, manifest: dict[str, Any]
-) -> dict[str, np.ndarray]:
-    """The bank's arrays: every shard (checked again) concatenated, and the learned
-    metric when the settings ask for one."""
+def _merge(settings: BankSettings, folder: Path, manifest: dict[str, Any]) -> dict[str, np.ndarray]:
+    """The bank's arrays: every shard (checked again) concatenated."""
     views, size = settings.n_views, settings.features.size
     parts = []
     for s in manifest["shards"]:  # checked again: a shard may have been damaged since
@@ -347,11 +362,6 @@ def _merge(
         "key": np.array(manifest["key"]),
     }
     del parts
-    if settings.metric_dims:
-        mean, proj = learn_metric(
-            clips, settings.descriptor, settings.ring, settings.body, settings.metric_dims
-        )
-        arrays.update(metric_mean=mean, metric=proj)
     return arrays
 
 

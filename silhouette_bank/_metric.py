@@ -22,18 +22,28 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from control.motion import Clip
+from control.motion import Clip, Motion
 
 from ._body import BodyShape, capsule_body
 from ._camera import CameraRing
 from ._descriptor import get_descriptor
 from ._render import motion_features_both
 
-__all__ = ["METRIC_FRAMES", "lda_directions", "learn_metric", "metric_rings"]
+__all__ = [
+    "METRIC_FRAMES",
+    "MetricJob",
+    "fit_metric",
+    "lda_directions",
+    "learn_metric",
+    "metric_jobs",
+    "metric_rings",
+    "metric_samples",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -52,6 +62,80 @@ def metric_rings(ring: CameraRing) -> list[CameraRing]:
     ]
 
 
+@dataclass(frozen=True)
+class MetricJob:
+    """One clip's chosen frames seen with one body width: every view of the learning
+    rings, each with and without a shadow (``metric_samples``)."""
+
+    clip: int  # the clip's place in the library: its frames make its own classes
+    motion: Motion
+    frames: NDArray[np.int64]
+    body: BodyShape
+    rings: tuple[CameraRing, ...]
+    descriptor: str
+
+
+def metric_jobs(
+    clips: Sequence[Clip],
+    descriptor: str,
+    ring: CameraRing,
+    body: BodyShape,
+    max_frames: int = METRIC_FRAMES,
+) -> list[MetricJob]:
+    """The renders that teach the metric (``learn_metric``): up to ``max_frames`` frames
+    of ``clips`` (evenly spread), one job per clip and body width, in order."""
+    desc = get_descriptor(descriptor)
+    if desc.kind != "silhouette":
+        raise ValueError(f"a learned metric is for silhouette descriptors, not {descriptor!r}")
+    total = sum(c.motion.n_frames for c in clips)
+    if total == 0:
+        raise ValueError("no frames to learn a metric from")
+    every = max(1, math.ceil(total / max_frames))
+    rings = tuple(metric_rings(ring))
+    jobs = []
+    for i, clip in enumerate(clips):
+        frames = np.arange(0, clip.motion.n_frames, every)
+        if frames.size:
+            for w in _WIDTHS:
+                shape = BodyShape(width=body.width * w, height=body.height)
+                jobs.append(MetricJob(i, clip.motion, frames, shape, rings, desc.name))
+    return jobs
+
+
+def metric_samples(job: MetricJob) -> NDArray[np.float32]:
+    """The shape numbers ``(n, V, 2 * rings, S)`` of a job's frames: without a shadow
+    then with one, each ring in turn."""
+    desc = get_descriptor(job.descriptor)
+    cap = capsule_body(job.motion.skeleton, job.body)
+    seen = [
+        motion_features_both(job.motion, cap, r, job.frames, descriptor=desc.name)
+        for r in job.rings
+    ]
+    return np.stack([desc.shape(both[sh][0]) for sh in (0, 1) for both in seen], axis=2)
+
+
+def fit_metric(
+    jobs: Sequence[MetricJob], samples: Sequence[NDArray[np.float32]], dims: int
+) -> tuple[FloatArray, FloatArray]:
+    """``(mean (S,), projection (S, dims))`` of the ``samples`` of ``jobs``: each (frame,
+    view) of a clip a class, its members every width, shadow and ring."""
+    xs, ys = [], []
+    label = 0
+    for c in sorted({j.clip for j in jobs}):
+        x = np.concatenate([s for j, s in zip(jobs, samples, strict=True) if j.clip == c], axis=2)
+        n, v, k, s = x.shape  # (n, V, widths x shadows x rings, S)
+        xs.append(x.reshape(n * v * k, s).astype(np.float64))
+        ys.append(label + np.repeat(np.arange(n * v), k))
+        label += n * v
+    x = np.concatenate(xs)
+    y = np.concatenate(ys)
+    ok = np.isfinite(x).all(axis=1)
+    x, y = x[ok], y[ok]
+    dims = min(dims, x.shape[1], np.unique(y).size - 1)
+    mean = x.mean(axis=0)  # (the eigen solver does not centre; distances do not care)
+    return mean, lda_directions(x, y, dims, shrinkage=1e-3)
+
+
 def learn_metric(
     clips: Sequence[Clip],
     descriptor: str,
@@ -63,44 +147,10 @@ def learn_metric(
     """``(mean (S,), projection (S, dims))``: shape numbers ``x`` are compared as
     ``(x - mean) @ projection``. Learned from up to ``max_frames`` frames of ``clips``
     (evenly spread), each seen by every view of ``metric_rings(ring)`` with bodies of
-    widths 1, 0.9, 1.1, 1.25 (times ``body``), each with and without a shadow."""
-    desc = get_descriptor(descriptor)
-    if desc.kind != "silhouette":
-        raise ValueError(f"a learned metric is for silhouette descriptors, not {descriptor!r}")
-    total = sum(c.motion.n_frames for c in clips)
-    if total == 0:
-        raise ValueError("no frames to learn a metric from")
-    every = max(1, math.ceil(total / max_frames))
-    rings = metric_rings(ring)
-    xs, ys = [], []
-    label = 0
-    for clip in clips:
-        frames = np.arange(0, clip.motion.n_frames, every)
-        if frames.size == 0:
-            continue
-        per = []
-        for w in _WIDTHS:
-            shape = BodyShape(width=body.width * w, height=body.height)
-            cap = capsule_body(clip.motion.skeleton, shape)
-            seen = [
-                motion_features_both(clip.motion, cap, r, frames, descriptor=desc.name)
-                for r in rings
-            ]
-            for shadow in (0, 1):
-                for both in seen:
-                    per.append(desc.shape(both[shadow][0].astype(np.float64)))  # (n, V, S)
-        x = np.stack(per, axis=2)  # (n, V, K, S)
-        n, v, k, s = x.shape
-        xs.append(x.reshape(n * v * k, s))
-        ys.append(label + np.repeat(np.arange(n * v), k))
-        label += n * v
-    x = np.concatenate(xs)
-    y = np.concatenate(ys)
-    ok = np.isfinite(x).all(axis=1)
-    x, y = x[ok], y[ok]
-    dims = min(dims, x.shape[1], np.unique(y).size - 1)
-    mean = x.mean(axis=0)  # (the eigen solver does not centre; distances do not care)
-    return mean, lda_directions(x, y, dims, shrinkage=1e-3)
+    widths 1, 0.9, 1.1, 1.25 (times ``body``), each with and without a shadow. (A bank's
+    build runs ``metric_jobs`` in its worker processes beside its shards.)"""
+    jobs = metric_jobs(clips, descriptor, ring, body, max_frames)
+    return fit_metric(jobs, [metric_samples(j) for j in jobs], dims)
 
 
 def _shrunk(cov: FloatArray, shrinkage: float) -> FloatArray:

@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
-from control.motion import read_bvh
+from control.motion import EMBEDDED_LIBRARY, load_library, read_bvh
 from mimic.cli import main
 from silhouette_bank import Bank, BankSettings, build_bank, silhouette_features
 from tests.vision.conftest import RECORDING
@@ -328,7 +328,7 @@ def test_cli_perform_writes_bvh_log_and_video(mocap: Path, tmp_path: Path, capsy
 
 def test_a_bank_with_variants_reports_ring_views(setup, tmp_path: Path) -> None:
     lib, layer, _ = setup
-    settings = BankSettings(shadow=True)
+    settings = BankSettings(shadow=True, metric=0)  # (no metric: views are the point)
     bank = build_bank(lib.clips, settings, tmp_path / "bank", workers=1)
     assert bank.features.shape[1] == 36
     matcher = Matcher(layer, bank, MatchSettings(window=1.0))
@@ -511,16 +511,20 @@ def test_the_default_descriptor_follows_the_source(mocap: Path) -> None:
 def test_the_demo_runs_on_the_embedded_library_where_no_other_exists(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys
 ) -> None:
+    """No $MIMIC_MOCAP and no ../shared/mocap: the embedded library, said. (Two of its
+    clips here; ``.ci/run`` runs the README's main job on all nine.)"""
     from control.motion import _library
 
     monkeypatch.delenv("MIMIC_MOCAP", raising=False)
     monkeypatch.setattr(_library, "shared_library_candidates", lambda: (tmp_path / "none",))
     out = tmp_path / "a.bvh"
     argv = ["perform", "--video", str(RECORDING), "--seconds", "3", "--out", str(out)]
-    assert main(argv) == 0
+    assert main([*argv, "--clips", "02_0[12]"]) == 0
     said = capsys.readouterr()
-    assert "library: 9 clips" in said.err
+    assert f"motion library: the embedded default library ({EMBEDDED_LIBRARY})" in said.err
+    assert "library: 2 clips" in said.err
     assert read_bvh(out).n_frames >= 30
+    assert len(load_library(EMBEDDED_LIBRARY).clips) == 9
 
 
 def test_the_avatar_blends_over_the_blend_asked_for(setup) -> None:
@@ -541,6 +545,8 @@ def test_perform_uses_a_bank_built_with_other_settings(mocap: Path, tmp_path: Pa
         "13_30",
         "--views",
         "12",
+        "--descriptor",  # (Hu moments: no metric to learn, a quick build)
+        "hu",
         "--bank",
         str(folder),
     ]
@@ -548,7 +554,7 @@ def test_perform_uses_a_bank_built_with_other_settings(mocap: Path, tmp_path: Pa
     log = tmp_path / "d.jsonl"
     run = ["perform", "--video", str(RECORDING), str(mocap), "--k", "12", "--seconds", "3"]
     assert main([*run, "--clips", "13_30", "--bank", str(folder), "--log", str(log)]) == 0
-    assert f"(the bank's, {folder})" in capsys.readouterr().err
+    assert f"descriptor: hu (the bank's, {folder})" in capsys.readouterr().err
     views = {json.loads(x).get("view") for x in log.read_text().splitlines()} - {None}
     assert views and max(views) < 12  # the 12-view bank's cameras, not the default 18
     # another library than the bank's is a clear error naming the folder
