@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -65,26 +66,21 @@ def _agreement(decisions: list[dict], side: dict, labels_of, lag: float) -> floa
 def test_the_defaults_follow_a_recording_of_a_library_clip(
     mocap: Path, tmp_path: Path, capsys
 ) -> None:
-    """The committed recording (13_29, another body and camera) with 13_29 itself in the
-    library: the avatar does what the performer does."""
+    """A recording of 13_30 made as the committed one of 13_29 was (another body and
+    camera, ragged masks, a shadow; 12 s at 160x120), with 13_30 in the library (the vision
+    fixtures' bank, from the tests' cache): the avatar does what the performer does."""
+    clip = load_library(mocap, fps=30, clips=["13_30"]).clip("13_30")
+    video = tmp_path / "13_30.mkv"
+    record_clip(clip, video, dataclasses.replace(RecordSettings(), width=160, height=120), 0, 360)
     log = tmp_path / "log.jsonl"
-    args = [
-        "perform",
-        "--video",
-        str(RECORDING),
-        str(mocap),
-        "--clips",
-        "13_29",
-        "--clips",
-        "13_30",
-    ]
+    args = ["perform", "--video", str(video), str(mocap), "--clips", "13_30"]
     assert main([*args, "--log", str(log)]) == 0
     decisions = [json.loads(line) for line in log.read_text().splitlines()]
-    side = json.loads(Path(f"{RECORDING}.json").read_text())
-    lib = load_library(mocap, clips=["13_29", "13_30"])
+    side = json.loads(Path(f"{video}.json").read_text())
+    lib = load_library(mocap, clips=["13_30"])
 
-    def label(clip: str, frame: int) -> str | None:
-        return lib.clip(clip).label_at(frame)
+    def label(name: str, frame: int) -> str | None:
+        return lib.clip(name).label_at(frame)
 
     assert max(_agreement(decisions, side, label, lag) for lag in (0.0, 0.5, 1.0)) >= 0.8
     out = capsys.readouterr().out
