@@ -18,7 +18,6 @@ they play into, as in the paper.
 
 from __future__ import annotations
 
-import heapq
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -130,6 +129,52 @@ class _Runs:
         self.next_event = nxt
 
 
+#: a search state (time, frame, node) packed into one int64 that orders as the tuple
+#: does: 19 bits of time (frames), 28 of frame, 16 of node
+_T_SHIFT, _F_SHIFT = 44, 16
+MAX_TREE_NODES = 1 << 16
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _heap_push(heap: np.ndarray, n: int, item: np.int64) -> np.ndarray:
+    """Push ``item`` on the binary min-heap ``heap[:n]`` (grown when full)."""
+    if n == heap.size:
+        bigger = np.empty(2 * heap.size, np.int64)
+        bigger[:n] = heap[:n]
+        heap = bigger
+    i = n
+    while i > 0:
+        up = (i - 1) >> 1
+        if heap[up] <= item:
+            break
+        heap[i] = heap[up]
+        i = up
+    heap[i] = item
+    return heap
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _heap_pop(heap: np.ndarray, n: int) -> np.int64:
+    """Pop the least item of the binary min-heap ``heap[:n]`` (``n`` > 0)."""
+    top = heap[0]
+    last = heap[n - 1]
+    n -= 1
+    i = 0
+    while True:
+        child = 2 * i + 1
+        if child >= n:
+            break
+        if child + 1 < n and heap[child + 1] < heap[child]:
+            child += 1
+        if last <= heap[child]:
+            break
+        heap[i] = heap[child]
+        i = child
+    if n > 0:
+        heap[i] = last
+    return top
+
+
 @numba.njit(cache=True, nogil=True)
 def _tree_kernel(
     root: int,
@@ -152,12 +197,21 @@ def _tree_kernel(
     n_nodes = 1
     children = Dict.empty(types.int64, types.int64)
     seen = Dict.empty(types.int64, types.int64)
-    heap = [(np.int64(0), np.int64(root), np.int64(0))]
+    # a min-heap of packed (time, frame, node) states: pops in the tuples' order
+    heap = np.empty(4096, np.int64)
+    heap = _heap_push(heap, 0, np.int64(root) << _F_SHIFT)
+    n_heap = 1
     truncated = False
     horizon = bound
     stride = np.int64(max_nodes)
-    while len(heap) > 0:
-        t, f, node = heapq.heappop(heap)
+    f_mask = np.int64((1 << (_T_SHIFT - _F_SHIFT)) - 1)
+    node_mask = np.int64((1 << _F_SHIFT) - 1)
+    while n_heap > 0:
+        item = _heap_pop(heap, n_heap)
+        n_heap -= 1
+        t = item >> _T_SHIFT
+        f = (item >> _F_SHIFT) & f_mask
+        node = item & node_mask
         key = f * stride + node
         if key in seen:
             continue
@@ -194,7 +248,9 @@ def _tree_kernel(
                     arrival[nd] = tg + 1
                     n_nodes += 1
             if (fn * stride + nd) not in seen:
-                heapq.heappush(heap, (tg + 1, fn, nd))
+                packed = ((tg + 1) << _T_SHIFT) | (np.int64(fn) << _F_SHIFT) | nd
+                heap = _heap_push(heap, n_heap, packed)
+                n_heap += 1
     return (
         parent[:n_nodes].copy(),
         cluster[:n_nodes].copy(),
@@ -241,8 +297,13 @@ def build_forest(
     labels = np.asarray(labels, dtype=np.int64)
     if labels.shape != (graph.n_frames,):
         raise ValueError(f"labels must have one cluster per graph frame ({graph.n_frames})")
-    if not bound_seconds > 0 or max_nodes < 1:
-        raise ValueError("bound_seconds must be positive and max_nodes at least 1")
+    if not bound_seconds > 0 or not 1 <= max_nodes <= MAX_TREE_NODES:
+        raise ValueError(
+            f"bound_seconds must be positive and max_nodes in 1..{MAX_TREE_NODES}, "
+            f"not {bound_seconds} and {max_nodes}"
+        )
+    if bound_seconds * graph.fps >= 1 << (63 - _T_SHIFT) or graph.n_frames >= 1 << 28:
+        raise ValueError("trees of over 2^19 frames, or graphs of over 2^28, are not built")
     t0 = time.perf_counter()
     bound = max(1, round(bound_seconds * graph.fps))
     runs = _Runs(graph, labels)

@@ -76,3 +76,5 @@ def test_caps_truncate_and_say_so() -> None:
     assert all(t.horizon <= 12 for t in few.trees) and few.report["truncated"] > 0
     with pytest.raises(ValueError, match="one cluster per graph frame"):
         build_forest(g, labels[:-1])
+    with pytest.raises(ValueError, match=r"max_nodes in 1\.\.65536"):
+        build_forest(g, labels, max_nodes=1 << 17)  # (a node must fit the heap's 16 bits)
