@@ -24,5 +24,5 @@ def setup(mocap: Path) -> tuple[Library, HigherLayer, Bank]:
     lib = load_library(mocap, clips=["13_30"])
     g = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.03))
     layer = build_higher_layer(g, lib.clips, k=12)
-    bank, _ = ensure_bank(lib.clips, BankSettings(), workers=1)
+    bank, _ = ensure_bank(lib.clips, BankSettings(), workers=2)  # (both cores: 12 s -> 9 s)
     return lib, layer, bank

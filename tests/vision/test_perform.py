@@ -509,20 +509,22 @@ def test_the_default_descriptor_follows_the_source(mocap: Path) -> None:
 
 
 def test_the_demo_runs_on_the_embedded_library_where_no_other_exists(
-    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys
+    mocap: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys
 ) -> None:
-    """No $MIMIC_MOCAP and no ../shared/mocap: the embedded library, said. (Two of its
-    clips here; ``.ci/run`` runs the README's main job on all nine.)"""
+    """No $MIMIC_MOCAP and no ../shared/mocap: the README's main job (the squats video)
+    runs on the embedded library, and says so. (Two of its clips here; ``.ci/run`` runs
+    it on all nine.)"""
     from control.motion import _library
 
     monkeypatch.delenv("MIMIC_MOCAP", raising=False)
     monkeypatch.setattr(_library, "shared_library_candidates", lambda: (tmp_path / "none",))
     out = tmp_path / "a.bvh"
-    argv = ["perform", "--video", str(RECORDING), "--seconds", "3", "--out", str(out)]
+    video = mocap.parent / "video" / "pose_squats.mp4"
+    argv = ["perform", "--video", str(video), "--seconds", "3", "--out", str(out)]
     assert main([*argv, "--clips", "02_0[12]"]) == 0
     said = capsys.readouterr()
     assert f"motion library: the embedded default library ({EMBEDDED_LIBRARY})" in said.err
-    assert "library: 2 clips" in said.err
+    assert "library: 2 clips" in said.err and "descriptor: pose" in said.err
     assert read_bvh(out).n_frames >= 30
     assert len(load_library(EMBEDDED_LIBRARY).clips) == 9
 
