@@ -31,6 +31,11 @@ import os
 import shutil
 import tempfile
 import time
+
+try:
+    import fcntl
+except ImportError:  # (not POSIX: no locks)
+    fcntl = None  # type: ignore[assignment]
 from collections.abc import Callable, Collection, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -41,15 +46,18 @@ import numpy as np
 
 __all__ = [
     "CACHE_KINDS",
+    "LOCK_NAME",
     "CacheEntry",
     "atomic_write",
     "bound_cache",
+    "build_lock",
     "cache_entries",
     "cache_limit",
     "cache_root",
     "checksum",
     "clear_cache",
     "current_umask",
+    "is_locked",
     "read_npz",
     "touch",
     "verify_checksum",
@@ -240,6 +248,43 @@ def _remove(path: Path) -> None:
         path.unlink(missing_ok=True)
 
 
+#: the lock file inside a folder that a process is building (``build_lock``)
+LOCK_NAME = ".building.lock"
+
+
+@contextmanager
+def build_lock(folder: str | Path) -> Iterator[None]:
+    """Hold the build lock of ``folder`` (made if missing): another process that asks
+    for it waits until this one is done, then finds what it built. (POSIX ``flock``; a
+    no-op where there is none.)"""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / LOCK_NAME, "a") as fh:
+        if fcntl is not None:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            if fcntl is not None:
+                fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+
+
+def is_locked(folder: str | Path) -> bool:
+    """Whether a process holds ``folder``'s build lock now."""
+    path = Path(folder) / LOCK_NAME
+    if fcntl is None or not path.is_file():
+        return False
+    try:
+        with open(path, "a") as fh:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+    except BlockingIOError:
+        return True
+    except OSError:
+        return False
+    return False
+
+
 def bound_cache(
     keep: Collection[str | Path] = (), limit: int | None = None, root: Path | None = None
 ) -> list[CacheEntry]:
@@ -253,8 +298,8 @@ def bound_cache(
     for e in entries:
         if total <= limit:
             break
-        if e.path.resolve() in kept:
-            continue
+        if e.path.resolve() in kept or (e.path.is_dir() and is_locked(e.path)):
+            continue  # (a bank that another process is building)
         _remove(e.path)
         total -= e.bytes
         removed.append(e)

@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 from control.artifacts import (
     atomic_write,
     bound_cache,
+    build_lock,
     cache_root,
     checksum,
     read_npz,
@@ -465,16 +466,17 @@ def ensure_bank(
         if folder is not None
         else bank_cache_dir() / _key(clips_digest(clips), settings)
     )
-    try:
-        bank = load_bank(folder, clips, settings)
-        touch(folder)
-        return bank, False
-    except FileNotFoundError:
-        pass
-    except BankFileError as exc:
-        if "incomplete" not in exc.problem:  # an interrupted build resumes without a word
-            log.warning("rebuilding the bank: %s", exc)
-    bank = build_bank(clips, settings, folder, **build_options)
+    with build_lock(folder):  # another process building it: wait, then load its bank
+        try:
+            bank = load_bank(folder, clips, settings)
+            touch(folder)
+            return bank, False
+        except FileNotFoundError:
+            pass
+        except BankFileError as exc:
+            if "incomplete" not in exc.problem:  # an interrupted build resumes quietly
+                log.warning("rebuilding the bank: %s", exc)
+        bank = build_bank(clips, settings, folder, **build_options)
     if cached:
         bound_cache(keep=[folder])
     return bank, True

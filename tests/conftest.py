@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -53,6 +56,53 @@ def _private_cache(session_cache: Path) -> Iterator[None]:
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("MIMIC_CACHE", str(session_cache))
         yield
+
+
+#: the session fixtures whose artifacts tests/prebuild.py builds, and the part of each
+PREBUILT = {"playground": "playground", "actions": "walks", "setup": "bank"}
+
+
+class Prebuild:
+    """The background build of ``tests/prebuild.py`` (``None``: none needed)."""
+
+    def __init__(self, proc: subprocess.Popen[bytes] | None, cache: Path) -> None:
+        self.proc = proc
+        self.cache = cache
+
+    def wait(self, part: str, timeout: float = 900.0) -> None:
+        """Until ``part`` is built, or the build ended (whatever its outcome)."""
+        t0 = time.monotonic()
+        marker = self.cache / f"prebuilt-{part}"
+        while self.proc is not None and self.proc.poll() is None and not marker.exists():
+            if time.monotonic() - t0 > timeout:
+                break
+            time.sleep(0.05)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def prebuild(
+    _private_cache: None, session_cache: Path, request: pytest.FixtureRequest
+) -> Iterator[Prebuild]:
+    """Start ``tests/prebuild.py`` on the parts that this session's tests will need."""
+    from tests.prebuild import PARTS
+
+    used = {f for item in request.session.items for f in getattr(item, "fixturenames", ())}
+    parts = [p for p in PARTS if p in {PREBUILT[f] for f in used & set(PREBUILT)}]
+    proc = None
+    if parts:
+        with open(session_cache / "prebuild.log", "wb") as log:
+            proc = subprocess.Popen(
+                [sys.executable, "-m", "tests.prebuild", *parts],
+                cwd=REPO,
+                env=dict(os.environ),
+                stdout=log,
+                stderr=subprocess.STDOUT,
+            )
+    yield Prebuild(proc, session_cache)
+    if proc is not None and proc.poll() is None:
+        proc.kill()
+    if proc is not None:
+        proc.wait()
 
 
 @pytest.fixture

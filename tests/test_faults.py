@@ -17,9 +17,11 @@ import pytest
 
 from control.artifacts import (
     bound_cache,
+    build_lock,
     cache_entries,
     checksum,
     clear_cache,
+    is_locked,
     verify_checksum,
 )
 from control.graph import cached_graph
@@ -86,6 +88,16 @@ def test_the_cache_keeps_its_bound_least_recently_used_first(tmp_path: Path) -> 
     layer = _entry(tmp_path, "graph/layer-1.npz", 200, 0)
     assert [e.path for e in cache_entries(tmp_path)] == [old, bank, graph, layer]
     assert [e.kind for e in cache_entries(tmp_path)] == ["motion", "bank", "graph", "layer"]
+    with build_lock(bank):  # being built by another process: kept too
+        assert is_locked(bank)
+        assert [e.path for e in bound_cache(limit=800, root=tmp_path)] == [old, graph]
+    assert not is_locked(bank)
+    when = time.time() - 2 * 86400  # (the lock's file made the folder look just used)
+    os.utime(bank, (when, when))
+    old, graph = (
+        _entry(tmp_path, "motion/a.npz", 400, 3),
+        _entry(tmp_path, "graph/graph-1.npz", 300, 1),
+    )
     removed = bound_cache(keep=[bank], limit=800, root=tmp_path)
     assert [e.path for e in removed] == [old, graph]  # the bank is in use: kept
     assert bank.is_dir() and layer.is_file() and not old.exists() and not graph.exists()

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -11,6 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
+from control.artifacts import build_lock, is_locked
 from control.motion import Library, load_library
 from mimic.cli import main
 from silhouette_bank import (
@@ -321,3 +324,22 @@ def test_lda_directions_are_scikit_learns(classes: int, numbers: int, per: int) 
     np.testing.assert_allclose(got * sign, want, atol=1e-9 * np.abs(want).max())
     with pytest.raises(ValueError, match="dims must be in 1"):
         lda_directions(x, y, numbers + 1)
+
+
+def test_a_bank_another_process_builds_is_waited_for_then_loaded(
+    lib: Library, tmp_path: Path
+) -> None:
+    folder = tmp_path / "shared"
+    got: dict[str, bool] = {}
+
+    def meanwhile() -> None:
+        got["built"] = ensure_bank(lib.clips, SMALL, folder, workers=1)[1]
+
+    with build_lock(folder):  # the other process: building
+        waiter = threading.Thread(target=meanwhile)
+        waiter.start()
+        build_bank(lib.clips, SMALL, folder, shard_frames=60, workers=1)
+        time.sleep(0.1)
+        assert waiter.is_alive() and is_locked(folder)  # waiting for the lock
+    waiter.join(timeout=60)
+    assert got == {"built": False} and not is_locked(folder)

@@ -9,16 +9,19 @@ import pytest
 
 from control.avatar import Avatar
 from control.choice import offer
-from control.clusters import HigherLayer, build_higher_layer
-from control.graph import FrameData, GraphOptions, MotionGraph, build_graph
+from control.clusters import HigherLayer, cached_higher_layer
+from control.graph import FrameData, GraphOptions, MotionGraph, cached_graph
 from control.motion import Library, read_bvh
 from mimic.cli import main
 
 
 @pytest.fixture(scope="module")
-def playground(playground_lib: Library) -> tuple[MotionGraph, HigherLayer, FrameData]:
-    g = build_graph(playground_lib.clips, GraphOptions())
-    layer = build_higher_layer(g, playground_lib.clips, k=25)
+def playground(playground_lib: Library, prebuild) -> tuple[MotionGraph, HigherLayer, FrameData]:
+    """The playground's graph and higher layer from the tests' cache: those `mimic choose
+    --clips '01_*' --k 25` loads (tests/prebuild.py builds them in the background)."""
+    prebuild.wait("playground")
+    g, _, _ = cached_graph(playground_lib.clips, GraphOptions())
+    layer, _, _ = cached_higher_layer(g, playground_lib.clips, k=25)
     return g, layer, FrameData(g, playground_lib.clips)
 
 

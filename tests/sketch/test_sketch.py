@@ -185,16 +185,19 @@ def test_dead_end_is_backed_out_of_or_reported(walks) -> None:
 # --- the first approach: actions chosen by DTW ------------------------------------------
 
 
+#: the walks' higher layer: ``mimic sketch --approach actions --k 10 --bound 3
+#: --tree-nodes 512`` (``tests/prebuild.py`` builds it in the background)
+ACTIONS_LAYER = {"k": 10, "bound_seconds": 3.0, "max_nodes": 512}
+
+
 @pytest.fixture(scope="module")
-def actions(walks, session_cache: Path):
-    """The walks' higher layer, in the tests' cache (named: a module's fixture is made
-    before each test's cache is set): the one ``mimic sketch --approach actions --k 10
-    --bound 3 --tree-nodes 512 --coords relative`` on the walks loads."""
+def actions(walks, session_cache: Path, prebuild):
+    """The walks' higher layer, from the tests' cache: the one ``mimic sketch --approach
+    actions ... --coords relative`` on the walks loads."""
     lib, g = walks
-    layer, _, _ = cached_higher_layer(
-        g, lib.clips, k=10, bound_seconds=3.0, max_nodes=512, cache_dir=session_cache / "graph"
-    )
-    return layer
+    prebuild.wait("walks")
+    cache = session_cache / "graph"
+    return cached_higher_layer(g, lib.clips, cache_dir=cache, **ACTIONS_LAYER)[0]
 
 
 @pytest.mark.parametrize("side", [1.0, -1.0])

@@ -11,18 +11,25 @@ from control.clusters import HigherLayer, build_higher_layer
 from control.graph import GraphOptions, build_graph
 from control.motion import Library, load_library
 from silhouette_bank import Bank, BankSettings, ensure_bank
-from tests.conftest import REPO
+from tests.conftest import REPO, Prebuild
 
 RECORDING = REPO / "recordings" / "13_29_first12s_160x120.mkv"
 
 
 @pytest.fixture(scope="session")
-def setup(mocap: Path) -> tuple[Library, HigherLayer, Bank]:
+def setup(mocap: Path, prebuild: Prebuild) -> tuple[Library, HigherLayer, Bank]:
     # the bank goes into the tests' shared cache (conftest's _private_cache): it is the
     # one `mimic perform --clips 13_30` uses, so that the command-line tests load it
-    # rather than build it again
+    # rather than build it again; tests/prebuild.py builds it in the background
     lib = load_library(mocap, clips=["13_30"])
     g = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.03))
     layer = build_higher_layer(g, lib.clips, k=12)
-    bank, _ = ensure_bank(lib.clips, BankSettings(), workers=2)  # (both cores: 12 s -> 9 s)
+    prebuild.wait("bank")
+    bank, _ = ensure_bank(lib.clips, BankSettings(), workers=2)
     return lib, layer, bank
+
+
+@pytest.fixture(autouse=True)
+def _bank_prebuilt(prebuild: Prebuild) -> None:
+    # a vision test that builds the 13_30 bank through the command line waits for it
+    prebuild.wait("bank")

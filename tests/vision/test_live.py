@@ -156,7 +156,7 @@ def test_perform_serves_the_live_view_while_it_runs(mocap: Path, tmp_path: Path)
         "12",
         "--realtime",
         "--seconds",
-        "4",
+        "2",
         "--live-port",
         str(port),
     ]

@@ -1,0 +1,65 @@
+"""What the slowest session fixtures build, built in a background process from the
+session's start (``conftest.prebuild``) while the first tests run on the other core: the
+playground's graph and higher layer (the choice tests), the walks' higher layer (the
+sketch tests) and the 13_30 bank (the vision fixtures), into the tests' cache
+($MIMIC_CACHE).
+
+Each part, once built, leaves a marker ``prebuilt-<part>`` in the cache. A fixture that
+needs a part waits for its marker (or for this process to end, whatever its outcome) and
+then loads or builds as it would alone: the cache's entries are content-addressed and
+checked on load, so a part built here is the one the fixture would build, and a part that
+failed here is built by the fixture. The bank's build lock keeps a test that builds the
+same bank meanwhile from building it twice.
+
+Run as ``python -m tests.prebuild PART...`` with PART in ``PARTS``.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+#: the parts, in the order the tests need them (clusters, sketch, then vision tests)
+PARTS = ("playground", "walks", "bank")
+
+
+def build(part: str) -> None:
+    """Build ``part`` into the cache, as its fixture does."""
+    from control.motion import load_library
+    from tests.conftest import MOCAP
+
+    if part == "playground":  # tests/clusters/test_choice.py: playground
+        from control.clusters import cached_higher_layer
+        from control.graph import GraphOptions, cached_graph
+
+        lib = load_library(MOCAP, clips=["01_*"])
+        graph, _, _ = cached_graph(lib.clips, GraphOptions())
+        cached_higher_layer(graph, lib.clips, k=25)
+    elif part == "walks":  # tests/sketch/test_sketch.py: walks and actions
+        from control.clusters import cached_higher_layer
+        from control.graph import GraphOptions, build_graph
+        from tests.sketch.test_sketch import ACTIONS_LAYER, WALKS
+
+        lib = load_library(MOCAP, clips=WALKS)
+        graph = build_graph(lib.clips, GraphOptions(coords="relative"))
+        cache = Path(os.environ["MIMIC_CACHE"]) / "graph"
+        cached_higher_layer(graph, lib.clips, cache_dir=cache, **ACTIONS_LAYER)
+    elif part == "bank":  # tests/vision/conftest.py: setup
+        from silhouette_bank import BankSettings, ensure_bank
+
+        lib = load_library(MOCAP, clips=["13_30"])
+        ensure_bank(lib.clips, BankSettings(), workers=1)
+    else:
+        raise ValueError(f"unknown part {part!r}: the parts are {', '.join(PARTS)}")
+
+
+def main(parts: list[str]) -> None:
+    cache = Path(os.environ["MIMIC_CACHE"])
+    for part in parts:
+        build(part)
+        (cache / f"prebuilt-{part}").touch()
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
