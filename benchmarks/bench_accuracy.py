@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import dataclasses
 import itertools
 import tempfile
 import time
@@ -266,6 +267,7 @@ def fold(
     views: int = 18,
     match: dict[str, Any] | None = None,
     off_floor: bool = False,
+    store: str = "float32",
 ) -> dict[str, Any]:
     everything = load_library(root, clips=list(clips) if clips else None)
     train = [c for c in everything.clips if c.name != test and c.motion.skeleton.n_joints == 31]
@@ -283,6 +285,12 @@ def fold(
     print(f"{test}: graph {g.n_edges} edges, layer built in {took:.0f} s", flush=True)
     base = BankSettings(CameraRing(n_views=views), descriptor=descriptor)
     bank, _ = ensure_bank(train, robust_settings(base) if variants else base)
+    if store != "float32":  # (issue 21: the precision a bank need store its numbers at)
+        bank = dataclasses.replace(
+            bank,
+            features=bank.features.astype(store).astype(np.float32),
+            root_motion=bank.root_motion.astype(store).astype(np.float32),
+        )
     joints = weighted_joints(train[0].motion.skeleton)
     lib_q = np.concatenate([c.motion.quats for c in train])[:, joints]
     lib_labels = np.concatenate(
@@ -404,6 +412,13 @@ def main() -> None:
         help="keep clips that leave the floor (perform's --off-floor)",
     )
     ap.add_argument(
+        "--store",
+        default="float32",
+        choices=("float32", "float16"),
+        help="round the bank's features to this precision before matching (default float32, "
+        "the bank's own)",
+    )
+    ap.add_argument(
         "--settings",
         default=",".join(f"{w}:{a}" for w, a in SETTINGS),
         help="window:lookahead pairs in seconds, comma separated",
@@ -433,6 +448,7 @@ def main() -> None:
         "views": args.views,
         "match": match,
         "off_floor": args.off_floor,
+        "store": args.store,
         "folds": [
             fold(
                 root,
@@ -446,6 +462,7 @@ def main() -> None:
                 args.views,
                 match,
                 args.off_floor,
+                args.store,
             )
             for t in args.folds.split(",")
         ],
