@@ -27,9 +27,3 @@ def setup(mocap: Path, prebuild: Prebuild) -> tuple[Library, HigherLayer, Bank]:
     prebuild.wait("bank")
     bank, _ = ensure_bank(lib.clips, BankSettings(), workers=2)
     return lib, layer, bank
-
-
-@pytest.fixture(autouse=True)
-def _bank_prebuilt(prebuild: Prebuild) -> None:
-    # a vision test that builds the 13_30 bank through the command line waits for it
-    prebuild.wait("bank")
