@@ -16,10 +16,18 @@ def graph(walk_lib):
     return build_graph(walk_lib.clips, GraphOptions(coords="relative", threshold=0.2))
 
 
+#: small layers (2 s trees): these tests are about the cache, not the trees
+SMALL = {"bound_seconds": 2.0}
+
+
 def test_a_cached_layer_is_the_built_one(graph, walk_lib, tmp_path) -> None:
-    built, path, was_built = cached_higher_layer(graph, walk_lib.clips, k=4, cache_dir=tmp_path)
+    built, path, was_built = cached_higher_layer(
+        graph, walk_lib.clips, k=4, cache_dir=tmp_path, **SMALL
+    )
     assert was_built and path.is_file()
-    again, path2, was_built2 = cached_higher_layer(graph, walk_lib.clips, k=4, cache_dir=tmp_path)
+    again, path2, was_built2 = cached_higher_layer(
+        graph, walk_lib.clips, k=4, cache_dir=tmp_path, **SMALL
+    )
     assert path2 == path and not was_built2
     assert np.array_equal(again.labels, built.labels)
     assert np.array_equal(again.states, built.states)
@@ -36,21 +44,23 @@ def test_a_cached_layer_is_the_built_one(graph, walk_lib, tmp_path) -> None:
     if m1 is not None and m2 is not None:
         assert np.array_equal(m1.frames, m2.frames)
     # another setting is another file
-    _, path3, built3 = cached_higher_layer(graph, walk_lib.clips, k=5, cache_dir=tmp_path)
+    _, path3, built3 = cached_higher_layer(graph, walk_lib.clips, k=5, cache_dir=tmp_path, **SMALL)
     assert built3 and path3 != path
 
 
 def test_a_damaged_or_foreign_layer_is_rebuilt_with_a_warning(
     graph, walk_lib, tmp_path, caplog
 ) -> None:
-    _, path, _ = cached_higher_layer(graph, walk_lib.clips, k=4, cache_dir=tmp_path)
+    _, path, _ = cached_higher_layer(graph, walk_lib.clips, k=4, cache_dir=tmp_path, **SMALL)
     data = bytearray(path.read_bytes())
     data[len(data) // 2] ^= 0xFF
     path.write_bytes(bytes(data))
     with pytest.raises(LayerFileError, match=str(path)):
         load_layer(path, graph)
     with caplog.at_level(logging.WARNING):
-        layer, _, built = cached_higher_layer(graph, walk_lib.clips, k=4, cache_dir=tmp_path)
+        layer, _, built = cached_higher_layer(
+            graph, walk_lib.clips, k=4, cache_dir=tmp_path, **SMALL
+        )
     assert built and str(path) in caplog.text
     assert load_layer(path, graph).clustering.k == layer.clustering.k
     other = build_graph(walk_lib.clips, GraphOptions(coords="relative", threshold=0.3))
