@@ -4,6 +4,7 @@ options, the blend and a start frame, and what they make (the options, the graph
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -145,7 +146,8 @@ def library_for(args: argparse.Namespace) -> Library:
     if args.fps is None or args.fps <= 0:
         raise ValueError("--fps must be positive")
     folder = library_dir(args)
-    if folder is None and default_library_path() == EMBEDDED_LIBRARY:
+    unset = folder is None and not os.environ.get("MIMIC_MOCAP")
+    if unset and default_library_path() == EMBEDDED_LIBRARY:  # (nothing else found)
         print(
             f"motion library: the embedded default library ({EMBEDDED_LIBRARY}): no "
             "$MIMIC_MOCAP and no ../shared/mocap (pass a folder for your own mocap)",

@@ -527,6 +527,10 @@ def test_the_demo_runs_on_the_embedded_library_where_no_other_exists(
     assert "library: 2 clips" in said.err and "descriptor: pose" in said.err
     assert read_bvh(out).n_frames >= 30
     assert len(load_library(EMBEDDED_LIBRARY).clips) == 9
+    # named by $MIMIC_MOCAP, it is a library like any other: nothing to say
+    monkeypatch.setenv("MIMIC_MOCAP", str(EMBEDDED_LIBRARY))
+    assert main([*argv, "--clips", "02_0[12]"]) == 0
+    assert "the embedded default library" not in capsys.readouterr().err
 
 
 def test_the_avatar_blends_over_the_blend_asked_for(setup) -> None:
