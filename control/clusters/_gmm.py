@@ -16,8 +16,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from sklearn.cluster import KMeans
-from sklearn.mixture import GaussianMixture
 
 from ..motion import FloatArray
 
@@ -71,6 +69,8 @@ class Clustering:
 
 def keyframe_seeds(x: FloatArray, k: int, seed: int = 0) -> NDArray[np.int64]:
     """``k`` distinct frames to start EM from: k-means centres snapped to their nearest frame."""
+    from sklearn.cluster import KMeans  # (here: a second of import a cached layer never needs)
+
     km = KMeans(n_clusters=k, n_init=1, max_iter=20, random_state=seed).fit(x)
     d = ((x[:, None, :] - km.cluster_centers_[None]) ** 2).sum(-1) if x.shape[0] * k < 4e6 else None
     frames: list[int] = []
@@ -93,6 +93,8 @@ def fit_mixture(
     max_iter: int = 200,
 ) -> Clustering:
     """Fit a ``k``-component spherical mixture to the rows of ``x``."""
+    from sklearn.mixture import GaussianMixture
+
     if seeding not in SEEDINGS:
         raise ValueError(f"seeding must be one of {', '.join(SEEDINGS)}, not {seeding!r}")
     n = x.shape[0]
