@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from control.graph import lowest_foot, off_floor_seconds
+from control.graph import longest_off_floor, lowest_foot
 from control.motion import Clip
 
 __all__ = ["FLOOR_ABOVE", "FLOOR_SECONDS", "VISION_COORDS", "floor_level", "on_the_floor"]
@@ -30,8 +30,11 @@ FLOOR_SECONDS = 0.5
 
 def floor_level(clips: Sequence[Clip]) -> float:
     """The library's floor: the 1st percentile of its lowest foot heights."""
-    low = np.concatenate([lowest_foot(c.motion) for c in clips]) if clips else np.zeros(1)
-    return float(np.percentile(low, 1))
+    return _floor([lowest_foot(c.motion) for c in clips])
+
+
+def _floor(lows: Sequence[np.ndarray]) -> float:
+    return float(np.percentile(np.concatenate(lows) if lows else np.zeros(1), 1))
 
 
 def on_the_floor(
@@ -39,11 +42,12 @@ def on_the_floor(
 ) -> tuple[list[Clip], dict[str, float]]:
     """``(kept, left_out)``: the clips that stay on the library's floor, and for each one
     left out its longest stretch (seconds) off it."""
-    floor = floor_level(clips)
+    lows = [lowest_foot(c.motion) for c in clips]  # (forward kinematics once a clip)
+    floor = _floor(lows)
     kept: list[Clip] = []
     out: dict[str, float] = {}
-    for c in clips:
-        off = off_floor_seconds(c.motion, floor, above)
+    for c, low in zip(clips, lows, strict=True):
+        off = longest_off_floor(low, c.motion.fps, floor, above)
         if off > seconds:
             out[c.name] = off
         else:

@@ -71,12 +71,20 @@ def off_floor_seconds(motion: Motion, floor: float = 0.0, above: float = 0.25) -
     """The longest stretch (seconds) with every foot point more than ``above`` metres
     over ``floor``: a jump's flight is a fraction of a second, climbing or sitting on
     something (that the avatar's world lacks) is longer."""
-    off = lowest_foot(motion) > floor + above
+    return longest_off_floor(lowest_foot(motion), motion.fps, floor, above)
+
+
+def longest_off_floor(
+    low: FloatArray, fps: float, floor: float = 0.0, above: float = 0.25
+) -> float:
+    """``off_floor_seconds`` of lowest foot heights ``low`` ``(F,)`` (``lowest_foot``) at
+    ``fps``."""
+    off = np.asarray(low) > floor + above
     if not off.any():
         return 0.0
     edges = np.diff(np.concatenate(([0], off.astype(np.int8), [0])))
     runs = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
-    return float(runs.max()) / motion.fps
+    return float(runs.max()) / fps
 
 
 def jerk(motion: Motion) -> FloatArray:
