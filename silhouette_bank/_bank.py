@@ -7,6 +7,10 @@ Layout of a bank folder::
     shard-00003.npz        features (n, V, F) float32, root_motion (n, V, 2) float32,
                            for the frames [start, stop) of the library (one file a shard)
     bank.npz               all shards merged (written last; the bank is complete)
+    index-<hash>.npz       the matcher's window index of these features
+                           (``vision.cached_window_index``: made by the first run that
+                           needs it, loaded by the next)
+    .building.lock         held while a process builds the bank (``ensure_bank``)
 
 Everything is written to a temporary file and renamed. Shards are independent, so they
 can be built by several processes (``workers``) or machines and merged; a build that was
@@ -277,7 +281,7 @@ def _start_manifest(
         if (
             not isinstance(previous, dict) or previous.get("key") != key
         ):  # another library or settings: start afresh
-            for p in folder.glob("shard-*.npz"):
+            for p in [*folder.glob("shard-*.npz"), *folder.glob("index-*.npz")]:
                 p.unlink()
             (folder / "bank.npz").unlink(missing_ok=True)
     with atomic_write(old) as fh:

@@ -14,7 +14,10 @@ from ._evaluate import (
     plot_evaluation,
 )
 from ._index import (
+    INDEX_VERSION,
+    IndexFileError,
     WindowIndex,
+    cached_window_index,
 )
 from ._landmarks import (
     MEDIAPIPE_INDEX,
@@ -97,6 +100,7 @@ from ._windows import (
 __all__ = [
     "FLOOR_ABOVE",
     "FLOOR_SECONDS",
+    "INDEX_VERSION",
     "INSTALL",
     "LAGS",
     "MAX_COVER",
@@ -108,6 +112,7 @@ __all__ = [
     "CameraSource",
     "Decision",
     "Frame",
+    "IndexFileError",
     "LabelFileError",
     "LivePainter",
     "LiveView",
@@ -131,6 +136,7 @@ __all__ = [
     "agreement",
     "avatar_labels",
     "best_window",
+    "cached_window_index",
     "clean_mask",
     "evaluation",
     "floor_level",

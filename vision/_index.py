@@ -14,16 +14,22 @@ the best window found is the brute-force best in >= 99% of queries.
 
 from __future__ import annotations
 
+import hashlib
 import itertools
+import logging
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from control.artifacts import atomic_write, checksum, read_npz, verify_checksum
 from control.dtw import dtw_windows
 
-__all__ = ["WindowIndex"]
+log = logging.getLogger(__name__)
+
+__all__ = ["INDEX_VERSION", "IndexFileError", "WindowIndex", "cached_window_index"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -87,6 +93,7 @@ class WindowIndex:
         shortlist: int = 96,
         seed: int = 0,
         flat_below: int = 100_000,
+        built: tuple[NDArray[np.float32], NDArray[np.float32], Any, int] | None = None,
     ) -> None:
         import faiss
 
@@ -105,6 +112,10 @@ class WindowIndex:
         self._ok = np.zeros(shape.shape[0], dtype=bool)
         self._ok[starts] = True
         faiss.omp_set_num_threads(1)  # one core, and the same index on every run
+        self.index: Any
+        if built is not None:  # (mean, basis, faiss index, nprobe) of the same build
+            self.mean, self.basis, self.index, self.nprobe = built
+            return
         x = _summaries(self.shape, self.centre, starts, self.length, self.bounds)
         x = x.reshape(-1, x.shape[2])  # row r: start r // V, view r % V
         rng = np.random.default_rng(seed)
@@ -115,7 +126,6 @@ class WindowIndex:
         self.basis = np.ascontiguousarray(vt[:k].T, dtype=np.float32)
         z = np.ascontiguousarray((x - self.mean) @ self.basis, dtype=np.float32)
         n = z.shape[0]
-        self.index: Any
         if n < flat_below:  # exact broad phase: a flat scan is fast enough
             self.index = faiss.IndexFlatL2(k)
             self.nprobe = 0
@@ -181,3 +191,65 @@ class WindowIndex:
                 if si not in best or cost[i] < best[si][2]:
                     best[si] = (si, int(v[i]), float(cost[i]))
         return sorted(best.values(), key=lambda r: (r[2], r[0]))[:top]
+
+
+#: the stored index's format (``cached_window_index``)
+INDEX_VERSION = 1
+
+
+def cached_window_index(
+    shape: FloatArray,
+    centre: FloatArray,
+    starts: IntArray,
+    length: int,
+    folder: str | Path | None,
+    **options: Any,
+) -> WindowIndex:
+    """``WindowIndex(shape, centre, starts, length, **options)``, stored in ``folder`` (a bank's
+    folder: the index is made from its features) as ``index-<hash of the tables>.npz``
+    and loaded from there next time, checked (``control.artifacts``). A damaged file is
+    built again with a warning naming it; a folder that cannot be written is only read."""
+    import faiss
+
+    if folder is None:
+        return WindowIndex(shape, centre, starts, length, **options)
+    h = hashlib.sha256(f"{INDEX_VERSION}|{length}|{sorted(options.items())}".encode())
+    for table in (shape, centre, starts):
+        a = np.ascontiguousarray(table)
+        h.update(f"{a.dtype}{a.shape}".encode())
+        h.update(a.tobytes())
+    path = Path(folder) / f"index-{h.hexdigest()[:24]}.npz"
+    if path.is_file():
+        try:
+            keys = ("checksum", "mean", "basis", "index", "nprobe")
+            d = read_npz(path, keys, IndexFileError, "window index")
+            verify_checksum({"checksum": str(d.pop("checksum"))}, d, path, IndexFileError)
+            index: Any = faiss.deserialize_index(np.ascontiguousarray(d["index"], dtype=np.uint8))
+            if int(d["nprobe"]):  # (an inverted-file index: its lists searched)
+                index.nprobe = int(d["nprobe"])
+            built = (d["mean"], d["basis"], index, int(d["nprobe"]))
+            return WindowIndex(shape, centre, starts, length, **options, built=built)
+        except (IndexFileError, RuntimeError) as exc:  # (faiss raises RuntimeError)
+            log.warning("building the window index again: %s", exc)
+    out = WindowIndex(shape, centre, starts, length, **options)
+    arrays = {
+        "mean": np.asarray(out.mean, dtype=np.float32),
+        "basis": out.basis,
+        "index": np.asarray(faiss.serialize_index(out.index), dtype=np.uint8),
+        "nprobe": np.array(out.nprobe),
+    }
+    try:
+        with atomic_write(path, "wb") as fh:
+            np.savez(fh, checksum=np.array(checksum({}, arrays)), **arrays)  # type: ignore[arg-type]
+    except OSError as exc:  # a bank folder that is only ours to read
+        log.info("the window index is not stored: %s", exc)
+    return out
+
+
+class IndexFileError(ValueError):
+    """A stored window index that cannot be used (names the file)."""
+
+    def __init__(self, path: str | Path, problem: str) -> None:
+        self.path = Path(path)
+        self.problem = problem
+        super().__init__(f"{path}: {problem}")

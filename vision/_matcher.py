@@ -31,7 +31,7 @@ from control.dtw import dtw_batch
 from silhouette_bank import Bank
 
 from ._decision import Decision, MatchSettings
-from ._index import WindowIndex
+from ._index import WindowIndex, cached_window_index
 from ._windows import (
     best_window,
     per_frame_cost,
@@ -133,10 +133,12 @@ class Matcher:
         return self._tables
 
     def index(self) -> WindowIndex:
-        """The fast whole-library window search (built on first use)."""
+        """The fast whole-library window search (made on first use; stored in the bank's
+        folder, and loaded from there when the tables are the same)."""
         if self._index is None:
             shape, centre, starts = self._global_tables()
-            self._index = WindowIndex(shape, centre, starts, self.n)
+            folder = self.bank.path or None
+            self._index = cached_window_index(shape, centre, starts, self.n, folder)
         return self._index
 
     def queries(self, performer: FloatArray) -> list[FloatArray] | None:

@@ -2,13 +2,22 @@
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import pytest
 
 from control.dtw import dtw, dtw_windows
 from silhouette_bank import silhouette_features
 from tests.vision.conftest import RECORDING
-from vision import Matcher, MatchSettings, VideoSource, WindowIndex, best_window
+from vision import (
+    Matcher,
+    MatchSettings,
+    VideoSource,
+    WindowIndex,
+    best_window,
+    cached_window_index,
+)
 
 
 def _performer(bank) -> np.ndarray:
@@ -78,3 +87,31 @@ def test_index_top_windows_are_distinct_and_sorted(setup) -> None:
     assert len({g[0] for g in got}) == len(got)
     assert [g[2] for g in got] == sorted(g[2] for g in got)
     assert m.find_window(perf[:15]) == (got[0][0], got[0][1] % 18, got[0][2])
+
+
+@pytest.mark.parametrize("flat_below", [100_000, 0])  # a flat scan; an inverted file
+def test_a_stored_index_is_the_built_one(setup, tmp_path, caplog, flat_below) -> None:
+    _, layer, bank = setup
+    m = Matcher(layer, bank, MatchSettings())
+    shape, centre, starts = m._global_tables()
+    built = cached_window_index(shape, centre, starts, m.n, tmp_path, flat_below=flat_below)
+    (stored,) = tmp_path.glob("index-*.npz")
+    loaded = cached_window_index(shape, centre, starts, m.n, tmp_path, flat_below=flat_below)
+    assert loaded.size == built.size and loaded.nprobe == built.nprobe
+    for q in m.queries(_performer(bank)[:30]) or []:  # the matcher's own queries
+        assert loaded.search([q], 4, top=5) == built.search([q], 4, top=5)
+    # other tables, or other options: another file
+    cached_window_index(shape, centre, starts[1:], m.n, tmp_path, flat_below=flat_below)
+    assert len(list(tmp_path.glob("index-*.npz"))) == 2
+    # a damaged file is built again, with a warning naming it
+    data = bytearray(stored.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    stored.write_bytes(bytes(data))
+    with caplog.at_level(logging.WARNING):
+        again = cached_window_index(shape, centre, starts, m.n, tmp_path, flat_below=flat_below)
+    assert str(stored) in caplog.text and again.size == built.size
+    # a folder that cannot be written (here a file's name: even root cannot): built, not
+    # stored, no error
+    blocked = tmp_path / "a-file"
+    blocked.write_text("")
+    assert cached_window_index(shape, centre, starts, m.n, blocked).size == built.size
