@@ -38,6 +38,7 @@ from control.motion import (
     write_motion_arrays,
 )
 from silhouette_bank import BankFileError, BankSettings, CameraRing, ensure_bank
+from vision import IndexFileError, Matcher, MatchSettings
 
 GOOD = ("same", "rebuilt", "error")
 SMALL_BANK = BankSettings(CameraRing(n_views=6, width=80, height_px=60), descriptor="hu")
@@ -158,6 +159,7 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
     cached_higher_layer(graph, lib.clips, cache_dir=root / "graph")
     layer, _, _ = cached_higher_layer(graph, lib.clips, cache_dir=root / "graph")
     bank, _ = ensure_bank(lib.clips, SMALL_BANK, root / "bank", workers=1)
+    index = Matcher(layer, bank, MatchSettings()).index()  # stored in the bank's folder
     write_motion_arrays(root / "arrays" / "02_01.motion.npz", lib.clips[0].motion)
     arrays = read_motion_arrays(root / "arrays" / "02_01.motion.npz")
 
@@ -175,6 +177,10 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
 
     def load_bank(r: Path) -> Any:
         return ensure_bank(lib.clips, SMALL_BANK, r / "bank", workers=1)[0]
+
+    def load_index(r: Path) -> Any:
+        stored = ensure_bank(lib.clips, SMALL_BANK, r / "bank", workers=1)[0]
+        return Matcher(layer, stored, MatchSettings()).index()
 
     def moved(a: dict[str, Any], key: str) -> None:
         a[key] = a[key] + np.array([1.0, 0.0, 0.0], dtype=a[key].dtype)  # 1 m along x
@@ -225,6 +231,22 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
         a["features"][0] = np.nan
         with p.open("wb") as fh:
             np.savez(fh, **a)
+
+    def index_edit(change: Callable[[dict[str, Any]], object]) -> Callable[[Path], None]:
+        def edit(p: Path) -> None:  # arrays changed, the checksum kept
+            with np.load(p, allow_pickle=False) as z:
+                a = {k: z[k] for k in z.files}
+            change(a)
+            with p.open("wb") as fh:
+                np.savez(fh, **a)
+
+        return edit
+
+    index_edits: dict[str, Callable[[Path], object]] = {
+        "mean shifted": index_edit(lambda a: _set(a, "mean", a["mean"] + 1.0)),
+        "basis of zeros": index_edit(lambda a: _set(a, "basis", np.zeros_like(a["basis"]))),
+        "no checksum": index_edit(lambda a: a.pop("checksum")),
+    }
 
     found = [
         Artifact(
@@ -290,6 +312,14 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
             (MotionFormatError,),
             {k: v for k, v in motion_edits.items()},
         ),
+        Artifact(
+            "window index (beside the bank)",
+            one("bank", "index-*.npz"),
+            load_index,
+            _same_index,
+            (IndexFileError,),
+            index_edits,
+        ),
     ]
     pristine = {
         "motion cache entry": lib,
@@ -299,8 +329,19 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
         "bank manifest.json": bank,
         "bank.npz": bank,
         "motion arrays (.motion.npz)": arrays,
+        "window index (beside the bank)": index,
     }
     return found, pristine
+
+
+def _same_index(a: Any, b: Any) -> bool:
+    return (
+        a.size == b.size
+        and a.nprobe == b.nprobe
+        and np.array_equal(a.mean, b.mean)
+        and np.array_equal(a.basis, b.basis)
+        and np.array_equal(a.index.reconstruct_n(0, a.size), b.index.reconstruct_n(0, b.size))
+    )
 
 
 # --- running a case ------------------------------------------------------------------------
