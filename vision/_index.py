@@ -229,8 +229,10 @@ def cached_window_index(
                 index.nprobe = int(d["nprobe"])
             built = (d["mean"], d["basis"], index, int(d["nprobe"]))
             return WindowIndex(shape, centre, starts, length, **options, built=built)
-        except (IndexFileError, RuntimeError) as exc:  # (faiss raises RuntimeError)
+        except IndexFileError as exc:  # (its message names the file)
             log.warning("building the window index again: %s", exc)
+        except RuntimeError as exc:  # faiss could not read the index it wrote
+            log.warning("building the window index again: %s: %s", path, exc)
     out = WindowIndex(shape, centre, starts, length, **options)
     arrays = {
         "mean": np.asarray(out.mean, dtype=np.float32),
