@@ -280,7 +280,9 @@ class Descriptor:
         return out
 
     def _shape_of(self, m: NDArray[np.uint8], top: int, bottom: int, cx: float) -> FloatArray:
-        raise NotImplementedError
+        """The shape numbers of one non-empty binary mask spanning rows ``[top, bottom)``
+        with its centroid's column ``cx``: each silhouette descriptor defines them."""
+        raise TypeError(f"{type(self).__name__} ({self.name!r}) defines no shape numbers of masks")
 
 
 @dataclass(frozen=True)
@@ -329,9 +331,8 @@ class GridDescriptor(Descriptor):
             crop = crops.get(width)
             if crop is None:
                 crop = crops[width] = _crop(rows, 0, bottom - top, cx, width)
-            cells.append(cv2.resize(crop, (c, r), interpolation=cv2.INTER_AREA).ravel())
-        # the area averages of values in [0, 1], less float32's rounding (1.0000002 seen)
-        return np.clip(np.concatenate(cells).astype(np.float64), 0.0, 1.0)
+            cells.append(_cells(crop, r, c))
+        return np.concatenate(cells)
 
     def mirror(self, x: NDArray[np.floating]) -> NDArray[np.floating]:
         out = super().mirror(x)

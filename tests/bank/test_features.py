@@ -11,6 +11,7 @@ from skimage.measure import moments_central, moments_hu, moments_normalized
 from silhouette_bank import (
     DESCRIPTORS,
     THIGH_RATIO,
+    Descriptor,
     GridDescriptor,
     feature_size,
     get_descriptor,
@@ -85,6 +86,8 @@ def test_empty_and_bad_masks() -> None:
     assert np.isnan(silhouette_features(np.zeros((10, 10), dtype=bool))).all()
     with pytest.raises(ValueError, match="2-D"):
         silhouette_features(np.zeros((2, 3, 4)))
+    with pytest.raises(TypeError, match="defines no shape numbers"):  # a descriptor half made
+        Descriptor("half", 3).from_mask(_figure())
     f = _hu(_figure().astype(bool))
     np.testing.assert_allclose(f, _hu(_figure() * 255))
 
