@@ -3,7 +3,7 @@ looks like what the performer just did, by the global window search alone (no gr
 avatar), for each descriptor.
 
 Usage: python -m benchmarks.bench_recognition [LIBRARY_DIR] [--takes 13_29,13_30,13_31]
-       [--descriptors multigrid,grid,hu,pose] [--window 1.0] [--variants]
+       [--descriptors outline,multigrid,grid,hu,pose] [--window 1.0] [--variants]
        [--videos DIR] [--labels CSV] [--no-video] [--out FILE]
 
 **Folds.** Leave one take out over the labelled takes: the library is the other takes,
@@ -319,7 +319,10 @@ def real_clips(
     sil_search = Search(sil_bank, n, lib_labels)
     names = {a.lower(): a for a in set(lib_labels) - {""}}
     out: dict[str, Any] = {}
-    for file, start, end, label in read_labels(labels):
+    spans: dict[str, list[tuple[float, float, str]]] = {}
+    for file, start, end, label in read_labels(labels):  # a file may have several spans
+        spans.setdefault(file, []).append((start, end, label))
+    for file, labelled in spans.items():
         cap = cv2.VideoCapture(str(videos / file))
         fps = cap.get(cv2.CAP_PROP_FPS) or 30.0
         model, reader = PersonSegmenter("pose"), PoseReader()
@@ -340,18 +343,21 @@ def real_clips(
         idx = np.minimum((t * fps + 1e-9).astype(int), len(vecs) - 1)
         feats = np.array(vecs)[idx]
         sil_feats = np.array(sil)[idx]
-        truth = names.get(label.lower())
         hits = []
         sil_hits = []
         costs = []
+        truths = []
         for e in range(n, idx.size + 1, max(1, round(0.5 * rate))):
             te = t[e - 1]
-            if not start <= te <= end:
+            inside = [lab for a, b, lab in labelled if a <= te <= b]
+            if not inside:
                 continue
+            truth = names.get(inside[0].lower())
             got = search(feats[e - n : e])
             if got is None:
                 continue
             hits.append(got[0] == truth)
+            truths.append(str(truth))
             costs.append(got[1])
             sil_got = sil_search(sil_feats[e - n : e])
             sil_hits.append(sil_got is not None and sil_got[0] == truth)
@@ -363,14 +369,16 @@ def real_clips(
             g[1] for e in range(n, idx.size + 1, n) if (g := search(flip[e - n : e])) is not None
         ]
         out[file] = {
-            "label": label,
+            "labels": sorted({lab for _, _, lab in labelled}),
+            "spans": [[a, b] for a, b, _ in labelled],
             "frames": len(vecs),
             "fps": fps,
             "frames_without_pose": int(sum(1 for w in why if w)),
             "windows": len(hits),
             "right": round(float(np.mean(hits)), 3) if hits else None,
-            "chance": round(search.chance([truth] * len(hits)), 3) if hits and truth else None,
-            "right_multigrid_masks": round(float(np.mean(sil_hits)), 3) if sil_hits else None,
+            "chance": round(search.chance(truths), 3) if hits else None,
+            "silhouette_descriptor": sil_bank.settings.descriptor,
+            "right_silhouette_masks": round(float(np.mean(sil_hits)), 3) if sil_hits else None,
             "cost_true": _quantiles(costs),
             "cost_upside_down": _quantiles(bad),
             "rejected_true": _over(costs, search.desc.reject),
@@ -384,7 +392,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("root", nargs="?", default=str(default_library_path()))
     ap.add_argument("--takes", default="13_29,13_30,13_31")
-    ap.add_argument("--descriptors", default="multigrid,grid,hu,pose")
+    ap.add_argument("--descriptors", default="outline,multigrid,grid,hu,pose")
     ap.add_argument("--window", type=float, default=1.0, help="seconds per window")
     ap.add_argument("--variants", action="store_true", help="silhouette banks with body variants")
     ap.add_argument("--videos", default=str(HERE.parents[1] / "shared" / "video"))

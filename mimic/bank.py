@@ -53,9 +53,10 @@ def add_bank_args(p: argparse.ArgumentParser) -> None:
         "--descriptor",
         choices=DESCRIPTORS,
         default=DEFAULT_DESCRIPTOR,
-        help="multigrid (default: 16x8, 8x4 and 4x2 grids of cells over the silhouette), "
-        "grid (8x4 cells), hu (7 Hu moments) or pose (the joints projected, for "
-        "landmark matching)",
+        help="outline (default: the multigrid's cells and how far the silhouette reaches "
+        "left and right in 16 row bands), multigrid (16x8, 8x4 and 4x2 grids of cells over "
+        "the silhouette), grid (8x4 cells), hu (7 Hu moments) or pose (the joints "
+        "projected, for landmark matching)",
     )
 
 

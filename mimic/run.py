@@ -114,8 +114,9 @@ def add_run_args(p: argparse.ArgumentParser) -> None:
         default="auto",
         help="what each frame is reduced to. auto (default): pose (MediaPipe's body "
         "landmarks against the avatar's projected joints) for colour video and cameras "
-        "when MediaPipe is installed, else multigrid (how full each cell of 16x8, 8x4 and "
-        "4x2 grids over the silhouette is); grid, hu (7 Hu moments): see the README's "
+        "when MediaPipe is installed, else outline (how full each cell of 16x8, 8x4 and "
+        "4x2 grids over the silhouette is, and how far it reaches left and right); "
+        "multigrid (the cells alone), grid, hu (7 Hu moments): see the README's "
         "recognition figures",
     )
     p.add_argument(
@@ -148,7 +149,7 @@ def choose_descriptor(name: str, source: Any) -> str:
     if name == "pose" and not colour:
         raise SystemExit(
             f"mimic perform: {source.name} holds silhouettes, and the pose descriptor needs "
-            "colour frames (use --descriptor multigrid, or auto)"
+            "colour frames (use --descriptor outline, or auto)"
         )
     if name == "pose" and not person_segmentation_available():
         raise SystemExit(

@@ -21,11 +21,13 @@ from ._descriptor import (
     Descriptor,
     GridDescriptor,
     HuDescriptor,
+    OutlineDescriptor,
     PoseDescriptor,
     get_descriptor,
     grid_cells,
     hu_log,
     mask_extents,
+    outline_extents,
 )
 from ._features import feature_size, silhouette_features
 from ._gl import GLRenderer
@@ -64,6 +66,7 @@ __all__ = [
     "GLRenderer",
     "GridDescriptor",
     "HuDescriptor",
+    "OutlineDescriptor",
     "PoseDescriptor",
     "StaleBankError",
     "bank_cache_dir",
@@ -86,6 +89,7 @@ __all__ = [
     "motion_features",
     "motion_features_both",
     "motion_silhouettes",
+    "outline_extents",
     "rasterize",
     "render_motion_video",
     "robust_settings",

@@ -13,6 +13,11 @@ body size). The kinds:
   fine grid sees the limbs, the coarse ones still agree when a limb is a cell off
   (another body, another camera). Measured against the others by
   ``benchmarks/bench_recognition.py``. Grid cells, all of one kind, share one scale.
+- ``"outline"`` (the default): the multigrid's cells, then how far the silhouette reaches
+  left and right of its centroid in each of 16 row bands (``outline_extents``), in
+  silhouette heights. The grids' box is half the silhouette's height wide, so arms held
+  out to the side reach beyond it; the outline sees them (arm circles against side
+  twists, which the cells confuse).
 - ``"pose"``: 2D body landmarks (shoulders, elbows, wrists, hips, knees, ankles; left
   before right) relative to the mid-hip, in torso lengths (mid-shoulder to mid-hip, or
   what the legs' bones in the image say it is when the torso leans towards the camera),
@@ -22,9 +27,9 @@ body size). The kinds:
 Standardisation (``standardiser``): the matcher divides shape numbers by a scale taken
 from the bank, such that the shape numbers together vary as much as 7 standardised
 numbers do (for Hu: exactly so, each by its own spread); so ``centre_weight`` means the
-same with every descriptor. A multigrid bank also holds a metric learned from the bank
-(``_metric``): the matcher then compares the cells along its 24 directions, scaled the
-same way.
+same with every descriptor. A multigrid or outline bank also holds a metric learned from
+the bank (``_metric``): the matcher then compares the shape numbers along its 24 (48)
+directions, scaled the same way.
 
 ``mirror`` gives the vector of the left/right mirrored image (a performer who does the
 action with the other side, or a mirrored camera), so that the matcher can try both.
@@ -35,9 +40,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import cv2
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from ._masks import as_binary, mask_extents, outline_extents
 
 __all__ = [
     "DEFAULT_DESCRIPTOR",
@@ -49,11 +55,13 @@ __all__ = [
     "Descriptor",
     "GridDescriptor",
     "HuDescriptor",
+    "OutlineDescriptor",
     "PoseDescriptor",
     "get_descriptor",
     "grid_cells",
     "hu_log",
     "mask_extents",
+    "outline_extents",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -137,61 +145,6 @@ def _cells(crop: NDArray[np.float32], rows: int, cols: int) -> FloatArray:
     return np.clip(np.asarray(cells, dtype=np.float64).ravel(), 0.0, 1.0)
 
 
-@numba.njit(cache=True, parallel=True)
-def _extents_kernel(masks: NDArray[np.uint8], out: NDArray[np.int64]) -> None:
-    n, h, w = masks.shape
-    for k in numba.prange(n):
-        m00 = 0
-        m10 = 0
-        m01 = 0
-        top = -1
-        bottom = -1
-        for y in range(h):
-            row = 0
-            xs = 0
-            for x in range(w):
-                v = int(masks[k, y, x] != 0)
-                row += v
-                xs += v * x
-            if row > 0:
-                if top < 0:
-                    top = y
-                bottom = y + 1
-                m00 += row
-                m10 += xs
-                m01 += row * y
-        out[k, 0] = m00
-        out[k, 1] = m10
-        out[k, 2] = m01
-        out[k, 3] = top
-        out[k, 4] = bottom
-
-
-def mask_extents(masks: NDArray[np.generic]) -> NDArray[np.int64]:
-    """Per mask of ``masks`` ``(N, H, W)`` (nonzero = silhouette): ``(N, 5)`` integers
-    ``m00, m10, m01, top, bottom``, the raw image moments of order 0 and 1 (as
-    ``cv2.moments(mask, binaryImage=True)`` has them, exactly: they are sums of pixel
-    indices) and the rows ``[top, bottom)`` the silhouette spans (-1, -1 when empty)."""
-    m = np.asarray(masks)
-    if m.ndim != 3:
-        raise ValueError(f"masks must be (N, H, W), got shape {m.shape}")
-    if m.dtype != np.uint8:
-        m = (m != 0).view(np.uint8)
-    out = np.empty((m.shape[0], 5), dtype=np.int64)
-    _extents_kernel(np.ascontiguousarray(m), out)
-    return out
-
-
-def _binary(mask: NDArray[np.generic], ndim: int = 2) -> NDArray[np.uint8]:
-    m = np.ascontiguousarray(mask)
-    if m.ndim != ndim:
-        what = "2-D" if ndim == 2 else "(N, H, W)"
-        raise ValueError(f"mask must be {what}, got shape {m.shape}")
-    if m.dtype != np.uint8 or m.max(initial=0) > 1:
-        m = (m != 0).astype(np.uint8)
-    return m
-
-
 @dataclass(frozen=True)
 class Descriptor:
     """The layout of one kind of feature vector: ``n_shape`` shape numbers, then the
@@ -246,7 +199,7 @@ class Descriptor:
         """The vector ``(size,)`` of a binary mask ``(H, W)`` (nonzero = silhouette), all
         NaN when it is empty; ``origin`` in pixels (x right, y down). The centre is the
         silhouette's centroid minus ``origin``, over the silhouette's height, y up."""
-        return self.from_masks(_binary(mask)[None], np.asarray([origin], dtype=np.float64))[0]
+        return self.from_masks(as_binary(mask)[None], np.asarray([origin], dtype=np.float64))[0]
 
     def from_masks(
         self,
@@ -261,7 +214,7 @@ class Descriptor:
             raise ValueError(
                 f"the {self.name!r} descriptor is computed from body landmarks, not masks"
             )
-        m = _binary(masks, ndim=3)
+        m = as_binary(masks, ndim=3)
         n = m.shape[0]
         org = np.zeros((n, 2)) if origins is None else np.asarray(origins, dtype=np.float64)
         ext = mask_extents(m) if extents is None else extents
@@ -413,6 +366,53 @@ class PoseDescriptor(Descriptor):
         return out + [self.mirror(v) for v in out] if mirror else out
 
 
+@dataclass(frozen=True)
+class OutlineDescriptor(Descriptor):
+    """The multigrid's cells, then the silhouette's outline (``outline_extents``): for
+    each of ``bands`` row bands, how far the silhouette reaches left and right of its
+    centroid, in silhouette heights. The grids span half the silhouette's height around
+    the centroid, so outstretched arms reach beyond them: the outline tells arms held out
+    to the side (arm circles) from arms swung round with the torso (side twists), and how
+    far each reaches."""
+
+    name: str = "outline"
+    n_shape: int = 168 + 2 * 16
+    grid: GridDescriptor = GridDescriptor("multigrid", 168, levels=((16, 8), (8, 4), (4, 2)))
+    bands: int = 16
+
+    def __post_init__(self) -> None:
+        if self.grid.n_shape + 2 * self.bands != self.n_shape:
+            raise ValueError(f"{self.name}: n_shape must be the grid's cells plus 2 x bands")
+
+    def from_masks(
+        self,
+        masks: NDArray[np.generic],
+        origins: NDArray[np.floating] | None = None,
+        extents: NDArray[np.int64] | None = None,
+    ) -> FloatArray:
+        m = as_binary(masks, ndim=3)
+        ext = mask_extents(m) if extents is None else extents
+        cells = self.grid.from_masks(m, origins, ext)
+        k = self.grid.n_shape
+        out = np.empty((m.shape[0], self.size))
+        out[:, :k] = cells[:, :k]
+        out[:, k : self.n_shape] = outline_extents(m, self.bands, ext)
+        out[:, self.n_shape :] = cells[:, k:]
+        return out
+
+    def mirror(self, x: NDArray[np.floating]) -> NDArray[np.floating]:
+        x = np.asarray(x)
+        k = self.grid.n_shape
+        out = np.array(x, copy=True)
+        grid = np.concatenate([x[..., :k], x[..., self.n_shape :]], axis=-1)
+        g = self.grid.mirror(grid)
+        out[..., :k] = g[..., :k]
+        out[..., self.n_shape :] = g[..., k:]
+        ext = x[..., k : self.n_shape].reshape(*x.shape[:-1], self.bands, 2)
+        out[..., k : self.n_shape] = (-ext[..., ::-1]).reshape(*x.shape[:-1], 2 * self.bands)
+        return out
+
+
 _DESCRIPTORS: dict[str, Descriptor] = {
     "hu": HuDescriptor(),
     # reject: above the 99th percentile of true matches' costs on the leave-one-take-out
@@ -422,11 +422,12 @@ _DESCRIPTORS: dict[str, Descriptor] = {
     "multigrid": GridDescriptor(
         "multigrid", 128 + 32 + 8, reject=4.0, levels=((16, 8), (8, 4), (4, 2))
     ),
+    "outline": OutlineDescriptor(reject=4.5),
     "pose": PoseDescriptor(reject=4.5),
 }
 DESCRIPTORS = tuple(_DESCRIPTORS)
 #: the silhouette bank's default (``benchmarks/bench_recognition.py``; README)
-DEFAULT_DESCRIPTOR = "multigrid"
+DEFAULT_DESCRIPTOR = "outline"
 
 
 def get_descriptor(name: str | Descriptor) -> Descriptor:

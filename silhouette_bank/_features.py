@@ -1,7 +1,7 @@
 """The silhouette features, one definition for the bank and for the live camera.
 
 ``silhouette_features(mask, origin, descriptor)`` is the vector of a mask under one of
-the silhouette descriptors (``_descriptor``: ``"hu"``, ``"grid"``, ``"multigrid"``);
+the silhouette descriptors (``_descriptor``: ``"hu"``, ``"grid"``, ``"multigrid"``, ``"outline"``);
 the descriptor object owns the layout (shape numbers, then the centre).
 
 What the centre is relative to: in the bank, ``origin`` is the projection of the avatar's

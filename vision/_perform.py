@@ -195,7 +195,7 @@ class Performance:
                 raise ValueError(
                     f"{self.source.name}: the pose descriptor needs "
                     "colour frames, and this source gives silhouettes (use a silhouette "
-                    "descriptor: --descriptor multigrid)"
+                    "descriptor: --descriptor outline)"
                 )
             mask = clean_mask(frame.mask)
         elif frame.image is not None:

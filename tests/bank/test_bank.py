@@ -204,9 +204,9 @@ def test_a_grid_bank_holds_grid_features(lib: Library, tmp_path: Path) -> None:
     # the same silhouettes: the centre is the same, the shape numbers are the grid's
     np.testing.assert_allclose(bank.features[..., -2:], plain.features[..., -2:])
     assert np.all((bank.features[..., :-2] >= 0) & (bank.features[..., :-2] <= 1))
-    # the multigrid is the default; the descriptor is part of the key; a Hu bank's
+    # the outline is the default; the descriptor is part of the key; a Hu bank's
     # settings do not name it (banks from before the grid keep their key)
-    assert BankSettings().descriptor == "multigrid"
+    assert BankSettings().descriptor == "outline"
     assert settings.digest() != SMALL.digest() and "descriptor" not in SMALL.to_dict()
     assert BankSettings.from_dict(settings.to_dict()) == settings
     with pytest.raises(StaleBankError):
@@ -215,7 +215,7 @@ def test_a_grid_bank_holds_grid_features(lib: Library, tmp_path: Path) -> None:
         BankSettings(descriptor="zernike")
 
 
-@pytest.mark.parametrize("name", ["hu", "grid", "multigrid", "pose"])
+@pytest.mark.parametrize("name", ["hu", "grid", "multigrid", "pose", "outline"])
 def test_every_descriptor_round_trips_through_the_bank(
     lib: Library, tmp_path: Path, name: str
 ) -> None:
@@ -226,10 +226,11 @@ def test_every_descriptor_round_trips_through_the_bank(
     assert again.features.shape == (103, 6, feature_size(name))
     np.testing.assert_array_equal(again.features, bank.features)
     assert np.isfinite(bank.features).all() and np.isfinite(bank.root_motion).all()
-    # the multigrid's bank holds its learned metric; the others none
-    assert (again.metric is not None) == (name == "multigrid") == (settings.metric_dims > 0)
+    # the grids' banks hold their learned metric; the others none
+    learned = name in ("multigrid", "outline")
+    assert (again.metric is not None) == learned == (settings.metric_dims > 0)
     if again.metric is not None and bank.metric is not None:
-        assert again.metric[1].shape == (settings.features.n_shape, 24)
+        assert again.metric[1].shape == (settings.features.n_shape, settings.metric_dims)
         np.testing.assert_array_equal(again.metric[1], bank.metric[1])
     # the descriptor is part of the key: another one's bank is stale
     other = "hu" if name != "hu" else "grid"

@@ -13,11 +13,13 @@ from silhouette_bank import (
     THIGH_RATIO,
     Descriptor,
     GridDescriptor,
+    OutlineDescriptor,
     feature_size,
     get_descriptor,
     grid_cells,
     hu_log,
     mask_extents,
+    outline_extents,
     silhouette_features,
 )
 
@@ -129,11 +131,13 @@ def test_grid_ignores_position_and_nearly_scale_and_clips_at_the_border() -> Non
     assert g[0] == 0 and np.isfinite(g).all()
     np.testing.assert_allclose(g, ref, atol=1e-6)
     assert np.isnan(silhouette_features(np.zeros((9, 9), np.uint8), descriptor="grid")).all()
-    with pytest.raises(ValueError, match="descriptor must be one of hu, grid, multigrid, pose"):
+    with pytest.raises(
+        ValueError, match="descriptor must be one of hu, grid, multigrid, outline, pose"
+    ):
         silhouette_features(m, descriptor="zernike")
 
 
-@pytest.mark.parametrize("name", ["hu", "grid", "multigrid"])
+@pytest.mark.parametrize("name", ["hu", "grid", "multigrid", "outline"])
 def test_a_descriptor_owns_its_layout_and_mirrors_the_image(name: str) -> None:
     desc = get_descriptor(name)
     m = _figure()
@@ -166,6 +170,40 @@ def test_multigrid_is_the_grids_concatenated() -> None:
     parts = [grid_cells(m, rows[0], rows[-1] + 1, xs.mean(), r, c) for r, c in desc.levels]
     np.testing.assert_allclose(desc.shape(f), np.concatenate(parts))
     np.testing.assert_allclose(desc.centre(f), silhouette_features(m, descriptor="grid")[-2:])
+
+
+def test_the_outline_sees_arms_the_grids_do_not_reach() -> None:
+    """Arms held out to the side, longer or shorter, beyond the grids' box (half the
+    silhouette's height around its centroid): the cells are the same, the outline is not."""
+
+    def t_pose(reach: int) -> np.ndarray:
+        m = np.zeros((120, 200), dtype=np.uint8)
+        m[20:60, 92:108] = 1  # torso
+        m[60:100, 93:99] = m[60:100, 101:107] = 1  # legs
+        cv2.circle(m, (100, 12), 7, 1, -1)  # head
+        m[24:28, 100 - reach : 100 + reach] = 1  # arms
+        return m
+
+    desc = get_descriptor("outline")
+    assert isinstance(desc, OutlineDescriptor) and desc.kind == "silhouette"
+    wide, wider = desc.from_mask(t_pose(60)), desc.from_mask(t_pose(80))  # height 95
+    k = desc.grid.n_shape
+    # both reach out of the grids' box (the centroids differ by a hair: so do the cells)
+    np.testing.assert_allclose(wide[:k], wider[:k], atol=0.01)
+    arms = 2 * ((24 - 5) * desc.bands // 95)  # the band of the arms' rows (top at row 5)
+    assert wider[k + arms] == pytest.approx(wide[k + arms] - 20 / 95, abs=0.002)
+    assert wider[k + arms + 1] == pytest.approx(wide[k + arms + 1] + 20 / 95, abs=0.002)
+    assert wide[k + arms + 1] == pytest.approx((160.5 - 100.0) / 95, abs=0.02)
+    # the legs' bands reach no further than the legs; the outline is the numpy one
+    assert np.all(np.abs(wide[k + 2 * desc.bands - 2 : desc.n_shape]) < 0.1)
+    masks = np.stack([t_pose(60), t_pose(80), np.zeros((120, 200), np.uint8)])
+    ext = mask_extents(masks)
+    got = outline_extents(masks, desc.bands)
+    for i in range(2):
+        cx = ext[i, 1] / ext[i, 0]
+        want = _outline_by_hand(masks[i], int(ext[i, 3]), int(ext[i, 4]), cx, desc.bands)
+        assert got[i].tobytes() == want.tobytes()
+    assert np.isnan(got[2]).all()
 
 
 def test_pose_descriptor_normalises_position_scale_and_swaps_sides() -> None:
@@ -233,6 +271,20 @@ def test_mask_extents_are_cv2s_moments_and_rows() -> None:
         mask_extents(masks[0])
 
 
+def _outline_by_hand(mask: np.ndarray, top: int, bottom: int, cx: float, bands: int) -> np.ndarray:
+    """Each row band's leftmost and rightmost pixel edges from ``np.nonzero``."""
+    h = bottom - top
+    out = np.zeros(2 * bands)
+    ys, xs = np.nonzero(mask)
+    for b in range(bands):
+        a, e = top + (b * h) // bands, top + max(((b + 1) * h) // bands, (b * h) // bands + 1)
+        inside = xs[(ys >= a) & (ys < e)]
+        if inside.size:
+            out[2 * b] = (inside.min() - 0.5 - cx) / h
+            out[2 * b + 1] = (inside.max() + 0.5 - cx) / h
+    return out
+
+
 def _one_by_one(mask: np.ndarray, origin: tuple[float, float], name: str) -> np.ndarray:
     """The vector of one mask written out with cv2's moments, as the bank had it."""
     desc = get_descriptor(name)
@@ -245,6 +297,11 @@ def _one_by_one(mask: np.ndarray, origin: tuple[float, float], name: str) -> np.
     cx, cy = mom["m10"] / mom["m00"], mom["m01"] / mom["m00"]
     if name == "hu":
         out[:7] = hu_log(cv2.HuMoments(mom).ravel())
+    elif isinstance(desc, OutlineDescriptor):
+        k = desc.grid.n_shape
+        levels = desc.grid.levels
+        out[:k] = np.concatenate([grid_cells(mask, top, bottom, cx, r, c) for r, c in levels])
+        out[k:-2] = _outline_by_hand(mask, top, bottom, cx, desc.bands)
     else:
         assert isinstance(desc, GridDescriptor)
         out[:-2] = np.concatenate([grid_cells(mask, top, bottom, cx, r, c) for r, c in desc.levels])
@@ -253,7 +310,7 @@ def _one_by_one(mask: np.ndarray, origin: tuple[float, float], name: str) -> np.
     return out
 
 
-@pytest.mark.parametrize("name", ["hu", "grid", "multigrid"])
+@pytest.mark.parametrize("name", ["hu", "grid", "multigrid", "outline"])
 def test_a_batch_of_masks_is_each_mask_bit_for_bit(name: str) -> None:
     masks = np.stack(_masks(np.random.default_rng(4)))
     origins = np.random.default_rng(5).uniform(0, 160, size=(len(masks), 2))

@@ -30,7 +30,7 @@ from vision import (
 
 @pytest.fixture(scope="module")
 def banks(setup, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Bank]:
-    """The default bank (multigrid) and banks of the other silhouette descriptors."""
+    """The default bank (outline) and banks of the other silhouette descriptors."""
     lib, _, bank = setup
     out = {bank.settings.descriptor: bank}
     for name in ("hu", "grid"):
@@ -39,7 +39,7 @@ def banks(setup, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Bank]:
     return out
 
 
-@pytest.mark.parametrize("descriptor", ["hu", "grid", "multigrid"])
+@pytest.mark.parametrize("descriptor", ["hu", "grid", "outline"])
 def test_matcher_finds_a_path_from_its_own_silhouettes(setup, banks, descriptor) -> None:
     _, layer, _ = setup
     bank = banks[descriptor]
@@ -71,7 +71,7 @@ def test_matcher_finds_a_path_from_its_own_silhouettes(setup, banks, descriptor)
     assert trials >= 10 and hits == trials
 
 
-@pytest.mark.parametrize("descriptor", ["hu", "grid", "multigrid"])
+@pytest.mark.parametrize("descriptor", ["hu", "grid", "outline"])
 def test_locate_finds_the_window_the_performer_replays(setup, banks, descriptor) -> None:
     _, layer, _ = setup
     bank = banks[descriptor]
@@ -499,7 +499,7 @@ def test_the_default_descriptor_follows_the_source(mocap: Path) -> None:
 
     silhouettes = VideoSource(RECORDING, silhouette=True)
     colour = VideoSource(mocap.parent / "video" / "pose_1.mp4")
-    assert choose_descriptor("auto", silhouettes) == "multigrid"
+    assert choose_descriptor("auto", silhouettes) == "outline"
     assert choose_descriptor("auto", colour) == "pose"  # MediaPipe is installed in CI
     assert choose_descriptor("hu", colour) == "hu"
     with pytest.raises(SystemExit, match="pose descriptor needs colour frames"):
