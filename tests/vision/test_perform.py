@@ -379,9 +379,10 @@ def test_the_stay_prior_keeps_the_action_unless_another_fits_clearly_better(setu
 
 
 def test_a_live_source_searches_in_the_background(setup) -> None:
-    sync = _run(setup, VideoSource(RECORDING, silhouette=True))
+    sync = _run(setup, VideoSource(RECORDING, silhouette=True), seconds=8.0)
     match = MatchSettings(relocate_ratio=1.0, jumps=False)  # relocate whenever it finds better
-    bg = _run(setup, VideoSource(RECORDING, silhouette=True), background_search=True, match=match)
+    source = VideoSource(RECORDING, silhouette=True)
+    bg = _run(setup, source, background_search=True, match=match, seconds=8.0)
     # the same decision points; the search's answers come at later ones, so the avatar
     # may differ, but it is matched and relocated all the same
     assert [d["t"] for d in bg.decisions] == [d["t"] for d in sync.decisions]
