@@ -43,7 +43,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from ._masks import as_binary, mask_extents, outline_extents
+from ._masks import as_binary, binary_outline, mask_extents, outline_extents
 
 __all__ = [
     "DEFAULT_DESCRIPTOR",
@@ -396,7 +396,7 @@ class OutlineDescriptor(Descriptor):
         k = self.grid.n_shape
         out = np.empty((m.shape[0], self.size))
         out[:, :k] = cells[:, :k]
-        out[:, k : self.n_shape] = outline_extents(m, self.bands, ext)
+        out[:, k : self.n_shape] = binary_outline(m, ext, self.bands)
         out[:, self.n_shape :] = cells[:, k:]
         return out
 

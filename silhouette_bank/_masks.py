@@ -8,7 +8,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["as_binary", "mask_extents", "outline_extents"]
+__all__ = ["as_binary", "binary_outline", "mask_extents", "outline_extents"]
 
 FloatArray = NDArray[np.float64]
 
@@ -113,7 +113,13 @@ def outline_extents(
     (0 and 0 for an empty band); NaN for an empty mask. ``extents``: the masks'
     ``mask_extents`` if the caller has them."""
     m = as_binary(masks, ndim=3)
-    ext = mask_extents(m) if extents is None else extents
+    return binary_outline(m, mask_extents(m) if extents is None else extents, bands)
+
+
+def binary_outline(m: NDArray[np.uint8], ext: NDArray[np.int64], bands: int) -> FloatArray:
+    """``outline_extents`` of binary masks ``m`` (``as_binary``'s, C-ordered) whose
+    ``mask_extents`` are ``ext``: for a caller that has both, so that the masks are not
+    scanned again."""
     out = np.full((m.shape[0], 2 * bands), np.nan)
     seen = np.flatnonzero(ext[:, 0] > 0)
     if seen.size:
