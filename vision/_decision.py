@@ -45,17 +45,22 @@ class MatchSettings:
     #: each window (where the performer is now). A jump's score is its DTW cost times
     #: ``1 + blend_weight * D / (D + D_max)`` (``D``: the graph's distance from the
     #: avatar's frame, ``D_max`` the largest a transition may have); it is taken when
-    #: that is below ``jump_ratio`` times the cost of the avatar's own last ``window``
-    #: seconds (always at the end of a clip). ``jump_ratio`` 1 (0.9 before 2026-12-02):
-    #: label agreement 0.69 against 0.65 over 3 held-out takes x 4 recordings
-    #: (``bench_accuracy --recordings``), with 33-43 action switches a minute against 26-38
+    #: that is below ``jump_ratio`` times the avatar's own cost (always at the end of a
+    #: clip). The own cost is that of the library window that plays into the avatar's
+    #: frame (``own_from_library``: what the search scores every window by; right after
+    #: a jump the frames shown still hold the motion it jumped from), or of the last
+    #: ``window`` seconds it has shown. Defaults (2026-12-02, ``own_from_library``,
+    #: ``hold`` 0.3, ``jump_ratio`` 0.95, ``blend_weight`` 0.1; before: frames shown,
+    #: 1.0, 1.0, 0.3): label agreement 0.738 against 0.700 over 3 held-out takes x 11
+    #: recordings, better on 26 of the 33, with 51 action switches a minute against 39
     jumps: bool = True
     top: int = 8
-    blend_weight: float = 0.3
-    jump_ratio: float = 1.0
+    blend_weight: float = 0.1
+    jump_ratio: float = 0.95
+    own_from_library: bool = True
     #: no jump until the avatar has played ``hold`` seconds on since its last move (it
     #: would flicker between windows of near cost); at a clip's end it jumps anyway
-    hold: float = 1.0
+    hold: float = 0.3
     #: with jumps, when no jump is taken: ``True``, the paper's cluster paths (their
     #: future against the performer's past); ``False`` (default: as accurate on the
     #: folds, and three times faster), the avatar plays on

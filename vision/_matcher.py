@@ -300,6 +300,16 @@ class Matcher:
         refs = self._bank_sequences(recent[-self.n :])
         return float(min(dtw_batch(q, refs, window=self.settings.band).min() for q in queries))
 
+    def own_frames(self, frame: int, recent: IntArray) -> IntArray:
+        """The frames whose cost is the avatar's own (``jump``): with
+        ``settings.own_from_library`` the library window that plays into ``frame`` (when
+        its clip has one), else the avatar's ``recent`` frames shown."""
+        if self.settings.own_from_library:
+            lib = self._lead_in(np.array([frame], dtype=np.int64))
+            if lib.size >= self.n:
+                return lib
+        return recent
+
     def _lead_in(self, recent: IntArray) -> IntArray:
         """``recent``, preceded by the frames that play on into its first one, up to
         ``recent_frames`` in all."""
@@ -342,13 +352,20 @@ class Matcher:
         ok = target < n
         ok[ok] &= costs.landing[target[ok]] & self.plays[target[ok] - 1]
         # a jump to where the avatar is about to be anyway is no jump
-        ok &= ~((target >= frame - 2) & (target <= frame + self.n) & self._same_run(frame, target))
+        there = (target >= frame - 2) & (target <= frame + self.n) & self._same_run(frame, target)
+        ok &= ~there
+        if there.any():  # the avatar does one of the best windows: its cost is its own
+            self.last_own = min(g[2] for g, t in zip(got, there, strict=True) if t)
         if not ok.any():
             return None
         idx = np.flatnonzero(ok)
         match = np.array([got[i][2] for i in idx])
         # at its clip's end the avatar must go somewhere: the best jump, whatever it costs
-        own = self.own_cost(queries, recent) if self.plays[frame] else float("inf")
+        own = (
+            self.own_cost(queries, self.own_frames(frame, recent))
+            if self.plays[frame]
+            else float("inf")
+        )
         self.last_own = own
         m = self.hold_frames
         lead = self._lead_in(recent)

@@ -15,6 +15,7 @@ from mimic.cli import main
 from tests.vision.conftest import RECORDING
 from vision import (
     FLOOR_ABOVE,
+    Matcher,
     MatchSettings,
     PerformSettings,
     RecordSettings,
@@ -104,6 +105,29 @@ def test_jumps_keep_feet_on_the_floor(setup) -> None:
         PerformSettings(match=MatchSettings(jumps=False)),
     )
     assert r2.avatar.n_jumps == 0 and not any("jump" in d for d in r2.decisions)
+
+
+def test_right_after_a_jump_the_own_cost_is_the_window_played_into(setup) -> None:
+    """The avatar has just jumped into frame ``j`` from far away. Its own cost (against
+    which a jump must win) is that of the library window that plays into ``j``, as the
+    search scores every window, not of the frames it has shown, which still hold the
+    motion it jumped from: a performer doing that window costs it less."""
+    _, layer, bank = setup
+    m = Matcher(layer, bank)
+    j = 200
+    window = np.arange(j - m.n + 1, j + 1)
+    shown = np.concatenate((np.arange(20, 20 + m.n), [j]))  # frames 20.., then the jump
+    assert np.array_equal(m.own_frames(j, shown), window)
+    performer = bank.features[m.to_bank[window], 0].astype(np.float64)
+    queries = m.queries(performer)
+    assert queries is not None
+    own, shown_cost = m.own_cost(queries, m.own_frames(j, shown)), m.own_cost(queries, shown)
+    assert own < 0.25 * shown_cost
+    # the frames shown, as before 2026-12-02; and at a clip's first frames, which have no
+    # window of their own, those too
+    before = Matcher(layer, bank, MatchSettings(own_from_library=False))
+    assert np.array_equal(before.own_frames(j, shown), shown)
+    assert np.array_equal(m.own_frames(3, shown), shown)
 
 
 @pytest.mark.parametrize("bad", [{"top": 0}, {"jump_ratio": 0.0}, {"blend_weight": -1.0}])
