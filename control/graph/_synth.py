@@ -240,12 +240,16 @@ def _place_and_blend(
             continue
         end = min(t + b, jumps[m + 1] if m + 1 < jumps.size else n_out)
         o2 = t - 2 if t >= 2 else t - 1
-        e0 = qlog(qmul(out_q[t - 1], qconj(v1_q[m])))
-        ep = qlog(qmul(out_q[o2], qconj(v2_q[m])))
+        d0 = qmul(out_q[t - 1], qconj(v1_q[m]))
+        e0 = qlog(d0)
+        # the offset's rate: the rotation between the last two offsets (not the
+        # difference of their rotation vectors, which is near 2 pi where the offset
+        # nears a half turn and its vector flips: a wild swing of the limb)
+        rate = qlog(qmul(d0, qconj(qmul(out_q[o2], qconj(v2_q[m])))))
         p0 = out_p[t - 1] - v1_p[m]
         pp = out_p[o2] - v2_p[m]
         k = np.arange(1, end - t + 1, dtype=np.float64)
-        out_q[t:end] = qmul(qexp(hermite(e0, e0 - ep, k, b)), src_q[t:end])
+        out_q[t:end] = qmul(qexp(hermite(e0, rate, k, b)), src_q[t:end])
         out_p[t:end] = src_p[t:end] + hermite(p0, p0 - pp, k, b)
         blended[t:end] = True
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -192,3 +194,45 @@ def test_bad_paths_are_refused(graph: MotionGraph, medium_lib: Library) -> None:
         synthesize(graph, medium_lib.clips, frames, jumps, edges, blend=0.0)
     with pytest.raises(KeyError, match="lacks"):
         synthesize(graph, medium_lib.clips[:3], frames, jumps, edges)
+
+
+def test_a_blend_near_a_half_turn_does_not_swing_the_limb(
+    graph: MotionGraph, medium_lib: Library
+) -> None:
+    """A transition whose offset in one joint is close to a half turn, the last two
+    offsets on either side of it (their rotation vectors point opposite ways): the blend
+    turns the joint back smoothly, never much faster than a half turn over the blend
+    (before 2026-12-02 the offset's rate was the difference of those vectors, near
+    2 pi, and the arm swung by up to 150 degrees a frame)."""
+    room = _edges_with_room(graph, 5, 40)
+    e = next(
+        int(e)
+        for e in room
+        if graph.locate(int(graph.src[e]))[0] != graph.locate(int(graph.dst[e]))[0]
+    )
+    frames, jumps = _path(graph, [e], 5)
+    s, joint = int(graph.src[e]), 3
+    src_q = np.concatenate([c.motion.quats for c in medium_lib.clips])
+    name, f = graph.locate(int(graph.dst[e]))
+    k = [c.name for c in medium_lib.clips].index(name)
+    q = medium_lib.clips[k].motion.quats.copy()
+
+    def turn(deg: float) -> np.ndarray:
+        a = np.radians(deg) / 2
+        return np.array([np.cos(a), np.sin(a), 0.0, 0.0])
+
+    # the target, its joint turned 179 degrees from the source's pose, the frame before
+    # that 179 the other way: offsets of -179 and +179 degrees about the same axis
+    q[f - 1 :, joint] = qmul(turn(179.0), src_q[s, joint])
+    q[f - 2, joint] = qmul(turn(-179.0), src_q[s - 1, joint])
+    clips = list(medium_lib.clips)
+    clips[k] = dataclasses.replace(clips[k], motion=dataclasses.replace(clips[k].motion, quats=q))
+    syn = synthesize(graph, clips, frames, jumps, np.array([e]), blend=1.0, ik=False)
+    out = syn.motion.quats[:, joint]
+    t = int(jumps[0])
+    step = np.degrees(
+        np.linalg.norm(qlog(qmul(out[t - 1 : t + 15], qconj(out[t - 2 : t + 14]))), axis=-1)
+    )
+    # a half turn taken away over the blend's 15 frames by the Hermite curve: its
+    # fastest frame turns 1.5 x 180 / 15 = 18 degrees
+    assert step.max() < 20.0
