@@ -23,7 +23,7 @@ from ._graph import (
     graph_sigma,
     select_clips,
 )
-from ._ik import knee_hinge, leg_chain, solve_leg, two_bone_ik
+from ._ik import SOFT_REACH, knee_hinge, leg_chain, solve_leg, two_bone_ik
 from ._prune import CONTACT_RULES, case4, contact_groups, largest_scc, local_maxima
 from ._quality import (
     foot_slide,
@@ -43,6 +43,7 @@ __all__ = [
     "CONTACT_RULES",
     "COORDS",
     "GRAPH_VERSION",
+    "SOFT_REACH",
     "CapturedTerrain",
     "FootTrack",
     "FrameData",

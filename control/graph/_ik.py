@@ -11,7 +11,7 @@ import numpy as np
 
 from ..motion import FloatArray, Skeleton, find_role, qconj, qmul, qrot
 
-__all__ = ["knee_hinge", "leg_chain", "solve_leg", "two_bone_ik"]
+__all__ = ["SOFT_REACH", "knee_hinge", "leg_chain", "solve_leg", "two_bone_ik"]
 
 
 def _unit(v: FloatArray) -> FloatArray:
@@ -31,6 +31,10 @@ def _arc_q(v1: FloatArray, v2: FloatArray) -> FloatArray:
     return q / np.maximum(np.linalg.norm(q, axis=-1, keepdims=True), 1e-12)
 
 
+#: the share of a leg's length up to which ``two_bone_ik`` reaches a target exactly
+SOFT_REACH = 0.97
+
+
 def two_bone_ik(
     hip: FloatArray, knee: FloatArray, ankle: FloatArray, target: FloatArray, axis: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
@@ -46,14 +50,23 @@ def two_bone_ik(
     -------
     d_knee : (F, 4) rotation about the knee, applied to the shin first.
     d_hip : (F, 4) rotation about the hip, applied to the whole leg after.
-    Targets out of reach are approached as closely as the bone lengths allow.
+    Targets beyond ``SOFT_REACH`` of the leg's length are approached softly: the knee never
+    quite straightens.
     """
     u = hip - knee
     w = ankle - knee
     l1 = np.linalg.norm(u, axis=-1)
     l2 = np.linalg.norm(w, axis=-1)
     reach = np.linalg.norm(target - hip, axis=-1)
-    d = np.clip(reach, np.abs(l1 - l2) + 1e-6, (l1 + l2) * (1.0 - 1e-6))
+    # soft reach: past ``SOFT_REACH`` of the leg's length the ankle comes ever closer to
+    # full extension without reaching it (the exact knee angle's slope is infinite
+    # there: the last millimetres of a target moving out of reach snapped the knee
+    # straight)
+    full = l1 + l2
+    soft = SOFT_REACH * full
+    over = np.maximum(reach - soft, 0.0)
+    eased = soft + (full - soft) * (1.0 - np.exp(-over / np.maximum(full - soft, 1e-12)))
+    d = np.clip(np.where(reach > soft, eased, reach), np.abs(l1 - l2) + 1e-6, full * (1.0 - 1e-6))
     new = np.arccos(np.clip((l1**2 + l2**2 - d**2) / np.maximum(2.0 * l1 * l2, 1e-12), -1.0, 1.0))
     # The bend axis: the knee's current bend plane oriented like the hinge; near straight,
     # where that plane is noise, the hinge itself. The knee angle is measured about that

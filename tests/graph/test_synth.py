@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from control.graph import (
+    SOFT_REACH,
     GraphOptions,
     MotionGraph,
     build_graph,
@@ -20,7 +21,7 @@ from control.graph import (
     synthesize,
     two_bone_ik,
 )
-from control.motion import Library, Motion, forward_kinematics, qconj, qlog, qmul
+from control.motion import Library, Motion, forward_kinematics, qconj, qlog, qmul, qrot
 
 
 @pytest.fixture(scope="module")
@@ -126,6 +127,31 @@ def test_transition_inside_a_blend_starts_from_the_shown_motion(
     assert syn.blended[t2 : t2 + 15].all()
 
 
+def test_the_knee_bends_smoothly_as_a_target_passes_out_of_reach() -> None:
+    """A target moving steadily from 90% to 110% of the leg's length: the knee
+    straightens gradually (the exact solution's angle has an infinite slope at full
+    extension: the last millimetres snapped the knee straight, 3.5 degrees for a step
+    of 0.9 mm)."""
+    n = 200
+    hip = np.zeros((n, 3))
+    knee = np.tile([0.0, -0.45, 0.05], (n, 1))
+    ankle = np.tile([0.0, -0.9, 0.0], (n, 1))
+    full = np.linalg.norm(knee[0] - hip[0]) + np.linalg.norm(ankle[0] - knee[0])
+    target = np.zeros((n, 3))
+    target[:, 1] = -np.linspace(0.9, 1.1, n) * full
+    dk, _ = two_bone_ik(hip, knee, ankle, target, np.tile([1.0, 0.0, 0.0], (n, 1)))
+    w = qrot(dk, ankle - knee)
+    angle = np.degrees(
+        np.arccos(
+            np.sum((hip - knee) * w, axis=1)
+            / np.linalg.norm(hip - knee, axis=1)
+            / np.linalg.norm(w, axis=1)
+        )
+    )
+    assert np.max(np.abs(np.diff(angle))) < 2.0
+    assert angle[-1] > 170.0 and angle[0] < 155.0
+
+
 def test_two_bone_ik_reaches_and_keeps_the_foot(
     medium_lib: Library, rng: np.random.Generator
 ) -> None:
@@ -145,13 +171,14 @@ def test_two_bone_ik_reaches_and_keeps_the_foot(
     leg = np.linalg.norm(p[:, knee] - p[:, hip], axis=1) + np.linalg.norm(
         p[:, ankle] - p[:, knee], axis=1
     )
-    reach = np.linalg.norm(target - p[:, hip], axis=1) < 0.999 * leg
+    reach = np.linalg.norm(target - p[:, hip], axis=1) < SOFT_REACH * leg
     assert reach.mean() > 0.5
     np.testing.assert_allclose(after.positions[reach, ankle], target[reach], atol=1e-6)
-    # out of reach: as close as the straight leg allows
+    # near or out of reach: eased towards the straight leg, never shorter than SOFT_REACH of it
     gap = np.linalg.norm(after.positions[~reach, ankle] - target[~reach], axis=1)
     assert np.all(
-        gap <= np.linalg.norm(target[~reach] - p[~reach, hip], axis=1) - 0.99 * leg[~reach]
+        gap
+        <= np.linalg.norm(target[~reach] - p[~reach, hip], axis=1) - SOFT_REACH * leg[~reach] + 1e-9
     )
     np.testing.assert_allclose(
         np.abs(np.sum(after.orientations[:, ankle] * pose.orientations[:, ankle], axis=-1)),
