@@ -23,15 +23,21 @@ __all__ = ["METHODS", "Segmenter", "clean_mask"]
 METHODS = ("mog2", "knn", "cnt", "gsoc", "lsbp", "gmg", "mog")
 
 
+#: pixels: the width of the neighbourhood whose vote ``clean_mask`` takes
+SMOOTH = 1.0
+
+
 def clean_mask(mask: NDArray[np.generic], min_area: float = 0.003) -> NDArray[np.bool_] | None:
-    """The largest blob of ``mask`` with speckle removed and holes filled, or ``None``
+    """The largest blob of ``mask``, smoothed (``SMOOTH``) and with holes filled, or ``None``
     when it covers less than ``min_area`` of the image."""
     m: np.ndarray = (np.asarray(mask) > 0).astype(np.uint8)
     if m.ndim != 2:
         raise ValueError(f"mask must be 2-D, got shape {m.shape}")
-    k3 = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
-    m = cv2.morphologyEx(m, cv2.MORPH_OPEN, k3)
-    m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5)))
+    # a vote of each pixel's neighbourhood (a Gaussian of 1 pixel, kept where more than
+    # half): ragged edges smoothed, speckle and pinholes gone, and limbs a few pixels
+    # wide kept (a 3x3 opening, before 2026-12-02, cut them where the edge was ragged:
+    # following a performer 90 pixels tall fell to 0.30-0.62)
+    m = (cv2.GaussianBlur(m.astype(np.float32), (0, 0), SMOOTH) > 0.5).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
     if n <= 1:
         return None

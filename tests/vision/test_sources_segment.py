@@ -15,6 +15,7 @@ from vision import (
     Segmenter,
     SourceError,
     VideoSource,
+    add_mask_noise,
     clean_mask,
     open_source,
 )
@@ -139,3 +140,21 @@ def test_clean_mask_keeps_the_largest_blob_and_fills_holes() -> None:
     assert out is not None and out[26, 29] and not out[5, 5] and not out[53, 52]
     assert clean_mask(np.zeros((60, 60))) is None
     assert clean_mask(np.pad(np.ones((2, 2)), 29)) is None  # too small
+
+
+def test_clean_mask_keeps_a_thin_arm_with_ragged_edges() -> None:
+    """A performer far from the camera: a body and an arm 3 pixels wide held out, the
+    mask's edges ragged (a pixel either side flipped at random, as ``mimic record``
+    makes them). The arm must stay whole: the outline descriptor reads how far it
+    reaches (a 3x3 opening, before 2026-12-02, cut it short on 16 of 20 masks; now 2)."""
+    rng = np.random.default_rng(0)
+    short = 0
+    for _ in range(20):
+        m = np.zeros((90, 120), dtype=np.uint8)
+        m[10:80, 20:40] = 1  # the body
+        m[25:28, 40:100] = 1  # the arm, to column 99
+        m = add_mask_noise(m, rng, edge=1.0, holes=0)
+        out = clean_mask(m)
+        assert out is not None
+        short += int(np.flatnonzero(out[20:34].any(axis=0)).max() < 96)
+    assert short <= 4
