@@ -37,7 +37,8 @@ def clean_mask(mask: NDArray[np.generic], min_area: float = 0.003) -> NDArray[np
     # half): ragged edges smoothed, speckle and pinholes gone, and limbs a few pixels
     # wide kept (a 3x3 opening, before 2026-12-02, cut them where the edge was ragged:
     # following a performer 90 pixels tall fell to 0.30-0.62)
-    m = (cv2.GaussianBlur(m.astype(np.float32), (0, 0), SMOOTH) > 0.5).astype(np.uint8)
+    # (in 8 bits: as fast as the opening, five times faster than in floats)
+    m = (cv2.GaussianBlur(m * 255, (0, 0), SMOOTH) > 127).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
     if n <= 1:
         return None
