@@ -89,6 +89,12 @@ def add_bank_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     add_bank_args(build)
     build.add_argument("--workers", type=int, default=None, help="processes (default: cores)")
     build.add_argument("--shard-frames", type=int, default=1000, help="frames per shard")
+    build.add_argument(
+        "--cluster",
+        default=None,
+        help="render on a Dask cluster: a scheduler's address (tcp://host:8786) or local:N "
+        "(N worker processes here); default $MIMIC_CLUSTER, else this machine's --workers",
+    )
     build.set_defaults(func=_build)
     info = bsub.add_parser("info", help="what a bank holds and how it was made")
     info.add_argument("folder", help="bank folder")
@@ -111,6 +117,7 @@ def _build(args: argparse.Namespace) -> int:
         shard_frames=args.shard_frames,
         workers=args.workers,
         progress=bar("silhouette bank", "renders", quiet_s=0.0),
+        cluster=args.cluster,
     )
     how = "built" if built else "up to date"
     print(

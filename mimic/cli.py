@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 from control.graph import GraphFileError
 from control.motion import MotionFormatError
-from silhouette_bank import BankFileError
+from silhouette_bank import BankFileError, ClusterError
 from vision import SourceError
 
 from .bank import add_bank_commands
@@ -78,6 +78,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         MotionFormatError,
         GraphFileError,
         BankFileError,
+        ClusterError,
         SourceError,
         FileNotFoundError,
         KeyError,

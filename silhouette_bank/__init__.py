@@ -45,9 +45,11 @@ from ._render import (
     write_mp4,
 )
 from ._settings import BANK_VERSION, METRIC_DIMS, BankSettings, robust_settings
+from ._workers import CLUSTER_ENV, ClusterError, cluster_address, run_jobs
 
 __all__ = [
     "BANK_VERSION",
+    "CLUSTER_ENV",
     "DEFAULT_DESCRIPTOR",
     "DESCRIPTORS",
     "HU_SCALE",
@@ -62,6 +64,7 @@ __all__ = [
     "BodyShape",
     "CameraRing",
     "CapsuleBody",
+    "ClusterError",
     "Descriptor",
     "GLRenderer",
     "GridDescriptor",
@@ -73,6 +76,7 @@ __all__ = [
     "build_bank",
     "capsule_body",
     "capsule_segments",
+    "cluster_address",
     "draw_ground_shadow",
     "ensure_bank",
     "feature_size",
@@ -93,6 +97,7 @@ __all__ = [
     "rasterize",
     "render_motion_video",
     "robust_settings",
+    "run_jobs",
     "shaded_frames",
     "silhouette_features",
     "write_mp4",

@@ -13,7 +13,8 @@ Layout of a bank folder::
     .building.lock         held while a process builds the bank (``ensure_bank``)
 
 Everything is written to a temporary file and renamed. Shards are independent, so they
-can be built by several processes (``workers``) or machines and merged; a build that was
+can be built by several processes (``workers``) or on a Dask cluster (``cluster``:
+``_workers``) and merged; a build that was
 interrupted finds its finished shards (checked against the manifest's key) and does only
 the rest. A bank whose library or settings differ from the requested ones is stale: it
 is rebuilt, never used. Files are read without pickle; a corrupt or truncated file is a
@@ -26,11 +27,8 @@ import hashlib
 import itertools
 import json
 import logging
-import multiprocessing
-import os
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -56,6 +54,7 @@ from ._metric import MetricJob, fit_metric, metric_jobs, metric_samples
 from ._pose import motion_pose_features
 from ._render import motion_features_both
 from ._settings import BANK_VERSION, BankSettings
+from ._workers import run_jobs
 
 __all__ = [
     "Bank",
@@ -134,9 +133,10 @@ def _key(digest: str, settings: BankSettings) -> str:
 
 def _shard_job(
     job: tuple[int, list[tuple[Motion, int, int]], BankSettings, str],
-) -> tuple[int, str]:
-    """Render one shard (``[(motion, first, stop)]`` pieces of clips) and write its file."""
-    index, pieces, settings, path = job
+) -> tuple[int, dict[str, np.ndarray]]:
+    """Render one shard (``[(motion, first, stop)]`` pieces of clips): its index and
+    arrays (the process that runs the build writes them: ``_write_shard``)."""
+    index, pieces, settings, _ = job
     feats, moves = [], []
     gl = None
     for motion, a, b in pieces:
@@ -158,10 +158,12 @@ def _shard_job(
         moves.append(m)
     if gl is not None:
         gl.close()
-    arrays = {"features": np.concatenate(feats), "root_motion": np.concatenate(moves)}
+    return index, {"features": np.concatenate(feats), "root_motion": np.concatenate(moves)}
+
+
+def _write_shard(path: str, arrays: dict[str, np.ndarray]) -> None:
     with atomic_write(path, "wb") as fh:
         np.savez(fh, checksum=np.array(checksum({}, arrays)), **arrays)  # type: ignore[arg-type]
-    return index, path
 
 
 def _variant_features(
@@ -204,13 +206,16 @@ def build_bank(
     shard_frames: int = 1000,
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
+    cluster: str | None = None,
 ) -> Bank:
     """Render every frame of ``clips`` into the bank at ``folder`` (resuming if possible).
 
     With ``workers`` > 1 the shards and the learned metric's renders (``metric_jobs``)
     are made in *spawned* processes (numba's OpenMP threads make fork unsafe), so a
     script that calls this must guard its entry point with ``if __name__ ==
-    "__main__":``. ``progress(done, total)`` counts both.
+    "__main__":``. With a ``cluster`` (or ``$MIMIC_CLUSTER``: ``silhouette_bank._workers``)
+    they are made on a Dask cluster instead; the bank is the same bit for bit.
+    ``progress(done, total)`` counts both.
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -223,7 +228,7 @@ def build_bank(
     metric = []
     if settings.metric_dims:
         metric = metric_jobs(clips, settings.descriptor, settings.ring, settings.body)
-    samples = _render(todo, len(shards), workers, progress, metric)
+    samples = _render(todo, len(shards), workers, progress, metric, cluster)
     arrays = _merge(settings, folder, manifest)
     if metric:
         mean, proj = fit_metric(metric, samples, settings.metric_dims)
@@ -313,7 +318,9 @@ def _shards_to_render(
     return todo
 
 
-def _run_job(job: _Job | MetricJob) -> tuple[int, str] | NDArray[np.float32]:
+def _run_job(
+    job: _Job | MetricJob,
+) -> tuple[int, dict[str, np.ndarray]] | NDArray[np.float32]:
     return metric_samples(job) if isinstance(job, MetricJob) else _shard_job(job)
 
 
@@ -323,32 +330,30 @@ def _render(
     workers: int | None,
     progress: Callable[[int, int], None] | None,
     metric: Sequence[MetricJob] = (),
+    cluster: str | None = None,
 ) -> list[NDArray[np.float32]]:
-    """Render the ``todo`` shards, then the ``metric`` jobs (their samples returned), in
-    processes when more than one worker; ``progress(done, shards + metric jobs)``."""
+    """Render the ``todo`` shards (each written as it comes back), then the ``metric``
+    jobs (their samples returned, in order), where ``run_jobs`` says;
+    ``progress(done, shards + metric jobs)``."""
     jobs: list[_Job | MetricJob] = [*todo, *metric]
     total = n_shards + len(metric)
     done = n_shards - len(todo)
     if progress:
         progress(done, total)
-    results = []
-    n_workers = min(workers or min(os.cpu_count() or 1, 4), max(len(jobs), 1))
-    if n_workers > 1:
-        # spawn, not fork: numba's OpenMP threads in this process make fork unsafe
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(n_workers, mp_context=ctx) as pool:
-            for out in pool.map(_run_job, jobs):
-                results.append(out)
-                done += 1
-                if progress:
-                    progress(done, total)
-    else:
-        for job in jobs:
-            results.append(_run_job(job))
-            done += 1
-            if progress:
-                progress(done, total)
-    return [r for r in results[len(todo) :] if not isinstance(r, tuple)]
+    samples: dict[int, NDArray[np.float32]] = {}
+
+    def take(i: int, out: Any) -> None:
+        nonlocal done
+        if i < len(todo):
+            _write_shard(todo[i][3], out[1])
+        else:
+            samples[i] = out
+        done += 1
+        if progress:
+            progress(done, total)
+
+    run_jobs(_run_job, jobs, take, workers, cluster)
+    return [samples[i] for i in sorted(samples)]
 
 
 def _merge(settings: BankSettings, folder: Path, manifest: dict[str, Any]) -> dict[str, np.ndarray]:

@@ -1,0 +1,135 @@
+"""Where a bank's render jobs run: in this process, in spawned local processes, or on a
+Dask cluster (``distributed``).
+
+A cluster is named by ``cluster`` (``mimic bank build --cluster``) or, failing that, the
+environment variable ``MIMIC_CLUSTER``: a scheduler's address (``tcp://host:8786``, as
+``dask scheduler`` prints it) or ``local:N`` (a cluster of ``N`` worker processes on this
+machine, started for the build and closed after it). The jobs are the same everywhere and
+every job's result comes back to this process, which writes it: so a cluster's workers
+need the project installed but no shared disk, and a bank built on a cluster is the local
+build bit for bit. A worker lost mid-build has its jobs run again by the scheduler (up to
+``RETRIES`` times); a build stopped altogether keeps the shards it wrote and resumes.
+
+Why Dask and not Ray (``benchmarks/bench_cluster.py``, 2026-12-02, the 2-core
+development machine, a local cluster of 2 workers, the 18-view bank of 13_29 + 13_30:
+9 shards and 8 metric renders): the render jobs took 12.2 s on Dask and 11.0 s on Ray
+(14.8 s for the whole local build with the process pool), and an empty task 1.8 ms against
+0.6 ms, which does not matter for jobs of a second or more; a cluster started in 1.2 s
+against 2.4 s; Dask installs as 24 MB of pure Python (Ray: 240 MB with its own daemon and
+object store), its client API is ``concurrent.futures``'s, and a worker is one command
+per machine (``dask worker tcp://scheduler:8786``).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
+from typing import Any
+
+__all__ = ["CLUSTER_ENV", "RETRIES", "ClusterError", "cluster_address", "run_jobs"]
+
+#: the environment variable naming a cluster when no ``cluster`` argument does
+CLUSTER_ENV = "MIMIC_CLUSTER"
+#: times a job whose worker was lost is run again
+RETRIES = 3
+
+
+class ClusterError(RuntimeError):
+    """A cluster that cannot be reached or that failed mid-build (names the address)."""
+
+
+def cluster_address(cluster: str | None = None) -> str | None:
+    """The cluster to build on: ``cluster``, else ``$MIMIC_CLUSTER``, else ``None``
+    (this machine). ``""`` is none."""
+    address = cluster if cluster is not None else os.environ.get(CLUSTER_ENV, "")
+    return address.strip() or None
+
+
+def run_jobs(
+    fn: Callable[[Any], Any],
+    jobs: Sequence[Any],
+    on_result: Callable[[int, Any], None],
+    workers: int | None = None,
+    cluster: str | None = None,
+) -> None:
+    """``on_result(i, fn(jobs[i]))`` for every job, in this process, as the results
+    come (in any order on a cluster; in order otherwise). On the cluster ``cluster``
+    (see the module) when one is named; else in ``workers`` spawned processes (default:
+    the cores, at most 4) when more than one, else here."""
+    address = cluster_address(cluster)
+    if not jobs:
+        return
+    if address is not None:
+        _on_cluster(address, fn, jobs, on_result)
+        return
+    n_workers = min(workers or min(os.cpu_count() or 1, 4), len(jobs))
+    if n_workers <= 1:
+        for i, job in enumerate(jobs):
+            on_result(i, fn(job))
+        return
+    # spawn, not fork: numba's OpenMP threads in this process make fork unsafe
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(n_workers, mp_context=ctx) as pool:
+        for i, out in enumerate(pool.map(fn, jobs)):
+            on_result(i, out)
+
+
+@contextmanager
+def _client(address: str) -> Iterator[Any]:
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError as exc:
+        raise ClusterError(
+            f"building on the cluster {address!r} needs Dask's distributed "
+            "(pip install 'mimic[cluster]' or distributed)"
+        ) from exc
+    if address.startswith("local:"):
+        try:
+            n = int(address.split(":", 1)[1])
+        except ValueError:
+            n = 0
+        if n < 1:
+            raise ClusterError(f"cluster {address!r}: local:N needs a number of workers N >= 1")
+        with (
+            LocalCluster(
+                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None
+            ) as local,
+            Client(local) as client,
+        ):
+            yield client
+        return
+    try:
+        client = Client(address, timeout=30)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ClusterError(f"cannot reach the cluster at {address!r}: {exc}") from exc
+    with client:
+        yield client
+
+
+def _on_cluster(
+    address: str,
+    fn: Callable[[Any], Any],
+    jobs: Sequence[Any],
+    on_result: Callable[[int, Any], None],
+) -> None:
+    from distributed import as_completed
+
+    with _client(address) as client:
+        futures = [
+            client.submit(fn, job, key=f"mimic-job-{i}-{os.getpid()}", retries=RETRIES, pure=False)
+            for i, job in enumerate(jobs)
+        ]
+        where = {f.key: i for i, f in enumerate(futures)}
+        try:
+            for future, out in as_completed(futures, with_results=True):
+                on_result(where[future.key], out)
+        except Exception as exc:  # a job that failed on every try, or a lost scheduler
+            raise ClusterError(
+                f"the build on the cluster {address!r} failed ({type(exc).__name__}: {exc}); "
+                "the shards finished so far are kept: build again to resume"
+            ) from exc
+        finally:
+            client.cancel(futures)

@@ -1,0 +1,92 @@
+"""The bank built on a Dask cluster (``silhouette_bank._workers``): a local cluster of two
+worker processes, as a user's cluster would run it."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from control.motion import Library, load_library
+from mimic.cli import main
+from silhouette_bank import (
+    CLUSTER_ENV,
+    BankSettings,
+    CameraRing,
+    ClusterError,
+    build_bank,
+    cluster_address,
+    run_jobs,
+)
+
+SMALL = BankSettings(CameraRing(n_views=6, width=80, height_px=60), descriptor="hu")
+
+
+@pytest.fixture(scope="module")
+def lib(mocap: Path, tmp_path_factory: pytest.TempPathFactory) -> Library:
+    return load_library(
+        mocap, clips=["02_01", "02_02", "02_03"], cache_dir=tmp_path_factory.mktemp("c")
+    )
+
+
+def test_a_bank_built_on_a_two_worker_cluster_is_the_local_build(
+    lib: Library, tmp_path: Path
+) -> None:
+    here = build_bank(lib.clips, SMALL, tmp_path / "here", shard_frames=20, workers=1)
+    done: list[int] = []
+    there = build_bank(
+        lib.clips,
+        SMALL,
+        tmp_path / "there",
+        shard_frames=20,
+        cluster="local:2",
+        progress=lambda d, t: done.append(d),
+    )
+    assert done[-1] == 6 and sorted(done) == done  # 103 frames in shards of 20
+    # bit for bit: the same arrays, so the same file
+    assert (tmp_path / "here" / "bank.npz").read_bytes() == (
+        tmp_path / "there" / "bank.npz"
+    ).read_bytes()
+    np.testing.assert_array_equal(there.features, here.features)
+
+
+def _square_or_die(job: tuple[int, str]) -> int:
+    """``i * i``; the worker that first runs job 2 dies in it (a machine lost mid-job)."""
+    i, marker = job
+    if i == 2:
+        try:
+            fd = os.open(marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            pass
+        else:
+            os.close(fd)
+            os._exit(1)
+    return i * i
+
+
+def test_a_job_whose_worker_dies_is_run_again_on_another(tmp_path: Path) -> None:
+    marker = str(tmp_path / "died")
+    got: dict[int, int] = {}
+    run_jobs(_square_or_die, [(i, marker) for i in range(5)], got.__setitem__, cluster="local:2")
+    assert Path(marker).exists()  # a worker did die
+    assert got == {i: i * i for i in range(5)}
+
+
+def test_the_cluster_is_named_by_flag_or_environment(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    monkeypatch.delenv(CLUSTER_ENV, raising=False)
+    assert cluster_address() is None
+    monkeypatch.setenv(CLUSTER_ENV, " tcp://10.0.0.5:8786 ")
+    assert cluster_address() == "tcp://10.0.0.5:8786"
+    assert cluster_address("local:3") == "local:3"
+    assert cluster_address("") is None  # an explicit "" is this machine
+    with pytest.raises(ClusterError, match="local:0"):
+        run_jobs(abs, [1, 2], lambda i, r: None, cluster="local:0")
+    monkeypatch.delenv(CLUSTER_ENV)
+    argv = ["bank", "build", "--clips", "02_01", "--bank", str(tmp_path / "b")]
+    assert main([*argv, "--cluster", "nonsense://x"]) == 2
+    err = capsys.readouterr().err
+    assert "nonsense://x" in err and "cluster" in err
