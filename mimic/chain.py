@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import time
 
+import numpy as np
+
 from control.motion import load_library, write_bvh
 from control.progress import step
 from control.transition import Chainer
@@ -18,9 +20,14 @@ def add_chain_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p = sub.add_parser(
         "chain",
         help="play named actions in order with synthesized transitions, write BVH",
-        description="ACTION is CLIP, CLIP:FROM-TO (seconds) or label:NAME (from labels/*.csv). "
-        "Transitions follow candidate paths of the cluster transition graph, or a Bezier "
-        "interpolation when no path exists.",
+        description="ACTION is CLIP, CLIP:FROM-TO (seconds) or label:NAME (from labels/*.csv), "
+        "or a parametric action REF@[EFFECTOR=]X,Y,Z: the library's examples of the action "
+        "REF (found by DTW) blended so that EFFECTOR (a joint role, default right_wrist at "
+        "the action's apex; root: where the action ends on the floor, Y ignored) reaches "
+        "X,Y,Z metres in the avatar's frame where the action begins (x left, y up, z "
+        "forward), e.g. "
+        "02_05:6.67-7.6@0.45,1.3,0.55. Transitions follow candidate paths of the cluster "
+        "transition graph, or a Bezier interpolation when no path exists.",
     )
     p.add_argument("actions", nargs="+", metavar="ACTION")
     add_library_dir(p, positional=False)  # ACTION... takes the positionals
@@ -73,4 +80,13 @@ def _chain(args: argparse.Namespace) -> int:
         f"{chainer.clusters.k} clusters, preprocess {t1 - t0:.2f} s, synthesis "
         f"{(t2 - t1) / result.motion.n_frames * 1e3:.3f} ms per frame"
     )
+    for name, blend in result.blends:
+        used = int(np.sum(blend.weights > 0.01))
+        off = float(np.linalg.norm(blend.reached - blend.target)) * 100
+        note = " (the target was outside the examples' reach: clamped into their hull)"
+        print(
+            f"{name}: a blend of {used} of {blend.weights.size} examples; the effector at "
+            f"({', '.join(f'{x:.2f}' for x in blend.reached)}), {off:.1f} cm from "
+            f"({', '.join(f'{x:.2f}' for x in blend.target)})" + (note if blend.clamped else "")
+        )
     return 0

@@ -37,6 +37,7 @@ from ..graph import (
 from ..motion import Clip, Motion, qconj, qexp, qlog, qmul
 from ._bezier import average_quats, bezier_quats, greedy_walk, interpolation_frames
 from ._cluster import two_pass_clusters
+from ._parametric import Blend, ParametricAction
 from ._runtime import choose_path, nearest_cluster, stitch_path, transition_point
 from ._tgraph import build_transition_graph, candidate_paths
 
@@ -48,22 +49,28 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class Action:
-    """Library frames ``[start, stop)`` (end to end over the chainer's clips) and a name."""
+    """Library frames ``[start, stop)`` (end to end over the chainer's clips) and a name;
+    for a parametric action (``REF@X,Y,Z``) the frames of its blend (numbered past the
+    library's: ``Chainer.n_library``) and the answered request."""
 
     name: str
     start: int
     stop: int
+    blend: Blend | None = None
 
 
 @dataclass(frozen=True, eq=False)
 class ChainResult:
     """The chained motion; ``sources`` (T,) library frame per output frame (-1 for
-    interpolated frames); ``pieces`` the (kind, first output frame) of every piece."""
+    interpolated frames, -2 for a parametric action's blended ones); ``pieces`` the
+    (kind, first output frame) of every piece."""
 
     motion: Motion
     sources: IntArray
     pieces: list[tuple[str, int]]
     bezier: int
+    #: the parametric actions' answered requests, by action name
+    blends: tuple[tuple[str, Blend], ...] = ()
 
 
 class Chainer:
@@ -102,11 +109,80 @@ class Chainer:
         )
         self.quats = np.concatenate([c.motion.quats for c in chosen])
         self.skeleton = chosen[0].motion.skeleton
+        self.n_library = int(self.root.shape[0])
+        self._models: dict[tuple[int, int, str], ParametricAction] = {}
+        # blends' frames: (first frame number, root (m, 3), quats (m, J, 4), library proxy)
+        self._blends: list[tuple[int, FloatArray, FloatArray, IntArray]] = []
+        self._next = self.n_library + 1  # a gap: a blend never continues a library clip
 
     # --- actions ---------------------------------------------------------------------
 
-    def action(self, spec: str) -> Action:
-        """``CLIP``, ``CLIP:FROM-TO`` (seconds) or ``label:NAME``."""
+    def action(self, spec: str, target: Sequence[float] | None = None) -> Action:
+        """``CLIP``, ``CLIP:FROM-TO`` (seconds) or ``label:NAME``; a parametric action
+        ``REF@[EFFECTOR=]X,Y,Z`` (or ``REF`` with ``target``): the examples of the action
+        ``REF`` blended so that ``EFFECTOR`` (a joint role, default ``right_wrist`` at the
+        action's apex; ``root``: where it ends, on the floor, ``Y`` ignored) is at ``(X,
+        Y, Z)`` metres in the avatar's frame where the action begins (y up, z its forward,
+        x its left)."""
+        m = re.fullmatch(r"(.+)@(?:([a-z_]+)=)?([-+\d.eE]+),([-+\d.eE]+),([-+\d.eE]+)", spec)
+        if m is not None or target is not None:
+            effector = "right_wrist"
+            if m is not None:
+                spec, effector = m.group(1), m.group(2) or effector
+                target = [float(m.group(k)) for k in (3, 4, 5)]
+            assert target is not None
+            return self.parametric(self._plain_action(spec), target, effector)
+        return self._plain_action(spec)
+
+    def parametric(
+        self, reference: Action, target: Sequence[float], effector: str = "right_wrist"
+    ) -> Action:
+        """The blend of ``reference``'s examples that puts ``effector`` at ``target``
+        (``ParametricAction``; its examples are found once per reference and effector)."""
+        key = (reference.start, reference.stop, effector)
+        if key not in self._models:
+            self._models[key] = ParametricAction(
+                self.feat,
+                self.root,
+                self.quats,
+                self.skeleton,
+                self.fps,
+                (reference.start, reference.stop),
+                effector=effector,
+                key="end" if effector == "root" else "apex",
+                nu=self.nu,
+            )
+        model = self._models[key]
+        blend = model.request(np.asarray(target, dtype=np.float64))
+        first = self._next
+        proxy = model.aligned[int(np.argmax(blend.weights))]
+        self._blends.append((first, blend.motion.root_pos, blend.motion.quats, proxy))
+        self._next = first + proxy.size + 1
+        where = ",".join(f"{x:g}" for x in target)
+        return Action(f"{reference.name}@{effector}={where}", first, first + proxy.size, blend)
+
+    def _frame(self, f: int) -> tuple[FloatArray, FloatArray]:
+        """Root position and rotations of frame ``f`` (a library frame or a blend's)."""
+        if f < self.n_library:
+            return self.root[f], self.quats[f]
+        first, root, quats, _ = self._blend_of(f)
+        return root[f - first], quats[f - first]
+
+    def _lib(self, f: int) -> int:
+        """``f``, or for a blend's frame the library frame it stands in for (its heaviest
+        example's, aligned): what transitions into and out of the blend are found by."""
+        if f < self.n_library:
+            return f
+        first, _, _, proxy = self._blend_of(f)
+        return int(proxy[f - first])
+
+    def _blend_of(self, f: int) -> tuple[int, FloatArray, FloatArray, IntArray]:
+        for b in reversed(self._blends):
+            if b[0] <= f < b[0] + b[3].size:
+                return b
+        raise ValueError(f"frame {f} is neither a library frame nor a blend's")
+
+    def _plain_action(self, spec: str) -> Action:
         starts = self.feat.clip_start
         names = [c.name for c in self.clips]
         if spec.startswith("label:"):
@@ -138,8 +214,8 @@ class Chainer:
     def _transition(self, last: int, action: Action) -> tuple[list[int], FloatArray | None]:
         """Frames from ``last`` into ``action`` (library frames), or, with no path, the
         interpolated poses ``(n, J, 4)`` to put before the action's first frame."""
-        a = nearest_cluster(self.feat, self.clusters, last, self.nu)
-        b = nearest_cluster(self.feat, self.clusters, action.start, self.nu)
+        a = nearest_cluster(self.feat, self.clusters, self._lib(last), self.nu)
+        b = nearest_cluster(self.feat, self.clusters, self._lib(action.start), self.nu)
         path = choose_path(self.paths, a, b, self.rng)
         body = list(range(action.start, action.stop))
         if path is None:
@@ -149,19 +225,31 @@ class Chainer:
             c = self.clusters.centres
             c1 = average_quats(self.quats[c[inner[:half]]])
             c2 = average_quats(self.quats[c[inner[half:] or inner[:half]]])
-            d, _ = pair_distances(self.feat, np.array([last]), np.array([action.start]), self.nu)
+            d, _ = pair_distances(
+                self.feat,
+                np.array([self._lib(last)]),
+                np.array([self._lib(action.start)]),
+                self.nu,
+            )
             n = interpolation_frames(float(d[0]), self.delta)
-            control = np.stack((self.quats[last], c1, c2, self.quats[action.start]))
+            q_last, q_first = self._frame(last)[1], self._frame(action.start)[1]
+            control = np.stack((q_last, c1, c2, q_first))
             if self.fallback == "linear":  # the baseline: slerp straight to the target
                 control = control[[0, 3]]
             return body, bezier_quats(control, n + 2)[1:-1]
+        here = self._lib(last)
         seq = (
-            stitch_path(self.feat, self.graph, [last], path, nu=self.nu)
+            stitch_path(self.feat, self.graph, [here], path, nu=self.nu)
             if path.size > 1
-            else [last]
+            else [here]
         )
         tail = np.array(seq[-10:], dtype=np.int64)
-        i, j, _ = transition_point(self.feat, tail, np.array(body[:25]), self.nu)
+        # enter within the first 25 frames, and within the first third of a short action
+        # (entered near its end, a requested action would hardly be seen)
+        head = np.array(
+            [self._lib(f) for f in body[: min(25, max(1, len(body) // 3))]], dtype=np.int64
+        )
+        i, j, _ = transition_point(self.feat, tail, head, self.nu)
         return seq[1 : len(seq) - tail.size + i + 1] + body[j:], None
 
     def chain(self, actions: Sequence[str | Action]) -> ChainResult:
@@ -182,7 +270,8 @@ class Chainer:
             pieces.append((act.name, len(items)))
             items.extend(frames)
         motion, sources = self._assemble(items)
-        return ChainResult(motion, sources, pieces, n_bezier)
+        blends = tuple((a.name, a.blend) for a in acts if a.blend is not None)
+        return ChainResult(motion, sources, pieces, n_bezier, blends)
 
     # --- assembly --------------------------------------------------------------------
 
@@ -192,6 +281,7 @@ class Chainer:
         root = np.array([o[0] for o in out])
         quats = np.array([o[1] for o in out])
         sources = np.array([o[2] for o in out], dtype=np.int64)
+        sources[sources >= self.n_library] = -2  # a blend's frames
         motion = Motion(self.skeleton, root, quats, self.fps, name="chain", source="transition")
         return motion, sources
 
@@ -219,18 +309,19 @@ class _Placer:
         if isinstance(item, (int, np.integer)):
             f = int(item)
             continuing = self.prev_src is not None and abs(f - self.prev_src) == 1
+            f_root, f_quats = ch._frame(f)
             if not continuing and self.quats is not None and self.root is not None:
-                self.yaw = float(yaw_of(self.quats[0])) - float(yaw_of(ch.quats[f, 0]))
-                p = rotate_y(ch.root[f], self.yaw)
+                self.yaw = float(yaw_of(self.quats[0])) - float(yaw_of(f_quats[0]))
+                p = rotate_y(f_root, self.yaw)
                 self.trans = np.array([self.root[0] - p[0], 0.0, self.root[2] - p[2]])
-                q_new = ch.quats[f].copy()
-                q_new[0] = qmul(yaw_q(self.yaw), ch.quats[f, 0])
+                q_new = f_quats.copy()
+                q_new[0] = qmul(yaw_q(self.yaw), f_quats[0])
                 self.e0 = qlog(qmul(self.quats, qconj(q_new)))
                 self.p0 = float(self.root[1] - (p[1] + self.trans[1]))
                 self.k = 0
-            root = rotate_y(ch.root[f], self.yaw) + self.trans
-            quats = ch.quats[f].copy()
-            quats[0] = qmul(yaw_q(self.yaw), ch.quats[f, 0])
+            root = rotate_y(f_root, self.yaw) + self.trans
+            quats = f_quats.copy()
+            quats[0] = qmul(yaw_q(self.yaw), f_quats[0])
             if self.e0 is not None:
                 self.k += 1
                 if self.k >= ch.blend:
@@ -269,8 +360,9 @@ class ChainPlayer:
     ``request(action)`` queues an action; ``request(action, interrupt=True)`` drops the
     queue and the rest of what is playing, so the avatar turns towards the new action from
     where it is (the dodge example). ``next()`` returns the next frame's root position
-    ``(3,)``, local rotations ``(J, 4)`` and library frame (-1 for an interpolated pose);
-    with nothing left to do the avatar holds its last pose.
+    ``(3,)``, local rotations ``(J, 4)`` and library frame (-1 for an interpolated pose,
+    -2 for a blended one); with nothing left to do the avatar holds its last pose.
+    ``request(action, target=(x, y, z))`` asks for a parametric action (``Chainer.action``).
     """
 
     def __init__(self, chainer: Chainer) -> None:
@@ -285,8 +377,16 @@ class ChainPlayer:
     def idle(self) -> bool:
         return not self._plan and not self._queue
 
-    def request(self, action: str | Action, interrupt: bool = False) -> None:
-        act = action if isinstance(action, Action) else self.ch.action(action)
+    def request(
+        self,
+        action: str | Action,
+        interrupt: bool = False,
+        target: Sequence[float] | None = None,
+    ) -> None:
+        if isinstance(action, Action):
+            act = action if target is None else self.ch.parametric(action, target)
+        else:
+            act = self.ch.action(action, target)
         if interrupt:
             self._queue.clear()
             self._plan.clear()
@@ -306,8 +406,8 @@ class ChainPlayer:
             if self._last is None:
                 raise ValueError("nothing requested yet")
             return self._last
-        out = self._placer.push(self._plan.popleft())
-        if out[2] >= 0:
-            self._last_src = out[2]
-        self._last = out
-        return out
+        root, quats, src = self._placer.push(self._plan.popleft())
+        if src >= 0:
+            self._last_src = src
+        self._last = (root, quats, -2 if src >= self.ch.n_library else src)
+        return self._last

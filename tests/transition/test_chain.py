@@ -11,19 +11,11 @@ import numpy as np
 import pytest
 
 from control.graph import joint_jumps
-from control.motion import Library, load_library, read_bvh
+from control.motion import load_library, read_bvh
 from control.transition._chain import Chainer
 from control.transition._tgraph import CandidatePaths
 from mimic.cli import main
 from tests.conftest import REPO
-
-
-@pytest.fixture(scope="module")
-def chainer(mocap: Path, tmp_path_factory: pytest.TempPathFactory) -> Chainer:
-    lib: Library = load_library(
-        mocap, clips=["13_29", "13_30", "02_0*"], cache_dir=tmp_path_factory.mktemp("c")
-    )
-    return Chainer(lib.clips, seed=1)
 
 
 def test_actions_by_clip_range_and_label(chainer: Chainer) -> None:
