@@ -49,6 +49,13 @@ def add_chain_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
         default="bezier",
         help="interpolation where no path exists (default bezier)",
     )
+    p.add_argument(
+        "--example-cost",
+        type=float,
+        default=0.5,
+        help="a parametric action's examples: at most this share of the library's "
+        "background DTW cost (default 0.5)",
+    )
     p.add_argument("--out", required=True, help="BVH file to write")
     p.add_argument("--video", help="also an MP4 of the avatar (shaded, camera following)")
     p.set_defaults(func=_chain)
@@ -65,6 +72,7 @@ def _chain(args: argparse.Namespace) -> int:
             seed=args.seed,
             fallback=args.fallback,
             directed=not args.undirected,
+            example_cost=args.example_cost,
         )
     t1 = time.perf_counter()
     result = chainer.chain(args.actions)

@@ -71,6 +71,9 @@ class ChainResult:
     bezier: int
     #: the parametric actions' answered requests, by action name
     blends: tuple[tuple[str, Blend], ...] = ()
+    #: (T,) the frame played at each output frame: as ``sources``, but a blend's frames
+    #: by their number (``Action.start`` + the blend's frame)
+    played: IntArray | None = None
 
 
 class Chainer:
@@ -87,10 +90,13 @@ class Chainer:
         nu: float = 0.01,
         fallback: str = "bezier",
         directed: bool = True,
+        example_cost: float = 0.5,
     ) -> None:
         if fallback not in ("bezier", "linear"):
             raise ValueError("fallback must be 'bezier' or 'linear'")
         self.fallback = fallback
+        #: a parametric action's examples: ``find_examples``'s ``max_cost``
+        self.example_cost = example_cost
         chosen, _ = select_clips(list(clips))
         self.clips = chosen
         self.fps = chosen[0].motion.fps
@@ -151,6 +157,7 @@ class Chainer:
                 effector=effector,
                 key="end" if effector == "root" else "apex",
                 nu=self.nu,
+                max_cost=self.example_cost,
             )
         model = self._models[key]
         blend = model.request(np.asarray(target, dtype=np.float64))
@@ -269,9 +276,10 @@ class Chainer:
                 n_bezier += 1
             pieces.append((act.name, len(items)))
             items.extend(frames)
-        motion, sources = self._assemble(items)
+        motion, played = self._assemble(items)
+        sources = np.where(played >= self.n_library, -2, played)  # a blend's frames: -2
         blends = tuple((a.name, a.blend) for a in acts if a.blend is not None)
-        return ChainResult(motion, sources, pieces, n_bezier, blends)
+        return ChainResult(motion, sources, pieces, n_bezier, blends, played)
 
     # --- assembly --------------------------------------------------------------------
 
@@ -281,7 +289,6 @@ class Chainer:
         root = np.array([o[0] for o in out])
         quats = np.array([o[1] for o in out])
         sources = np.array([o[2] for o in out], dtype=np.int64)
-        sources[sources >= self.n_library] = -2  # a blend's frames
         motion = Motion(self.skeleton, root, quats, self.fps, name="chain", source="transition")
         return motion, sources
 

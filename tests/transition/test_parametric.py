@@ -3,12 +3,16 @@ target, and chained."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.signal import find_peaks
 
 from control.graph import rotate_y, yaw_of
+from control.motion import read_bvh
 from control.transition import Chainer, ChainPlayer, ParametricAction, find_examples
+from mimic.cli import main
 
 #: one of the nine strikes of 02_05 (seconds), its right wrist's apex in the middle
 STRIKE = "02_05:6.67-7.6"
@@ -127,3 +131,18 @@ def test_a_chain_strikes_three_targets_between_other_actions(chainer: Chainer) -
     player.request(STRIKE, target=targets[0])
     srcs = [player.next()[2] for _ in range(120)]
     assert -2 in srcs and srcs[-1] == srcs[-2]  # the blend played, then the last pose held
+
+
+def test_mimic_chain_takes_a_target_and_says_how_close_it_got(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "strikes.bvh"
+    argv = ["chain", "02_01", f"{STRIKE}@0.45,1.3,0.55", f"{STRIKE}@0.5,1.0,3", "--clips", "02_0*"]
+    assert main([*argv, "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "a blend of" in said and "cm from (0.45, 1.30, 0.55)" in said
+    far = next(line for line in said.splitlines() if line.startswith(f"{STRIKE}@right_wrist=0.5,"))
+    assert far.endswith("clamped into their hull)")  # z = 3 m is out of reach
+    assert read_bvh(out).n_frames > 30
+    assert main(["chain", "02_01@0.1,x,0.3", "--clips", "02_0*", "--out", str(out)]) == 2
+    assert "unknown action" in capsys.readouterr().err
