@@ -25,9 +25,10 @@ def add_chain_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "REF (found by DTW) blended so that EFFECTOR (a joint role, default right_wrist at "
         "the action's apex; root: where the action ends on the floor, Y ignored) reaches "
         "X,Y,Z metres in the avatar's frame where the action begins (x left, y up, z "
-        "forward), e.g. "
-        "02_05:6.67-7.6@0.45,1.3,0.55. Transitions follow candidate paths of the cluster "
-        "transition graph, or a Bezier interpolation when no path exists.",
+        "forward), e.g. 02_05:6.67-7.6@0.45,1.3,0.55; REF@turn=DEGREES turns the avatar "
+        "by DEGREES (left when positive) by the action's end. Transitions follow candidate "
+        "paths of the cluster transition graph, or a Bezier interpolation when no path "
+        "exists.",
     )
     p.add_argument("actions", nargs="+", metavar="ACTION")
     add_library_dir(p, positional=False)  # ACTION... takes the positionals
@@ -90,11 +91,17 @@ def _chain(args: argparse.Namespace) -> int:
     )
     for name, blend in result.blends:
         used = int(np.sum(blend.weights > 0.01))
-        off = float(np.linalg.norm(blend.reached - blend.target)) * 100
         note = " (the target was outside the examples' reach: clamped into their hull)"
+        if "@turn=" in name:
+            got = f"turned {blend.reached[0]:.1f} degrees, asked {blend.target[0]:.1f}"
+        else:
+            off = float(np.linalg.norm(blend.reached - blend.target)) * 100
+            got = (
+                f"the effector at ({', '.join(f'{x:.2f}' for x in blend.reached)}), {off:.1f} "
+                f"cm from ({', '.join(f'{x:.2f}' for x in blend.target)})"
+            )
         print(
-            f"{name}: a blend of {used} of {blend.weights.size} examples; the effector at "
-            f"({', '.join(f'{x:.2f}' for x in blend.reached)}), {off:.1f} cm from "
-            f"({', '.join(f'{x:.2f}' for x in blend.target)})" + (note if blend.clamped else "")
+            f"{name}: a blend of {used} of {blend.weights.size} examples; {got}"
+            + (note if blend.clamped else "")
         )
     return 0

@@ -129,16 +129,20 @@ class Chainer:
         ``REF`` blended so that ``EFFECTOR`` (a joint role, default ``right_wrist`` at the
         action's apex; ``root``: where it ends, on the floor, ``Y`` ignored) is at ``(X,
         Y, Z)`` metres in the avatar's frame where the action begins (y up, z its forward,
-        x its left)."""
-        m = re.fullmatch(r"(.+)@(?:([a-z_]+)=)?([-+\d.eE]+),([-+\d.eE]+),([-+\d.eE]+)", spec)
-        if m is not None or target is not None:
-            effector = "right_wrist"
-            if m is not None:
-                spec, effector = m.group(1), m.group(2) or effector
-                target = [float(m.group(k)) for k in (3, 4, 5)]
-            assert target is not None
-            return self.parametric(self._plain_action(spec), target, effector)
-        return self._plain_action(spec)
+        x its left); ``REF@turn=DEGREES``: the blend that turns the avatar by ``DEGREES``
+        (to its left when positive) by the action's end."""
+        num = r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
+        m = re.fullmatch(rf"(.+)@(?:([a-z_]+)=)?{num},{num},{num}", spec)
+        turn = re.fullmatch(rf"(.+)@turn={num}", spec)
+        effector = "right_wrist"
+        if m is not None:
+            spec, effector = m.group(1), m.group(2) or effector
+            target = [float(m.group(k)) for k in (3, 4, 5)]
+        elif turn is not None:
+            spec, effector, target = turn.group(1), "turn", [float(turn.group(2)), 0.0, 0.0]
+        if target is None:
+            return self._plain_action(spec)
+        return self.parametric(self._plain_action(spec), target, effector)
 
     def parametric(
         self, reference: Action, target: Sequence[float], effector: str = "right_wrist"
@@ -155,7 +159,7 @@ class Chainer:
                 self.fps,
                 (reference.start, reference.stop),
                 effector=effector,
-                key="end" if effector == "root" else "apex",
+                key="end" if effector in ("root", "turn") else "apex",
                 nu=self.nu,
                 max_cost=self.example_cost,
             )
@@ -165,7 +169,7 @@ class Chainer:
         proxy = model.aligned[int(np.argmax(blend.weights))]
         self._blends.append((first, blend.motion.root_pos, blend.motion.quats, proxy))
         self._next = first + proxy.size + 1
-        where = ",".join(f"{x:g}" for x in target)
+        where = f"{target[0]:g}" if effector == "turn" else ",".join(f"{x:g}" for x in target)
         return Action(f"{reference.name}@{effector}={where}", first, first + proxy.size, blend)
 
     def _frame(self, f: int) -> tuple[FloatArray, FloatArray]:

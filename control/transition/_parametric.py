@@ -87,7 +87,8 @@ class ParametricAction:
             raise ValueError(f"key must be 'apex' or 'end', got {key!r}")
         self.skeleton, self.fps = skeleton, fps
         self.effector = effector
-        self._point = None if effector == "root" else role_point(skeleton, effector)
+        plain = effector in ("root", "turn")
+        self._point = None if plain else role_point(skeleton, effector)
         self.examples: list[Example] = find_examples(feat, reference[0], reference[1], nu, max_cost)
         ref = np.arange(reference[0], reference[1], dtype=np.int64)
         roots, rots, aligned = [], [], []
@@ -119,7 +120,10 @@ class ParametricAction:
 
     def _track(self, root: FloatArray, quats: FloatArray) -> FloatArray:
         """The effector's path ``(m, 3)`` in the action frame (the root's on the floor:
-        its height is not a target)."""
+        its height is not a target; for ``turn``, ``(degrees turned, 0, 0)``)."""
+        if self.effector == "turn":  # (the action frame's heading is 0 where it begins)
+            turned = np.degrees(np.unwrap(np.concatenate(([0.0], yaw_of(quats[:, 0]))))[1:])
+            return np.stack((turned, np.zeros_like(turned), np.zeros_like(turned)), axis=1)
         if self._point is None:
             return root * np.array([1.0, 0.0, 1.0])
         pose = forward_kinematics(Motion(self.skeleton, root, quats, self.fps))
@@ -274,22 +278,35 @@ def _blend_frames(
     return np.einsum("e,e...->...", w, roots), q
 
 
-def _plant(skeleton: Skeleton, fps: float, root: FloatArray, quats: FloatArray) -> FloatArray:
-    """``quats`` with each foot held where it touched down while it is in contact
-    (contacts of the blended motion itself)."""
+def _plant(
+    skeleton: Skeleton, fps: float, root: FloatArray, quats: FloatArray, fade: int = 3
+) -> FloatArray:
+    """``quats`` with each foot held still while the blended motion's own contacts say it
+    is down: at the run's mean place, the correction fading in and out over ``fade``
+    frames either side (a foot snapped to its place would jerk the knee)."""
     motion = Motion(skeleton, root, quats, fps)
     pose = forward_kinematics(motion)
     states = detect_contacts(motion, pose).states
     out = quats.copy()
+    n = root.shape[0]
     for foot, side in enumerate(("left", "right")):
         chain = leg_chain(skeleton, side)
         ankle = pose.positions[:, chain[2]]
-        target = ankle.copy()
+        shift = np.zeros_like(ankle)
+        weight = np.zeros(n)
         c = np.concatenate(([0], states[:, foot].astype(np.int8), [0]))
-        for s, e in zip(
-            np.flatnonzero(np.diff(c) == 1), np.flatnonzero(np.diff(c) == -1), strict=True
-        ):
-            target[s:e] = ankle[s]
+        edges = np.diff(c)
+        for s, e in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
+            r = ankle[s:e].mean(axis=0) - ankle[s:e]  # inside the run: held at its mean
+            shift[s:e] = r
+            weight[s:e] = 1.0
+            for k in range(1, fade + 1):  # outside it: the run's end corrections, fading
+                x = 1.0 - k / (fade + 1)
+                w = x * x * (3.0 - 2.0 * x)
+                for f, edge in ((s - k, s), (e - 1 + k, e - 1)):
+                    if 0 <= f < n and w > weight[f]:
+                        shift[f], weight[f] = r[edge - s], w
+        target = ankle + shift * weight[:, None]
         todo = np.flatnonzero(np.linalg.norm(target - ankle, axis=1) > 1e-5)
         if todo.size:
             hinge = knee_hinge(pose.positions, pose.orientations, chain)

@@ -10,7 +10,7 @@ import pytest
 from scipy.signal import find_peaks
 
 from control.graph import rotate_y, yaw_of
-from control.motion import read_bvh
+from control.motion import load_library, read_bvh
 from control.transition import Chainer, ChainPlayer, ParametricAction, find_examples
 from mimic.cli import main
 
@@ -146,3 +146,16 @@ def test_mimic_chain_takes_a_target_and_says_how_close_it_got(
     assert read_bvh(out).n_frames > 30
     assert main(["chain", "02_01@0.1,x,0.3", "--clips", "02_0*", "--out", str(out)]) == 2
     assert "unknown action" in capsys.readouterr().err
+
+
+def test_a_turning_step_turns_by_the_angle_asked(
+    mocap: Path, tmp_path_factory: pytest.TempPathFactory
+) -> None:
+    lib = load_library(mocap, clips=["02_0*", "03_0*"], cache_dir=tmp_path_factory.mktemp("c"))
+    walks = Chainer(lib.clips, seed=1)
+    act = walks.action("03_04:7.8-8.8@turn=30")  # a step turning left, found in both walks
+    assert act.blend is not None and not act.blend.clamped and act.blend.weights.max() < 1
+    yaw = np.unwrap(yaw_of(act.blend.motion.quats[:, 0]))
+    assert abs(np.degrees(yaw[-1] - yaw[0]) - 30.0) < 1.0
+    assert abs(act.blend.reached[0] - 30.0) < 1.0
+    assert walks.action("03_04:7.8-8.8@turn=300").blend.clamped  # type: ignore[union-attr]
