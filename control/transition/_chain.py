@@ -46,6 +46,10 @@ __all__ = ["Action", "ChainPlayer", "ChainResult", "Chainer"]
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
 
+#: the parametric actions' blends a chainer keeps (the latest): an action queued longer
+#: than this many requests ago can no longer be played
+KEEP_BLENDS = 1024
+
 
 @dataclass(frozen=True)
 class Action:
@@ -168,6 +172,7 @@ class Chainer:
         first = self._next
         proxy = model.aligned[int(np.argmax(blend.weights))]
         self._blends.append((first, blend.motion.root_pos, blend.motion.quats, proxy))
+        del self._blends[:-KEEP_BLENDS]  # a long game loop: bounded memory
         self._next = first + proxy.size + 1
         where = f"{target[0]:g}" if effector == "turn" else ",".join(f"{x:g}" for x in target)
         return Action(f"{reference.name}@{effector}={where}", first, first + proxy.size, blend)
