@@ -41,19 +41,32 @@ def _bounds(length: int, segments: int) -> IntArray:
 
 
 def _summaries(
-    shape: FloatArray, centre: FloatArray, starts: IntArray, length: int, bounds: IntArray
+    shape: FloatArray,
+    centre: FloatArray,
+    starts: IntArray,
+    length: int,
+    bounds: IntArray,
+    views: IntArray | None = None,
 ) -> NDArray[np.float32]:
-    """PAA summaries ``(len(starts), V, P * D)`` of the windows at ``starts``."""
-    v = shape.shape[1]
-    # prefix sums along time make each segment mean two lookups
-    feat = np.concatenate((shape, centre), axis=2)
-    csum = np.concatenate((np.zeros((1, v, feat.shape[2])), np.cumsum(feat, axis=0)))
+    """PAA summaries ``(len(starts), V, P * D)`` of the windows at ``starts`` (with
+    ``views``, ``(len(starts), P * D)``: each start's window in its view only)."""
     parts = []
     for a, b in itertools.pairwise(bounds):
-        mean = (csum[starts + b] - csum[starts + a]) / float(b - a)
-        mean[..., shape.shape[2] :] -= centre[starts]  # the centre relative to the start
+        frames = [  # a segment's frames, summed
+            np.concatenate((shape[f], centre[f]), axis=-1)
+            if views is None
+            else np.concatenate((shape[f, views], centre[f, views]), axis=-1)
+            for f in (starts + k for k in range(int(a), int(b)))
+        ]
+        mean = np.sum(frames, axis=0) / float(b - a)
+        base = centre[starts] if views is None else centre[starts, views]
+        mean[..., shape.shape[2] :] -= base  # the centre relative to the window's start
         parts.append(mean)
-    return np.concatenate(parts, axis=2).astype(np.float32)
+    return np.concatenate(parts, axis=-1).astype(np.float32)
+
+
+#: starts summarised at a time while the index is filled (bounds the build's memory)
+_CHUNK = 4096
 
 
 def _resample(query: FloatArray, length: int) -> FloatArray:
@@ -116,15 +129,23 @@ class WindowIndex:
         if built is not None:  # (mean, basis, faiss index, nprobe) of the same build
             self.mean, self.basis, self.index, self.nprobe = built
             return
-        x = _summaries(self.shape, self.centre, starts, self.length, self.bounds)
-        x = x.reshape(-1, x.shape[2])  # row r: start r // V, view r % V
+        v = self.n_views  # row r of the index: start r // V, view r % V
+        rows = starts.size * v
         rng = np.random.default_rng(seed)
-        sample = x[rng.choice(x.shape[0], min(x.shape[0], 50_000), replace=False)]
+        pick = rng.choice(rows, min(rows, 50_000), replace=False)
+        sample = _summaries(
+            self.shape, self.centre, starts[pick // v], self.length, self.bounds, pick % v
+        )
         self.mean = sample.mean(axis=0)
-        k = max(1, min(dims, x.shape[1], sample.shape[0]))
+        k = max(1, min(dims, sample.shape[1], sample.shape[0]))
         _, _, vt = np.linalg.svd(sample - self.mean, full_matrices=False)
         self.basis = np.ascontiguousarray(vt[:k].T, dtype=np.float32)
-        z = np.ascontiguousarray((x - self.mean) @ self.basis, dtype=np.float32)
+        z = np.empty((rows, k), dtype=np.float32)
+        for a in range(0, starts.size, _CHUNK):  # in chunks: never every summary at once
+            x = _summaries(
+                self.shape, self.centre, starts[a : a + _CHUNK], self.length, self.bounds
+            )
+            z[a * v : a * v + x.shape[0] * v] = (x.reshape(-1, x.shape[2]) - self.mean) @ self.basis
         n = z.shape[0]
         if n < flat_below:  # exact broad phase: a flat scan is fast enough
             self.index = faiss.IndexFlatL2(k)

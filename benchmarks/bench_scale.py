@@ -1,0 +1,285 @@
+"""Past one machine (issue 21): how each build step grows with the library, up to 500,000
+frames.
+
+Usage: python -m benchmarks.bench_scale [LIBRARY_DIR] [--sizes 50000,200000,500000]
+       [--steps graph,layer,bank,search] [--timeout 900] [--out FILE]
+
+The synthetic library: every shared clip with the exercise subject's 31 joints, loaded
+at 15, 16, 17, ... frames/s and each played back at 15 frames/s (so a clip loaded at
+``f`` frames/s is the same motion slowed to ``15 / f`` of its tempo: new frames, new
+velocities), each also mirrored left for right, joined in that order until ``N`` frames
+(the last clip cut). Each step runs in a fresh process (its time, and its peak resident
+memory, which includes the library's):
+
+- ``graph``: ``build_graph`` with the default options;
+- ``layer``: the higher layer as ``mimic perform`` builds it (2 s trees), on that graph;
+- ``bank``: the default 18-view bank of the library's first 1,000 frames rendered by one
+  worker, scaled to ``N`` frames per worker (the shards are independent), and the bank's
+  size on disk at ``N`` frames (float32, and float16);
+- ``search``: the whole-library window search (the faiss index and exact DTW) over the
+  default bank's features of the shared library tiled to ``N`` frames (mirrored on every
+  other copy), queried with the committed recording's 1 s windows: index build time and
+  p50/p99 per query (its speed, not its accuracy: the tiles repeat);
+
+and a plot of each against frames (``benchmarks/results/scale.png``). A step that passes
+``--timeout`` seconds or fails (memory) is recorded as such.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import itertools
+import json
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from benchmarks._report import machine, save
+from control.motion import Clip, Contacts, cut, default_library_path, load_library
+
+HERE = Path(__file__).resolve().parent
+RECORDING = HERE.parent / "recordings" / "13_29_first12s_160x120.mkv"
+
+
+def synthetic_clips(root: Path, frames: int) -> list[Clip]:
+    """The synthetic library of ``frames`` frames (see the module)."""
+    out: list[Clip] = []
+    total = 0
+    for fps in itertools.count(15):
+        for mirror in (False, True):
+            lib = load_library(root, fps=float(fps), mirror=mirror)
+            for c in lib.clips:
+                if c.motion.skeleton.n_joints != 31:
+                    continue
+                take = min(c.motion.n_frames, frames - total)
+                if take < 8:
+                    return out
+                m = cut(c.motion, 0, take)
+                tag = f"{c.name}@{fps}{'m' if mirror else ''}"
+                m = dataclasses.replace(m, fps=15.0, name=tag)
+                st = c.contacts
+                out.append(
+                    dataclasses.replace(
+                        c,
+                        motion=m,
+                        contacts=Contacts(st.states[:take], st.ankle_rest, st.toe_rest),
+                        labels=c.labels[:take],
+                        source_frames=c.source_frames[:take],
+                    )
+                )
+                total += take
+    return out
+
+
+def _peak_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def _graph(root: Path, n: int) -> dict[str, Any]:
+    from control.graph import GraphOptions, build_graph
+
+    clips = synthetic_clips(root, n)
+    build_graph(clips[:2], GraphOptions())  # the kernels compiled outside the timing
+    before = _peak_mb()
+    t = time.perf_counter()
+    g = build_graph(clips, GraphOptions())
+    return {
+        "frames": g.n_frames,
+        "seconds": round(time.perf_counter() - t, 2),
+        "peak_rss_mb": round(_peak_mb(), 1),
+        "rss_before_mb": round(before, 1),
+        "edges": g.n_edges,
+    }
+
+
+def _layer(root: Path, n: int) -> dict[str, Any]:
+    from control.clusters import build_higher_layer
+    from control.graph import GraphOptions, build_graph
+
+    clips = synthetic_clips(root, n)
+    g = build_graph(clips, GraphOptions())
+    before = _peak_mb()
+    t = time.perf_counter()
+    layer = build_higher_layer(g, clips, bound_seconds=2.0)
+    return {
+        "frames": g.n_frames,
+        "seconds": round(time.perf_counter() - t, 2),
+        "peak_rss_mb": round(_peak_mb(), 1),
+        "rss_before_mb": round(before, 1),
+        "clusters": layer.clustering.k,
+        "trees": len(layer.forest.trees),
+    }
+
+
+def _bank(root: Path, n: int) -> dict[str, Any]:
+    from silhouette_bank import BankSettings, build_bank
+
+    clips = synthetic_clips(root, 1000)
+    settings = BankSettings()
+    with tempfile.TemporaryDirectory() as tmp:
+        t = time.perf_counter()  # the shards alone: the metric's renders are a fixed cost
+        plain = dataclasses.replace(settings, metric=0)
+        bank = build_bank(clips, plain, Path(tmp) / "b", workers=1)
+        took = time.perf_counter() - t
+        size = (Path(tmp) / "b" / "bank.npz").stat().st_size
+        t = time.perf_counter()
+        build_bank(clips, settings, Path(tmp) / "m", workers=1)
+        metric = time.perf_counter() - t - took
+    per_frame = took / bank.n_frames
+    return {
+        "frames": n,
+        "sample_frames": bank.n_frames,
+        "views": settings.n_views,
+        "seconds_per_worker": round(per_frame * n, 1),
+        "metric_seconds_fixed": round(metric, 1),
+        "silhouettes_per_s_per_worker": round(bank.n_frames * settings.n_views / took, 1),
+        "size_gb_float32": round(size / bank.n_frames * n / 1e9, 2),
+        "size_gb_float16": round(size / bank.n_frames * n / 2e9, 2),
+        "peak_rss_mb": round(_peak_mb(), 1),
+    }
+
+
+def _search(root: Path, n: int) -> dict[str, Any]:
+    from silhouette_bank import BankSettings, ensure_bank, silhouette_features
+    from vision import (
+        MatchSettings,
+        VideoSource,
+        WindowIndex,
+        performer_queries,
+        shape_stats,
+        window_tables,
+    )
+
+    lib = load_library(root)
+    clips = [c for c in lib.clips if c.motion.skeleton.n_joints == 31]
+    bank, _ = ensure_bank(clips, BankSettings())
+    desc = bank.settings.features
+    reps = -(-n // bank.n_frames)
+    tiles = [bank.features if i % 2 == 0 else desc.mirror(bank.features) for i in range(reps)]
+    moves = [bank.root_motion * (1 if i % 2 == 0 else [-1, 1]) for i in range(reps)]
+    big = dataclasses.replace(
+        bank,
+        features=np.concatenate(tiles)[:n].astype(np.float32),
+        root_motion=np.concatenate(moves)[:n].astype(np.float32),
+        clip_start=np.unique(
+            np.concatenate([bank.clip_start + i * bank.n_frames for i in range(reps)] + [[n]]).clip(
+                0, n
+            )
+        ),
+    )
+    del tiles, moves
+    st = MatchSettings()
+    length = round(st.window * 15.0)
+    mean, proj = shape_stats(bank)
+    cs = big.clip_start
+    starts = np.concatenate([np.arange(a, b - length + 1) for a, b in itertools.pairwise(cs)])
+    t = time.perf_counter()
+    shape, centre = window_tables(big, np.arange(n), cs, mean, proj, st.centre_weight)
+    index = WindowIndex(shape, centre, starts.astype(np.int64), length)
+    build = time.perf_counter() - t
+    src = VideoSource(RECORDING, silhouette=True)
+    feats = []
+    while (f := src.read()) is not None:
+        if f.index % 2 == 0:
+            feats.append(silhouette_features(np.asarray(f.mask, np.uint8), descriptor=desc.name))
+    perf = np.array(feats)
+    times = []
+    for end in range(length, perf.shape[0] + 1):
+        qs = performer_queries(perf[end - length : end], desc, mean, proj, st.centre_weight)
+        t = time.perf_counter()
+        index.search(qs, st.band, st.top)
+        times.append((time.perf_counter() - t) * 1e3)
+    return {
+        "frames": n,
+        "windows": index.size,
+        "index": "IVF-flat" if index.nprobe else "flat",
+        "build_seconds": round(build, 1),
+        "query_ms_p50": round(float(np.median(times[1:])), 2),
+        "query_ms_p99": round(float(np.percentile(times[1:], 99)), 2),
+        "peak_rss_mb": round(_peak_mb(), 1),
+    }
+
+
+STEPS = {"graph": _graph, "layer": _layer, "bank": _bank, "search": _search}
+
+
+def _run(root: Path, step: str, n: int, timeout: float) -> dict[str, Any]:
+    cmd = [sys.executable, "-m", "benchmarks.bench_scale", str(root), "--one", f"{step}:{n}"]
+    t = time.perf_counter()
+    try:
+        res = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return {"frames": n, "failed": f"did not finish in {timeout:.0f} s"}
+    if res.returncode != 0:
+        tail = (res.stderr or res.stdout).strip().splitlines()[-1:] or [""]
+        return {"frames": n, "failed": f"exit {res.returncode}: {tail[0][:200]}"}
+    out = dict(json.loads(res.stdout.strip().splitlines()[-1]))
+    out["wall_seconds"] = round(time.perf_counter() - t, 1)
+    return out
+
+
+def _plot(result: dict[str, Any], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for step, key, ax in (
+        ("graph", "seconds", 0),
+        ("layer", "seconds", 0),
+        ("bank", "seconds_per_worker", 0),
+        ("search", "build_seconds", 0),
+        ("search", "query_ms_p99", 1),
+        ("graph", "peak_rss_mb", 1),
+        ("layer", "peak_rss_mb", 1),
+    ):
+        pts = [p for p in result["steps"].get(step, []) if key in p]
+        if pts:
+            axes[ax].loglog(
+                [p["frames"] for p in pts], [p[key] for p in pts], "o-", label=f"{step} {key}"
+            )
+    axes[0].set_title("time (s) against frames")
+    axes[1].set_title("memory (MB) and search p99 (ms) against frames")
+    for a in axes:
+        a.set_xlabel("frames")
+        a.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("root", nargs="?", default=str(default_library_path()))
+    ap.add_argument("--sizes", default="50000,200000,500000")
+    ap.add_argument("--steps", default="graph,layer,bank,search")
+    ap.add_argument("--timeout", type=float, default=900.0)
+    ap.add_argument("--out", default="benchmarks/results/scale.json")
+    ap.add_argument("--one", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    root = Path(args.root)
+    if args.one:
+        step, n = args.one.split(":")
+        print(json.dumps(STEPS[step](root, int(n))))
+        return
+    result: dict[str, Any] = {"machine": machine(), "date": time.strftime("%Y-%m-%d")}
+    result["steps"] = {}
+    for step in args.steps.split(","):
+        for n in (int(s) for s in args.sizes.split(",")):
+            got = _run(root, step, n, args.timeout)
+            result["steps"].setdefault(step, []).append(got)
+            print(step, json.dumps(got), flush=True)
+            save(result, args.out)  # (so far, should a later step be stopped)
+    _plot(result, HERE / "results" / "scale.png")
+    save(result, args.out)
+
+
+if __name__ == "__main__":
+    main()
