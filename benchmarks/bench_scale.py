@@ -263,6 +263,9 @@ def main() -> None:
     ap.add_argument("--steps", default="graph,layer,bank,search")
     ap.add_argument("--timeout", type=float, default=900.0)
     ap.add_argument("--out", default="benchmarks/results/scale.json")
+    ap.add_argument(
+        "--merge", action="store_true", help="keep the other steps' results already in --out"
+    )
     ap.add_argument("--one", help=argparse.SUPPRESS)
     args = ap.parse_args()
     root = Path(args.root)
@@ -272,7 +275,10 @@ def main() -> None:
         return
     result: dict[str, Any] = {"machine": machine(), "date": time.strftime("%Y-%m-%d")}
     result["steps"] = {}
+    if args.merge and Path(args.out).is_file():  # (each step says its own date)
+        result["steps"] = json.loads(Path(args.out).read_text())["steps"]
     for step in args.steps.split(","):
+        result["steps"][step] = []
         too_long = False
         for n in (int(s) for s in args.sizes.split(",")):
             if too_long:  # a smaller library already passed the time limit
@@ -282,6 +288,7 @@ def main() -> None:
                 }
             else:
                 got = _run(root, step, n, args.timeout)
+                got["date"] = time.strftime("%Y-%m-%d %H:%M")
                 too_long = str(got.get("failed", "")).startswith("did not finish")
             result["steps"].setdefault(step, []).append(got)
             print(step, json.dumps(got), flush=True)

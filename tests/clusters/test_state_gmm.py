@@ -25,10 +25,19 @@ def _random_q(rng: np.random.Generator, n: int, spread: float) -> np.ndarray:
 def test_reference_orientation_is_the_minimax_one(rng: np.random.Generator) -> None:
     q = _random_q(rng, 200, 1.2)
     q[::3] *= -1.0  # the sign of a quaternion must not matter
-    ref = reference_orientation(q, block=17)
+    ref = reference_orientation(q, block=17, sample=23)
     d = orientation_distance(q[:, None, :], q[None, :, :])
     worst = d.max(axis=1)
     assert np.max(orientation_distance(ref, q)) == pytest.approx(worst.min(), abs=1e-9)
+    # the same orientation as measuring all pairs (the first minimax one), on spreads
+    # with many near ties too
+    for spread, n in ((1.2, 500), (0.05, 3000), (0.3, 1000)):
+        q = _random_q(rng, n, spread)
+        q[::5] *= -1.0
+        all_pairs = np.min(np.abs(q @ q.T), axis=1)
+        expect = q[int(np.argmax(all_pairs))]
+        for block, sample in ((17, 23), (256, 64), (2048, 2048)):
+            np.testing.assert_array_equal(reference_orientation(q, block, sample), expect)
 
 
 def test_orientation_distance_is_half_the_angle() -> None:
