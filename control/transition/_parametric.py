@@ -5,18 +5,20 @@ avatar reaches a point the game names.
 instances (``find_examples``), time-aligns each to the reference (``register``) with its
 root aligned (heading 0 and floor position 0 at its first aligned frame: the *action
 frame*, x left, y up, z forward), and gives each its parameter: where the ``effector``
-(a joint role, e.g. ``right_wrist``; ``root`` for where a jump lands) is at the key frame
-in the action frame. The key frame is the reference frame where the effector is farthest
+(a joint role, e.g. ``right_wrist``; ``root`` for where a jump lands, on the floor;
+``turn`` for the angle turned, as ``(degrees, 0, 0)``) is at the key frame in the action
+frame. The key frame is the reference frame where the effector is farthest
 from where it started (a strike's apex), or the last frame (``key="end"``).
 
 Blending: the weights of a target are convex (non-negative, summing to one), so every
 blended frame is an average of real poses, and local: non-negative least squares of the
 examples' parameters against the target, with a penalty on far examples' weights
 (``locality``). Neither inverse-distance weights nor radial basis functions (the issue's
-suggestions) are used: inverse distance cannot reach a target between examples (its
-weights flatten out towards the examples: 4-24 cm off at midpoints of the strikes of
-02_05, against 5-11 cm for the nearest single example) and an RBF's negative weights
-extrapolate rotations. A blend's effector is not the weights' average of the examples'
+suggestions) are used: inverse distance falls short of targets between examples (its
+weights flatten out towards each example: 6.1 cm off on average at random targets inside
+the hull of the strikes of 02_05, against 2.8 cm here and 10.5 cm for the nearest single
+example, ``benchmarks/bench_parametric.py``) and an RBF's negative weights extrapolate
+rotations. A blend's effector is not the weights' average of the examples'
 (averaging an arm's angles shortens its reach: 4-7 cm on the strikes), so the fit is
 repeated twice with each example's parameter replaced by where moving the weights
 towards it takes the blend (Gauss-Newton on the key frame; ``solve``). The paper's voxels
@@ -24,9 +26,9 @@ are here too: a grid over the examples' box whose centres inside their hull hold
 weights, read trilinearly with ``request(voxels=True)``, faster and less exact
 (``benchmarks/bench_parametric.py``). The blend averages, per aligned frame, the
 examples' joint rotations (weighted quaternion sums, signs aligned) and root positions;
-a foot stays planted (leg IK) where the blended motion's own contacts say it touches
-down. Outside the hull a target is clamped to its nearest point in the hull, and the
-answer says so.
+a foot is held still (leg IK) at the mean place of each contact the blended motion's own
+contacts show, the correction fading in and out. Outside the hull a target is clamped
+to its nearest point in the hull, and the answer says so.
 """
 
 from __future__ import annotations
