@@ -233,9 +233,10 @@ class ParametricAction:
         t = np.asarray(target, dtype=np.float64)
         if t.shape != (3,) or not np.isfinite(t).all():
             raise ValueError(f"a target is three finite numbers (x, y, z), got {target!r}")
-        clamped = not self.inside(t)
+        near = self.clamp(t)
+        clamped = not np.linalg.norm(near - t) < 1e-6  # (``inside``, without a second fit)
         if clamped:
-            t = self.clamp(t)
+            t = near
         w = self.voxel_weights(t) if voxels else self.solve(t)
         if w.max() == 1.0:  # an example's own parameter: that example, as captured
             i = int(np.argmax(w))
