@@ -195,7 +195,7 @@ class ParametricAction:
 
     def inside(self, target: FloatArray) -> bool:
         """Whether ``target`` lies in the convex hull of the examples' parameters."""
-        return bool(np.linalg.norm(self.clamp(target) - target) < 1e-6)
+        return _same_point(self.clamp(target), target)
 
     def clamp(self, target: FloatArray) -> FloatArray:
         """The point of the examples' hull nearest ``target`` (non-negative least squares
@@ -234,7 +234,7 @@ class ParametricAction:
         if t.shape != (3,) or not np.isfinite(t).all():
             raise ValueError(f"a target is three finite numbers (x, y, z), got {target!r}")
         near = self.clamp(t)
-        clamped = not np.linalg.norm(near - t) < 1e-6  # (``inside``, without a second fit)
+        clamped = not _same_point(near, t)
         if clamped:
             t = near
         w = self.voxel_weights(t) if voxels else self.solve(t)
@@ -246,6 +246,11 @@ class ParametricAction:
             quats = _plant(self.skeleton, self.fps, root, quats)
         motion = Motion(self.skeleton, root, quats, self.fps, name="blend", source="parametric")
         return Blend(motion, w, t, self._track(root, quats)[self.key], clamped)
+
+
+def _same_point(a: FloatArray, b: FloatArray) -> bool:
+    """Whether a target and its nearest point of the hull are one (within 1e-6)."""
+    return bool(np.linalg.norm(np.asarray(a) - np.asarray(b)) < 1e-6)
 
 
 def _resampled(
