@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from control.artifacts import build_lock, is_locked
-from control.motion import Library, load_library
+from control.motion import Library
 from mimic.cli import main
 from silhouette_bank import (
     POSE_JOINTS,
@@ -23,7 +23,6 @@ from silhouette_bank import (
     BankFileError,
     BankSettings,
     BodyShape,
-    CameraRing,
     StaleBankError,
     build_bank,
     capsule_body,
@@ -35,15 +34,7 @@ from silhouette_bank import (
     motion_features,
     robust_settings,
 )
-
-SMALL = BankSettings(CameraRing(n_views=6, width=80, height_px=60), descriptor="hu")
-
-
-@pytest.fixture(scope="module")
-def lib(mocap: Path, tmp_path_factory: pytest.TempPathFactory) -> Library:
-    return load_library(
-        mocap, clips=["02_01", "02_02", "02_03"], cache_dir=tmp_path_factory.mktemp("c")
-    )
+from tests.bank.conftest import SMALL
 
 
 def test_bank_holds_every_frame_and_view(lib: Library, tmp_path: Path) -> None:

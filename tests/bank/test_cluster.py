@@ -9,26 +9,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from control.motion import Library, load_library
+from control.motion import Library
 from mimic.cli import main
 from silhouette_bank import (
     CLUSTER_ENV,
-    BankSettings,
-    CameraRing,
     ClusterError,
     build_bank,
     cluster_address,
     run_jobs,
 )
-
-SMALL = BankSettings(CameraRing(n_views=6, width=80, height_px=60), descriptor="hu")
-
-
-@pytest.fixture(scope="module")
-def lib(mocap: Path, tmp_path_factory: pytest.TempPathFactory) -> Library:
-    return load_library(
-        mocap, clips=["02_01", "02_02", "02_03"], cache_dir=tmp_path_factory.mktemp("c")
-    )
+from tests.bank.conftest import SMALL
 
 
 def test_a_bank_built_on_a_two_worker_cluster_is_the_local_build(
