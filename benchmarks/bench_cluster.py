@@ -24,7 +24,7 @@ import numpy as np
 
 from benchmarks._report import machine, save
 from control.motion import default_library_path, load_library
-from silhouette_bank import BankSettings, build_bank
+from silhouette_bank import BankSettings, build_bank, run_jobs
 from silhouette_bank import _bank as bank_module
 from silhouette_bank._metric import metric_jobs
 
@@ -34,7 +34,9 @@ def _noop(x: int) -> int:
 
 
 def _dask(workers: int, jobs: list[Any]) -> dict[str, Any]:
-    from distributed import Client, LocalCluster, as_completed
+    """A local Dask cluster's start and empty-task cost, and the jobs run through the
+    project's own path to a cluster (``run_jobs`` with the scheduler's address)."""
+    from distributed import Client, LocalCluster
 
     t0 = time.perf_counter()
     with (
@@ -49,9 +51,8 @@ def _dask(workers: int, jobs: list[Any]) -> dict[str, Any]:
         client.gather(client.map(_noop, range(200), pure=False))
         empty = (time.perf_counter() - t1) / 200
         t2 = time.perf_counter()
-        futures = [client.submit(bank_module._run_job, j, pure=False) for j in jobs]
-        where = {f.key: i for i, f in enumerate(futures)}
-        out = {where[f.key]: r for f, r in as_completed(futures, with_results=True)}
+        out: dict[int, Any] = {}
+        run_jobs(bank_module._run_job, jobs, out.__setitem__, cluster=cl.scheduler_address)
         build = time.perf_counter() - t2
     return {"start_s": start, "empty_task_ms": empty * 1e3, "render_s": build, "shards": out}
 
