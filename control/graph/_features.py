@@ -24,6 +24,7 @@ linear (m/s) and angular (rad/s) velocity. How the root enters depends on the co
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -124,6 +125,11 @@ def yaw_q(angle: FloatArray | float) -> FloatArray:
 
 def rotate_y(v: FloatArray, angle: FloatArray | float) -> FloatArray:
     """Rotate vectors ``(..., 3)`` by ``angle`` (broadcast) about +Y."""
+    one = isinstance(v, np.ndarray) and v.shape == (3,) and v.dtype == np.float64
+    if one and isinstance(angle, float | int):  # one point: the sketch planners place millions
+        ca, sa = math.cos(angle), math.sin(angle)
+        px, py, pz = v.tolist()
+        return np.array((ca * px + sa * pz, py, -sa * px + ca * pz))
     c, s = np.cos(angle), np.sin(angle)
     x, y, z = v[..., 0], v[..., 1], v[..., 2]
     return np.stack((c * x + s * z, y, -s * x + c * z), axis=-1)

@@ -180,6 +180,8 @@ class Environment:
             a = b = np.zeros((0, 2))
             ids = np.zeros(0, dtype=np.int64)
         object.__setattr__(self, "_edges", (a, b - a, ids.astype(np.int64)))
+        bounds = self.bounds if self.bounds is not None else ()
+        object.__setattr__(self, "_bounds", np.asarray(bounds, dtype=np.float64))
 
     def clearance(self, xz: FloatArray) -> FloatArray:
         """Signed distance ``(n,)`` of ground points ``(n, 2)`` to the nearest obstacle
@@ -189,9 +191,8 @@ class Environment:
         kernel (``_clearance_kernel``)."""
         xz = np.ascontiguousarray(xz, dtype=np.float64).reshape(-1, 2)
         a, ab, ids = self._edges  # type: ignore[attr-defined]
-        bounds = np.asarray(self.bounds if self.bounds is not None else (), dtype=np.float64)
         out = np.empty(xz.shape[0])
-        _clearance_kernel(xz, a, ab, ids, len(self.obstacles), bounds, out)
+        _clearance_kernel(xz, a, ab, ids, len(self.obstacles), self._bounds, out)  # type: ignore[attr-defined]
         return out
 
 
