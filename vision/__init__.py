@@ -35,6 +35,7 @@ from ._live import (
     LiveView,
 )
 from ._matcher import (
+    EARLY_WINDOWS,
     Matcher,
 )
 from ._perform import (
@@ -98,6 +99,7 @@ from ._windows import (
 )
 
 __all__ = [
+    "EARLY_WINDOWS",
     "FLOOR_ABOVE",
     "FLOOR_SECONDS",
     "INDEX_VERSION",

@@ -239,8 +239,9 @@ class Performance:
             self.views.append(self.view)
 
     def place_avatar(self, t: float, entry: dict[str, Any]) -> None:
-        """At the first full buffer: start the avatar where the library looks most like
-        the performer (its motion so far is dropped)."""
+        """Half a window in (``Matcher.early_search``; else at the first whole window):
+        start the avatar where the library looks most like the performer (its motion so
+        far is dropped), at the frame that matches the performer's latest."""
         matcher = self.matcher
         got = matcher.find_window(np.array(self.buffer))
         if got is None:
@@ -248,7 +249,7 @@ class Performance:
         self.located = True
         self.last_relocate = t  # that was this second's global search
         # with jumps, where the performer is now: the window's last frame
-        at = got[0] + matcher.n - 1 if self.jumps else got[0]
+        at = got[0] + len(self.buffer) - 1 if self.jumps else got[0]
         self.avatar = self.new_avatar(at)
         self.views, self.view = [got[1]], got[1]
         self.t_start = t
@@ -312,8 +313,11 @@ class Performance:
         if missed:
             entry["skipped"] = missed
         full = len(self.buffer) == matcher.n
-        if full and not self.located and settings.match.locate and self.start is None:
-            self.place_avatar(t, entry)  # unless told where to start
+        # the avatar is placed as soon as half a window is in (then played on until the
+        # window is whole), unless told where to start
+        early = len(self.buffer) >= max(2, (matcher.n + 1) // 2) and matcher.early_search
+        if (full or early) and not self.located and settings.match.locate and self.start is None:
+            self.place_avatar(t, entry)
             avatar = self.avatar
         # on the way to a relocation's window: no decision may turn it aside
         routing = t < self.en_route - 1e-9
