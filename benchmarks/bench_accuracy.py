@@ -468,8 +468,9 @@ def main() -> None:
         "--store",
         default="float32",
         choices=("float32", "float16"),
-        help="round the bank's features to this precision before matching (default float32, "
-        "the bank's own)",
+        help="round the bank's features (and root motion) to this precision before matching "
+        "(default float32: as the bank holds them; since bank version 6 it holds its features "
+        "at float16, so float16 only rounds the root motion too)",
     )
     ap.add_argument(
         "--settings",

@@ -1,6 +1,7 @@
 """Offline half of the vision interface (Lee et al. §5.3): the silhouette bank."""
 
 from ._bank import (
+    FEATURE_DTYPE,
     Bank,
     BankFileError,
     StaleBankError,
@@ -52,6 +53,7 @@ __all__ = [
     "CLUSTER_ENV",
     "DEFAULT_DESCRIPTOR",
     "DESCRIPTORS",
+    "FEATURE_DTYPE",
     "HU_SCALE",
     "METRIC_DIMS",
     "METRIC_FRAMES",

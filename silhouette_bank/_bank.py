@@ -6,7 +6,8 @@ Layout of a bank folder::
                            clips, shard table, complete flag
     shard-00003.npz        features (n, V, F) float32, root_motion (n, V, 2) float32,
                            for the frames [start, stop) of the library (one file a shard)
-    bank.npz               all shards merged (written last; the bank is complete)
+    bank.npz               all shards merged (written last; the bank is complete), the
+                           features at half precision (``FEATURE_DTYPE``)
     index-<hash>.npz       the matcher's window index of these features
                            (``vision.cached_window_index``: made by the first run that
                            needs it, loaded by the next)
@@ -14,11 +15,10 @@ Layout of a bank folder::
 
 Everything is written to a temporary file and renamed. Shards are independent, so they
 can be built by several processes (``workers``) or on a Dask cluster (``cluster``:
-``_workers``) and merged; a build that was
-interrupted finds its finished shards (checked against the manifest's key) and does only
-the rest. A bank whose library or settings differ from the requested ones is stale: it
-is rebuilt, never used. Files are read without pickle; a corrupt or truncated file is a
-``BankFileError`` that names it.
+``_workers``) and merged; an interrupted build finds its finished shards (checked
+against the manifest's key) and does only the rest. A bank whose library or settings
+differ from the requested ones is stale: it is rebuilt, never used. Files are read
+without pickle; a corrupt or truncated file is a ``BankFileError`` that names it.
 """
 
 from __future__ import annotations
@@ -57,6 +57,7 @@ from ._settings import BANK_VERSION, BankSettings
 from ._workers import run_jobs
 
 __all__ = [
+    "FEATURE_DTYPE",
     "Bank",
     "BankFileError",
     "StaleBankError",
@@ -69,6 +70,11 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float32]
+
+#: a complete bank's features: half precision (half the size). Rounding moves a feature by
+#: at most 0.07% of its spread, any descriptor, and changed no decision of the following
+#: folds (``accuracy_float16.json``). Shards and the root motion stay float32.
+FEATURE_DTYPE = np.float16
 
 
 class BankFileError(ValueError):
@@ -91,7 +97,8 @@ class Bank:
     Attributes
     ----------
     features : (n, V, F) per library frame and view (``F`` is
-        ``settings.features.size``; the descriptor object knows the layout).
+        ``settings.features.size``; the descriptor object knows the layout), stored as
+        ``FEATURE_DTYPE``.
     root_motion : (n, V, 2) the root's image motion since the previous frame.
     clip_names, clip_start : which frames belong to which clip.
     settings : how it was rendered. library_digest : what it was rendered from.
@@ -100,7 +107,7 @@ class Bank:
         numbers ``x`` are compared as ``(x - mean) @ projection``.
     """
 
-    features: FloatArray
+    features: NDArray[np.float16]
     root_motion: FloatArray
     clip_names: tuple[str, ...]
     clip_start: NDArray[np.int64]
@@ -366,7 +373,7 @@ def _merge(settings: BankSettings, folder: Path, manifest: dict[str, Any]) -> di
             raise BankFileError(path, "a shard damaged during the build: build again")
         parts.append(_read_npz(path, ("features", "root_motion")))
     arrays: dict[str, np.ndarray] = {
-        "features": np.concatenate([p["features"] for p in parts]),
+        "features": np.concatenate([p["features"] for p in parts]).astype(FEATURE_DTYPE),
         "root_motion": np.concatenate([p["root_motion"] for p in parts]),
         "clip_start": np.asarray(manifest["clip_start"], dtype=np.int64),
         "key": np.array(manifest["key"]),
@@ -437,6 +444,8 @@ def _bank_of(
     size = get_descriptor(str(manifest["settings"].get("descriptor", "hu"))).size
     if d["features"].shape != (n, views, size) or d["root_motion"].shape != (n, views, 2):
         raise BankFileError(npz, "arrays of the wrong shape")
+    if d["features"].dtype != FEATURE_DTYPE:
+        raise BankFileError(npz, f"features of type {d['features'].dtype}, not {FEATURE_DTYPE}")
     metric = None
     if settings_read.metric_dims:
         s = settings_read.features.n_shape
