@@ -204,7 +204,9 @@ class Matcher:
     ) -> list[tuple[int, int, float]]:
         """The ``top`` library windows ``(start, view, cost)`` most like the performer's
         last features, cheapest first, one per start; ``view`` counts the bank's variants
-        too. Empty (and ``why``) without enough silhouette or when the best is rejected."""
+        too. Empty (and ``why``) without enough silhouette or when the best is rejected.
+        Features of fewer than ``n`` frames (a window not yet whole) are matched, by brute
+        force, against windows of their own length: the best one only."""
         queries = self.queries(performer)
         if queries is None:
             return []

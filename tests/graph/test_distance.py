@@ -230,3 +230,17 @@ def test_a_few_pairs_match_a_large_batch(walk_lib: Library, coords: str) -> None
     d_all, al_all = pair_distances(feat, a, b, 0.01)
     d_few, al_few = pair_distances(feat, a[:8], b[:8], 0.01)
     assert np.array_equal(d_few, d_all[:8]) and np.array_equal(al_few, al_all[:8])
+
+
+def test_rotate_y_of_one_point_is_the_vectorised_rotation(rng) -> None:
+    """The scalar path for one float64 point (the sketch search's) gives the numbers of
+    the array path, and of scipy's rotation about +Y."""
+    from scipy.spatial.transform import Rotation
+
+    for _ in range(20):
+        v = rng.normal(size=3)
+        a = float(rng.uniform(-4.0, 4.0))
+        one = rotate_y(v, a)
+        assert one.shape == (3,) and one.dtype == np.float64
+        np.testing.assert_allclose(one, rotate_y(v[None], np.array([a]))[0], atol=1e-15)
+        np.testing.assert_allclose(one, Rotation.from_rotvec([0.0, a, 0.0]).apply(v), atol=1e-12)
