@@ -27,6 +27,7 @@ import multiprocessing
 import os
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from typing import Any
 
@@ -39,7 +40,8 @@ RETRIES = 3
 
 
 class ClusterError(RuntimeError):
-    """A cluster that cannot be reached or that failed mid-build (names the address)."""
+    """A cluster that cannot be reached or that failed mid-build (names the address), or
+    a local pool that lost a worker process (says the likely causes)."""
 
 
 def cluster_address(cluster: str | None = None) -> str | None:
@@ -73,9 +75,18 @@ def run_jobs(
         return
     # spawn, not fork: numba's OpenMP threads in this process make fork unsafe
     ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(n_workers, mp_context=ctx) as pool:
-        for i, out in enumerate(pool.map(fn, jobs)):
-            on_result(i, out)
+    try:
+        with ProcessPoolExecutor(n_workers, mp_context=ctx) as pool:
+            for i, out in enumerate(pool.map(fn, jobs)):
+                on_result(i, out)
+    except BrokenProcessPool as exc:
+        raise ClusterError(
+            f"a worker process of the local pool ({n_workers} processes) died: killed, out "
+            "of memory, or unable to start (a spawned worker imports the main script again, "
+            "so code run from standard input or a notebook, or a script without an "
+            "'if __name__ == \"__main__\":' guard, cannot use it); build with workers=1 "
+            "(--workers 1) to render in this process"
+        ) from exc
 
 
 @contextmanager

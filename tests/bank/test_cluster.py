@@ -80,3 +80,28 @@ def test_the_cluster_is_named_by_flag_or_environment(
     assert main([*argv, "--cluster", "nonsense://x"]) == 2
     err = capsys.readouterr().err
     assert "nonsense://x" in err and "cluster" in err
+
+
+class _PoolThatBreaks:
+    """A process pool whose worker died (killed, out of memory, or unable to import the
+    main script): ``map`` raises as ``ProcessPoolExecutor``'s does then."""
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        pass
+
+    def __enter__(self) -> _PoolThatBreaks:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def map(self, fn: object, jobs: object) -> list[int]:
+        from concurrent.futures.process import BrokenProcessPool
+
+        raise BrokenProcessPool("A process in the process pool was terminated abruptly")
+
+
+def test_a_local_pool_that_loses_a_worker_says_why(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr("silhouette_bank._workers.ProcessPoolExecutor", _PoolThatBreaks)
+    with pytest.raises(ClusterError, match=r"worker process of the local pool .* workers=1"):
+        run_jobs(abs, [1, 2], lambda i, r: None, workers=2)
