@@ -215,11 +215,11 @@ class Matcher:
             self.why = "no window in the component"
             return []
         span = performer.shape[0]
-        if span < self.n:  # a window not yet whole (the first second): brute force over
-            # windows of its own length (the index holds whole windows)
-            got = [best_window(queries, shape, centre, starts, span, self.settings.band)]
-        elif exact:
-            got = [best_window(queries, shape, centre, starts, self.n, self.settings.band)]
+        # a window not yet whole (the first second) by brute force too, over windows of
+        # its own length: the index holds whole windows
+        if exact or span < self.n:
+            length = min(span, self.n)
+            got = [best_window(queries, shape, centre, starts, length, self.settings.band)]
         else:
             got = self.index().search(queries, self.settings.band, top)
         if not got or self._rejected(got[0][2], queries[0]):

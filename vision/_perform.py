@@ -315,10 +315,11 @@ class Performance:
         full = len(self.buffer) == matcher.n
         # the avatar is placed as soon as half a window is in (then played on until the
         # window is whole), unless told where to start
-        early = len(self.buffer) >= max(2, (matcher.n + 1) // 2) and matcher.early_search
-        if (full or early) and not self.located and settings.match.locate and self.start is None:
-            self.place_avatar(t, entry)
-            avatar = self.avatar
+        if not self.located and settings.match.locate and self.start is None:
+            half = len(self.buffer) >= max(2, (matcher.n + 1) // 2) and matcher.early_search
+            if full or half:
+                self.place_avatar(t, entry)
+                avatar = self.avatar
         # on the way to a relocation's window: no decision may turn it aside
         routing = t < self.en_route - 1e-9
         d = None
