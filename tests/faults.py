@@ -41,8 +41,9 @@ from silhouette_bank import BankFileError, BankSettings, CameraRing, ensure_bank
 from vision import IndexFileError, Matcher, MatchSettings
 
 GOOD = ("same", "rebuilt", "error")
-SMALL_BANK = BankSettings(CameraRing(n_views=6, width=80, height_px=60), descriptor="hu")
+SMALL_BANK = BankSettings(CameraRing(n_views=4, width=64, height_px=48), descriptor="hu")
 CLIPS = ["02_0[1-4]"]  # 164 frames at 15 frames/s, 30 transitions: every build is quick
+LAYER_K = 4  # a fixed cluster count: the sweep rebuilds the layer ten times, not a BIC curve
 
 
 # --- damaging files ------------------------------------------------------------------------
@@ -156,8 +157,8 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
     motion_cache = root / "motion"
     lib = load_library(mocap, clips=CLIPS, cache_dir=motion_cache, workers=1)
     graph, _, _ = cached_graph(lib.clips, cache_dir=root / "graph")
-    cached_higher_layer(graph, lib.clips, cache_dir=root / "graph")
-    layer, _, _ = cached_higher_layer(graph, lib.clips, cache_dir=root / "graph")
+    cached_higher_layer(graph, lib.clips, k=LAYER_K, cache_dir=root / "graph")
+    layer, _, _ = cached_higher_layer(graph, lib.clips, k=LAYER_K, cache_dir=root / "graph")
     bank, _ = ensure_bank(lib.clips, SMALL_BANK, root / "bank", workers=1)
     index = Matcher(layer, bank, MatchSettings()).index()  # stored in the bank's folder
     write_motion_arrays(root / "arrays" / "02_01.motion.npz", lib.clips[0].motion)
@@ -173,7 +174,7 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
         return cached_graph(lib.clips, cache_dir=r / "graph")[0]
 
     def load_layer(r: Path) -> Any:
-        return cached_higher_layer(graph, lib.clips, cache_dir=r / "graph")[0]
+        return cached_higher_layer(graph, lib.clips, k=LAYER_K, cache_dir=r / "graph")[0]
 
     def load_bank(r: Path) -> Any:
         return ensure_bank(lib.clips, SMALL_BANK, r / "bank", workers=1)[0]

@@ -10,16 +10,19 @@ Glossary (used throughout ``control``):
   is applied first).
 - Angles are radians unless a name says ``deg``.
 
-Euler-angle conversions go through :class:`scipy.spatial.transform.Rotation`, whose
-sequence strings say the convention: upper-case ``"ZXY"`` is intrinsic
-(``R = R_z @ R_x @ R_y``, the BVH convention), lower-case ``"xyz"`` is extrinsic
-(``R = R_z @ R_y @ R_x``, the Acclaim ASF/AMC convention).
+Euler angles to quaternions is a numba kernel (the motion readers' hot path: every joint
+of every frame), tested against :class:`scipy.spatial.transform.Rotation`, which does the
+other direction. Both take scipy's sequence strings, which say the convention:
+upper-case ``"ZXY"`` is intrinsic (``R = R_z @ R_x @ R_y``, the BVH convention),
+lower-case ``"xyz"`` is extrinsic (``R = R_z @ R_y @ R_x``, the Acclaim ASF/AMC
+convention).
 """
 
 from __future__ import annotations
 
 import warnings
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
@@ -153,14 +156,53 @@ def _wxyz_to_xyzw(q: FloatArray) -> FloatArray:
 def euler_to_q(angles: FloatArray, seq: str) -> FloatArray:
     """Quaternions ``(..., 4)`` of Euler angles ``(..., len(seq))`` in radians.
 
-    ``seq`` follows scipy: upper case intrinsic, lower case extrinsic, 1 to 3 axes.
+    ``seq`` follows scipy: upper case intrinsic, lower case extrinsic, 1 to 3 axes. The
+    result is scipy's ``from_euler(seq, angles).as_quat()``, sign included, scalar first.
     """
+    if not (1 <= len(seq) <= 3) or not (seq.isupper() or seq.islower()):
+        raise ValueError(f"Euler sequence {seq!r}: 1 to 3 axes, all upper or all lower case")
+    if any(a not in "xyz" for a in seq.lower()):
+        raise ValueError(f"Euler sequence {seq!r}: axes are x, y and z")
     angles = np.asarray(angles, dtype=np.float64)
+    if angles.shape[-1:] != (len(seq),):
+        raise ValueError(f"Euler angles of shape {angles.shape} for the sequence {seq!r}")
     lead = angles.shape[:-1]
-    flat = angles.reshape(-1, len(seq))
-    q = Rotation.from_euler(seq, flat).as_quat()
-    q = _xyzw_to_wxyz(np.asarray(q).reshape(-1, 4))
-    return q.reshape(*lead, 4)
+    flat = np.ascontiguousarray(angles.reshape(-1, len(seq)))
+    axes = np.array(["xyz".index(a) for a in seq.lower()], dtype=np.int64)
+    return _euler_q(flat, axes, seq.isupper()).reshape(*lead, 4)
+
+
+@numba.njit(cache=True, nogil=True)
+def _euler_q(angles: FloatArray, axes: NDArray[np.int64], intrinsic: bool) -> FloatArray:
+    """Compose the elementary rotations in scipy's order: ``q = e_0 e_1 e_2`` intrinsic,
+    ``q = e_2 e_1 e_0`` extrinsic (``e_k`` about ``axes[k]`` by ``angles[:, k]``)."""
+    n, k = angles.shape
+    out = np.empty((n, 4))
+    for f in range(n):
+        w, x, y, z = 1.0, 0.0, 0.0, 0.0
+        for i in range(k):
+            h = 0.5 * angles[f, i]
+            c, s = np.cos(h), np.sin(h)
+            a = axes[i]
+            bx = s if a == 0 else 0.0
+            by = s if a == 1 else 0.0
+            bz = s if a == 2 else 0.0
+            if intrinsic:  # q = q * e
+                w, x, y, z = (
+                    w * c - x * bx - y * by - z * bz,
+                    w * bx + x * c + y * bz - z * by,
+                    w * by - x * bz + y * c + z * bx,
+                    w * bz + x * by - y * bx + z * c,
+                )
+            else:  # q = e * q
+                w, x, y, z = (
+                    c * w - bx * x - by * y - bz * z,
+                    c * x + bx * w + by * z - bz * y,
+                    c * y - bx * z + by * w + bz * x,
+                    c * z + bx * y - by * x + bz * w,
+                )
+        out[f, 0], out[f, 1], out[f, 2], out[f, 3] = w, x, y, z
+    return out
 
 
 def q_to_euler(q: FloatArray, seq: str) -> FloatArray:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
@@ -62,3 +64,26 @@ def test_bvh_and_asf_euler_conventions_by_hand() -> None:
     # Extrinsic "xz" (Acclaim dof order rx rz): x applied first, the same matrix.
     q2 = euler_to_q(np.deg2rad([90.0, 90.0]), "xz")
     np.testing.assert_allclose(q_to_R(q2), q_to_R(q), atol=1e-12)
+
+
+def _sequences() -> list[str]:
+    seqs = []
+    for k in (1, 2, 3):
+        for axes in itertools.product("xyz", repeat=k):
+            if any(a == b for a, b in itertools.pairwise(axes)):
+                continue  # scipy refuses an axis repeated in a row
+            seqs += ["".join(axes), "".join(axes).upper()]
+    return seqs
+
+
+def test_euler_to_q_is_scipys_from_euler_sign_included(rng: np.random.Generator) -> None:
+    for seq in _sequences():  # 1 to 3 axes, intrinsic and extrinsic, Tait-Bryan and proper
+        angles = rng.uniform(-7.0, 7.0, size=(4, 50, len(seq)))
+        ref = Rotation.from_euler(seq, angles.reshape(-1, len(seq))).as_quat()
+        ref = np.concatenate((ref[:, 3:], ref[:, :3]), axis=1).reshape(4, 50, 4)
+        np.testing.assert_allclose(euler_to_q(angles, seq), ref, atol=1e-14, err_msg=seq)
+    for bad in ("xyzx", "xY", "xw", ""):
+        with pytest.raises(ValueError, match="Euler sequence"):
+            euler_to_q(np.zeros(len(bad) or 1), bad)
+    with pytest.raises(ValueError, match=r"shape \(5, 2\)"):
+        euler_to_q(np.zeros((5, 2)), "xyz")
