@@ -97,6 +97,7 @@ def _graph(root: Path, n: int) -> dict[str, Any]:
         "peak_rss_mb": round(_peak_mb(), 1),
         "rss_before_mb": round(before, 1),
         "edges": g.n_edges,
+        "likely_pairs": g.report["likelihood"],  # (held until the similarity rule)
     }
 
 

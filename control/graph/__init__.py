@@ -2,7 +2,7 @@
 blended transitions and the random walk."""
 
 from ._artifact import GraphFileError, cached_graph, graph_cache_dir, load_graph, save_graph
-from ._distance import close_pairs, lower_bound_features, pair_distances
+from ._distance import close_pair_blocks, close_pairs, lower_bound_features, pair_distances
 from ._features import (
     COORDS,
     FrameFeatures,
@@ -57,6 +57,7 @@ __all__ = [
     "captured_terrain",
     "case4",
     "clips_digest",
+    "close_pair_blocks",
     "close_pairs",
     "compose",
     "contact_groups",

@@ -10,6 +10,7 @@ bound is under the threshold are measured with the exact kernel.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 
 import numba
 import numpy as np
@@ -17,7 +18,7 @@ from numpy.typing import NDArray
 
 from ._features import FrameFeatures, q_embed
 
-__all__ = ["MODE", "close_pairs", "lower_bound_features", "pair_distances"]
+__all__ = ["MODE", "close_pair_blocks", "close_pairs", "lower_bound_features", "pair_distances"]
 
 MODE = {"fixed": 0, "relative": 1, "terrain": 2}
 IntArray = NDArray[np.int64]
@@ -228,18 +229,35 @@ def close_pairs(
     """All pairs ``(a, b)``, ``a`` in ``rows``, ``b`` in ``cols``, ``a != b``, whose lower
     bound is at most ``dmax``: a superset of the pairs with ``D <= dmax``.
 
-    Works in blocks of at most ``max_block_elems`` pairs, so memory stays
-    O(n + candidates) whatever the number of frames.
+    Works in blocks of at most ``max_block_elems`` pairs (``close_pair_blocks``), so
+    memory stays O(n + candidates) whatever the number of frames.
     """
+    blocks = list(close_pair_blocks(feat, rows, cols, dmax, nu, x, norms, max_block_elems))
+    if not blocks:
+        empty = np.zeros(0, dtype=np.int64)
+        return empty, empty
+    return np.concatenate([a for a, _ in blocks]), np.concatenate([b for _, b in blocks])
+
+
+def close_pair_blocks(
+    feat: FrameFeatures,
+    rows: IntArray,
+    cols: IntArray,
+    dmax: float,
+    nu: float,
+    x: np.ndarray | None = None,
+    norms: np.ndarray | None = None,
+    max_block_elems: int = 1 << 24,
+) -> Iterator[tuple[IntArray, IntArray]]:
+    """``close_pairs``'s pairs a block of rows at a time (each block compares at most
+    ``max_block_elems`` pairs), so that a caller can measure and filter them before
+    the next block is searched."""
     if x is None or norms is None:
         x, norms = lower_bound_features(feat, nu)
     rows = np.asarray(rows, dtype=np.int64)
     cols = np.asarray(cols, dtype=np.int64)
-    out_a: list[IntArray] = []
-    out_b: list[IntArray] = []
     if rows.size == 0 or cols.size == 0:
-        empty = np.zeros(0, dtype=np.int64)
-        return empty, empty
+        return
     xc = x[cols]
     nc = norms[cols].astype(np.float32)
     # float32 products: allow for their rounding relative to the magnitudes involved
@@ -256,6 +274,4 @@ def close_pairs(
         a = rb[ia]
         b = cols[ib]
         keep = a != b
-        out_a.append(a[keep])
-        out_b.append(b[keep])
-    return np.concatenate(out_a), np.concatenate(out_b)
+        yield a[keep], b[keep]

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..motion import Clip, clips_digest
-from ._distance import close_pairs, lower_bound_features, pair_distances
+from ._distance import close_pair_blocks, lower_bound_features, pair_distances
 from ._features import COORDS, FrameFeatures, frame_features
 from ._prune import CONTACT_RULES, case4, contact_groups, largest_scc, local_maxima
 
@@ -262,24 +262,76 @@ def graph_sigma(feat: FrameFeatures, fps: float, options: GraphOptions) -> float
     return sigma
 
 
-def _candidates(
+#: candidate pairs measured by the exact kernel at a time (``_likely_pairs``)
+_MEASURE = 1 << 21
+
+
+def _likely_pairs(
     feat: FrameFeatures, options: GraphOptions, dmax: float
-) -> tuple[IntArray, IntArray, int]:
-    """Frame pairs ``(a, b)`` that the contact rule allows (their count is the third
-    value) and whose lower bound of the distance is within ``dmax``."""
+) -> tuple[tuple[IntArray, IntArray, NDArray[np.float64], NDArray[np.float32]], dict[str, Any]]:
+    """Frame pairs ``(a, b)`` that the contact rule allows and whose exact distance ``d``
+    is within ``dmax`` (the likelihood rule), with the alignment ``align`` that takes
+    ``b`` onto ``a``. Rows are searched (lower bound, then exact distances) a block at a
+    time, so that no more than a block's candidates are held beside the survivors (at
+    500,000 frames nearly every candidate survives: 16 bytes of alignment a pair are held
+    at float32, as the graph stores it). The counts: ``contact``, ``candidates``, and the
+    seconds of the lower-bound ``search`` and of the exact distances."""
     groups = contact_groups(feat.states, feat.clip_start, options.contact)
     n_contact = 0
     for rows, cols in groups:
         n_contact += rows.size * cols.size - np.intersect1d(rows, cols, assume_unique=True).size
     x, norms = lower_bound_features(feat, options.nu)
-    cand_a, cand_b = [], []
+    # the survivors' a, b, d and align, a part per measured batch
+    out: tuple[list[Any], ...] = ([], [], [], [])
+    n_candidates = 0
+    t_search = t_exact = 0.0
+    held: list[tuple[IntArray, IntArray]] = []  # candidates not yet measured
+
+    def measure() -> None:
+        a = np.concatenate([h[0] for h in held])
+        b = np.concatenate([h[1] for h in held])
+        held.clear()
+        d, align = pair_distances(feat, a, b, options.nu, **options.terrain_args())
+        keep = d <= dmax
+        got = (a[keep], b[keep], d[keep], align[keep].astype(np.float32))
+        for part, arr in zip(out, got, strict=True):
+            part.append(arr)
+
     for rows, cols in groups:
-        a, b = close_pairs(feat, rows, cols, dmax, options.nu, x, norms)
-        cand_a.append(a)
-        cand_b.append(b)
-    a = np.concatenate(cand_a) if cand_a else np.zeros(0, dtype=np.int64)
-    b = np.concatenate(cand_b) if cand_b else np.zeros(0, dtype=np.int64)
-    return a, b, int(n_contact)
+        blocks = close_pair_blocks(feat, rows, cols, dmax, options.nu, x, norms)
+        while True:
+            t0 = time.perf_counter()
+            got = next(blocks, None)
+            t1 = time.perf_counter()
+            t_search += t1 - t0
+            if got is not None:
+                held.append(got)
+                n_candidates += got[0].size
+            # measured a few million at a time (one kernel call on every core)
+            if held and (got is None or sum(h[0].size for h in held) >= _MEASURE):
+                measure()
+                t_exact += time.perf_counter() - t1
+            if got is None:
+                break
+    if not out[0]:
+        out[0].append(np.zeros(0, dtype=np.int64))
+        out[1].append(np.zeros(0, dtype=np.int64))
+        out[2].append(np.zeros(0))
+        out[3].append(np.zeros((0, 4), dtype=np.float32))
+    # joined one array at a time, its parts let go once copied: the peak is the
+    # survivors and one more array, not the survivors twice
+    joined = []
+    for part in out:
+        joined.append(np.concatenate(part))
+        part.clear()
+    pairs = (joined[0], joined[1], joined[2], joined[3])
+    counts = {
+        "contact": int(n_contact),
+        "candidates": int(n_candidates),
+        "search": t_search,
+        "exact": t_exact,
+    }
+    return pairs, counts
 
 
 def _prune_rules(
@@ -289,7 +341,7 @@ def _prune_rules(
     a: IntArray,
     b: IntArray,
     d: NDArray[np.float64],
-    align: NDArray[np.float64],
+    align: NDArray[np.float32],
 ) -> tuple[tuple[Any, Any, Any, Any], int | None, int | None]:
     """The similarity rule (local maxima) and case 4 when the options ask for them: the
     transitions left, and how many after each (``None`` for a rule not applied)."""
@@ -337,13 +389,9 @@ def build_graph(
     dmax = sigma * math.log(1.0 / options.threshold)
     t_feat = time.perf_counter()
 
-    a, b, n_contact = _candidates(feat, options, dmax)
-    n_candidates = a.size
-    t_search = time.perf_counter()
-    d, align = pair_distances(feat, a, b, options.nu, **options.terrain_args())
-    keep = d <= dmax
-    a, b, d, align = a[keep], b[keep], d[keep], align[keep]
+    (a, b, d, align), counts = _likely_pairs(feat, options, dmax)
     n_likely = a.size
+    t_search = t_feat + counts["search"]
     if progress:
         progress(f"{n_likely} transitions under the likelihood threshold")
     (a, b, d, align), n_similar, n_case4 = _prune_rules(feat, options, fps, a, b, d, align)
@@ -359,8 +407,8 @@ def build_graph(
         "fps": fps,
         "frames": n,
         "possible": n * n,
-        "contact": int(n_contact),
-        "candidates": int(n_candidates),
+        "contact": counts["contact"],
+        "candidates": counts["candidates"],
         "likelihood": int(n_likely),
         "similarity": n_similar,
         "case4": n_case4,

@@ -84,25 +84,36 @@ def local_maxima(
     if a.size == 0:
         return np.zeros(0, dtype=bool)
     clip = _clip_ids(clip_start)
-    order = np.argsort(a * n + b)
-    keys = (a * n + b)[order]
+    keys = a * n + b
+    order = np.argsort(keys)
+    keys = keys[order]
     d_sorted = d[order]
+    del order
     keep = np.ones(a.size, dtype=bool)
-    for da in (-1, 0, 1):
-        for db in (-1, 0, 1):
-            if da == 0 and db == 0:
-                continue
-            na, nb = a + da, b + db
-            ok = (na >= 0) & (na < n) & (nb >= 0) & (nb < n)
-            na_c, nb_c = np.clip(na, 0, n - 1), np.clip(nb, 0, n - 1)
-            ok &= (clip[na_c] == clip[a]) & (clip[nb_c] == clip[b])
-            diagonal = ok & (na == nb)
-            keep &= ~(diagonal & (d > 0.0))
-            key = na_c * n + nb_c
-            pos = np.minimum(np.searchsorted(keys, key), keys.size - 1)
-            found = ok & ~diagonal & (keys[pos] == key)
-            keep &= ~(found & (d_sorted[pos] < d))
+    # the neighbours are looked up a chunk of pairs at a time: a dozen temporaries the
+    # size of the chunk, not of every pair (gigabytes at 500,000 frames)
+    for c0 in range(0, a.size, _CHUNK):
+        ca, cb, cd = a[c0 : c0 + _CHUNK], b[c0 : c0 + _CHUNK], d[c0 : c0 + _CHUNK]
+        ck = keep[c0 : c0 + _CHUNK]  # (a view: written through)
+        for da in (-1, 0, 1):
+            for db in (-1, 0, 1):
+                if da == 0 and db == 0:
+                    continue
+                na, nb = ca + da, cb + db
+                ok = (na >= 0) & (na < n) & (nb >= 0) & (nb < n)
+                na_c, nb_c = np.clip(na, 0, n - 1), np.clip(nb, 0, n - 1)
+                ok &= (clip[na_c] == clip[ca]) & (clip[nb_c] == clip[cb])
+                diagonal = ok & (na == nb)
+                ck &= ~(diagonal & (cd > 0.0))
+                key = na_c * n + nb_c
+                pos = np.minimum(np.searchsorted(keys, key), keys.size - 1)
+                found = ok & ~diagonal & (keys[pos] == key)
+                ck &= ~(found & (d_sorted[pos] < cd))
     return keep
+
+
+#: pairs whose neighbours ``local_maxima`` looks up at a time
+_CHUNK = 1 << 22
 
 
 def largest_scc(

@@ -62,6 +62,25 @@ def test_build_equals_brute_force(walk_lib: Library, options: GraphOptions) -> N
     assert got == set(zip(ea[inside].tolist(), eb[inside].tolist(), strict=True))
 
 
+def test_blocks_and_chunks_give_the_same_graph(
+    medium_lib: Library, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The likely pairs measured a few at a time and the local maxima looked up in small
+    chunks (as at 500,000 frames) give the graph of one pass, array for array."""
+    from control.graph import _graph, _prune
+
+    options = GraphOptions(coords="relative")
+    whole = build_graph(medium_lib.clips, options)
+    monkeypatch.setattr(_graph, "_MEASURE", 997)
+    monkeypatch.setattr(_prune, "_CHUNK", 613)
+    parts = build_graph(medium_lib.clips, options)
+    assert whole.n_edges > 100 and parts.report["likelihood"] > 10 * 997
+    for name in ("src", "dst", "dist", "align", "in_scc"):
+        assert np.array_equal(getattr(whole, name), getattr(parts, name)), name
+    counts = ("contact", "candidates", "likelihood", "similarity", "scc")
+    assert {k: whole.report[k] for k in counts} == {k: parts.report[k] for k in counts}
+
+
 def _check_component(g: MotionGraph) -> None:
     plays = g.plays_on()
     indptr = g.indptr
