@@ -201,7 +201,7 @@ def _search(root: Path, n: int) -> dict[str, Any]:
     return {
         "frames": n,
         "windows": index.size,
-        "index": "IVF-flat" if index.nprobe else "flat",
+        "index": "IVF-SQ8" if index.nprobe else "flat",
         "build_seconds": round(build, 1),
         "query_ms_p50": round(float(np.median(times[1:])), 2),
         "query_ms_p99": round(float(np.percentile(times[1:], 99)), 2),

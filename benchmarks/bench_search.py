@@ -75,7 +75,7 @@ def main() -> None:
         "frames": g.n_frames,
         "bank_views": int(bank.features.shape[1]),
         "windows_indexed": index.size,
-        "index": "IVF-flat" if index.nprobe else "flat",
+        "index": "IVF-SQ8" if index.nprobe else "flat",
         "nprobe": index.nprobe,
         "index_build_seconds": round(build, 2),
         "queries": len(fast),
