@@ -14,7 +14,7 @@ The cache lives in ``$MIMIC_CACHE`` (else ``$XDG_CACHE_HOME/mimic``, else
     motion/<hash>.npz        one parsed motion file
     graph/graph-<hash>.npz   one motion graph
     graph/layer-<hash>.npz   one higher layer (cluster forest)
-    bank/<hash>/             one silhouette bank (manifest.json, bank.npz)
+    bank/<hash>/             one silhouette bank (manifest.json, bank.npz, features.npy, ...)
 
 An entry is touched when it is used, and after each new entry the least recently used
 ones are removed until the cache holds at most ``$MIMIC_CACHE_MAX_GB`` (default 8 GB).

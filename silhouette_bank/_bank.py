@@ -6,14 +6,21 @@ Layout of a bank folder::
                            clips, shard table, complete flag
     shard-00003.npz        features (n, V, F) float32, root_motion (n, V, 2) float32,
                            for the frames [start, stop) of the library (one file a shard)
-    bank.npz               all shards merged (written last; the bank is complete), the
-                           features at half precision (``FEATURE_DTYPE``)
+    features.npy           all shards' features merged, at half precision
+                           (``FEATURE_DTYPE``), and
+    root_motion.npy        their root motion: plain ``.npy`` files, opened memory-mapped
+                           (a bank is not read into memory; its pages are read as used)
+    bank.npz               the small arrays (clip starts, key, the learned metric)
     index-<hash>.npz       the matcher's window index of these features
                            (``vision.cached_window_index``: made by the first run that
                            needs it, loaded by the next)
     .building.lock         held while a process builds the bank (``ensure_bank``)
 
-Everything is written to a temporary file and renamed. Shards are independent, so they
+Everything is written to a temporary file and renamed; ``manifest.json`` is written last
+(the bank is complete). One checksum covers the manifest and ``bank.npz``; the manifest
+holds a SHA-256 of every block of ``BLOCK_ROWS`` frames of the two ``.npy`` files, checked
+block by block when the bank is opened (streamed: the check reads the pages once and
+holds none of them). Shards are independent, so they
 can be built by several processes (``workers``) or on a Dask cluster (``cluster``:
 ``_workers``) and merged; an interrupted build finds its finished shards (checked
 against the manifest's key) and does only the rest. A bank whose library or settings
@@ -46,14 +53,13 @@ from control.artifacts import (
     touch,
     verify_checksum,
 )
-from control.motion import Clip, Motion, clips_digest
+from control.motion import Clip, clips_digest
 
-from ._body import BodyShape, capsule_body
+from ._arrays import block_hashes, npy_file, open_mapped
 from ._descriptor import get_descriptor
 from ._metric import MetricJob, fit_metric, metric_jobs, metric_samples
-from ._pose import motion_pose_features
-from ._render import motion_features_both
 from ._settings import BANK_VERSION, BankSettings
+from ._shard import ShardJob, shard_job
 from ._workers import run_jobs
 
 __all__ = [
@@ -75,6 +81,12 @@ FloatArray = NDArray[np.float32]
 #: at most 0.07% of its spread, any descriptor, and changed no decision of the following
 #: folds (``accuracy_float16.json``). Shards and the root motion stay float32.
 FEATURE_DTYPE = np.float16
+
+#: frames of ``features.npy`` and ``root_motion.npy`` hashed as one block when a bank is
+#: written (the manifest's ``blocks``; a bank is read with its own)
+BLOCK_ROWS = 4096
+#: the bank's arrays stored as memory-mapped ``.npy`` files, and their types
+_MAPPED = {"features": FEATURE_DTYPE, "root_motion": np.float32}
 
 
 class BankFileError(ValueError):
@@ -138,57 +150,9 @@ def _key(digest: str, settings: BankSettings) -> str:
     return hashlib.sha256(f"{digest}|{settings.digest()}".encode()).hexdigest()[:24]
 
 
-def _shard_job(
-    job: tuple[int, list[tuple[Motion, int, int]], BankSettings, str],
-) -> tuple[int, dict[str, np.ndarray]]:
-    """Render one shard (``[(motion, first, stop)]`` pieces of clips): its index and
-    arrays (the process that runs the build writes them: ``_write_shard``)."""
-    index, pieces, settings, _ = job
-    feats, moves = [], []
-    gl = None
-    for motion, a, b in pieces:
-        frames = np.arange(a, b)
-        if settings.descriptor == "pose":
-            f, m = motion_pose_features(motion, settings.ring, frames)
-        elif settings.renderer == "raster":
-            parts = _variant_features(motion, settings, frames)
-            f = np.concatenate([p[0] for p in parts], axis=1)
-            m = np.concatenate([p[1] for p in parts], axis=1)
-        else:
-            from ._gl import GLRenderer
-            from ._render import gl_features
-
-            gl = gl or GLRenderer(settings.ring)
-            body = capsule_body(motion.skeleton, settings.body)
-            f, m = gl_features(gl, motion, body, settings.ring, frames, settings.descriptor)
-        feats.append(f)
-        moves.append(m)
-    if gl is not None:
-        gl.close()
-    return index, {"features": np.concatenate(feats), "root_motion": np.concatenate(moves)}
-
-
 def _write_shard(path: str, arrays: dict[str, np.ndarray]) -> None:
     with atomic_write(path, "wb") as fh:
         np.savez(fh, checksum=np.array(checksum({}, arrays)), **arrays)  # type: ignore[arg-type]
-
-
-def _variant_features(
-    motion: Motion, settings: BankSettings, frames: np.ndarray
-) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``motion_features`` of each of ``settings.variants``, in bank order; a body with
-    and without a shadow rasterized once (``motion_features_both``)."""
-    shadows: dict[BodyShape, list[bool]] = {}
-    for shape, sh in settings.variants:
-        shadows.setdefault(shape, []).append(sh)
-    got = {}
-    for shape, which in shadows.items():
-        body = capsule_body(motion.skeleton, shape)
-        seen = motion_features_both(
-            motion, body, settings.ring, frames, descriptor=settings.descriptor, shadows=(*which,)
-        )
-        got.update({(shape, sh): fm for sh, fm in zip(which, seen, strict=True)})
-    return [got[v] for v in settings.variants]
 
 
 def _read_npz(path: Path, keys: Sequence[str]) -> dict[str, np.ndarray]:
@@ -236,7 +200,11 @@ def build_bank(
     if settings.metric_dims:
         metric = metric_jobs(clips, settings.descriptor, settings.ring, settings.body)
     samples = _render(todo, len(shards), workers, progress, metric, cluster)
-    arrays = _merge(settings, folder, manifest)
+    manifest["blocks"] = _merge(settings, folder, manifest)
+    arrays: dict[str, np.ndarray] = {
+        "clip_start": np.asarray(manifest["clip_start"], dtype=np.int64),
+        "key": np.array(manifest["key"]),
+    }
     if metric:
         mean, proj = fit_metric(metric, samples, settings.metric_dims)
         arrays.update(metric_mean=mean, metric=proj)
@@ -295,22 +263,20 @@ def _start_manifest(
         ):  # another library or settings: start afresh
             for p in [*folder.glob("shard-*.npz"), *folder.glob("index-*.npz")]:
                 p.unlink()
-            (folder / "bank.npz").unlink(missing_ok=True)
+            for name in ("bank.npz", *(f"{k}.npy" for k in _MAPPED)):
+                (folder / name).unlink(missing_ok=True)
     with atomic_write(old) as fh:
         json.dump(manifest, fh, indent=1)
     return manifest
 
 
-_Job = tuple[int, list[tuple[Motion, int, int]], BankSettings, str]
-
-
 def _shards_to_render(
     clips: Sequence[Clip], settings: BankSettings, folder: Path, manifest: dict[str, Any]
-) -> list[_Job]:
+) -> list[ShardJob]:
     """The jobs of the shards not yet (or not soundly) on disk."""
     starts = manifest["clip_start"]
     views, size = settings.n_views, settings.features.size
-    todo: list[_Job] = []
+    todo: list[ShardJob] = []
     for s in manifest["shards"]:
         path = folder / str(s["file"])
         if _shard_ok(path, int(s["stop"]) - int(s["start"]), views, size):
@@ -326,13 +292,13 @@ def _shards_to_render(
 
 
 def _run_job(
-    job: _Job | MetricJob,
+    job: ShardJob | MetricJob,
 ) -> tuple[int, dict[str, np.ndarray]] | NDArray[np.float32]:
-    return metric_samples(job) if isinstance(job, MetricJob) else _shard_job(job)
+    return metric_samples(job) if isinstance(job, MetricJob) else shard_job(job)
 
 
 def _render(
-    todo: list[_Job],
+    todo: list[ShardJob],
     n_shards: int,
     workers: int | None,
     progress: Callable[[int, int], None] | None,
@@ -342,7 +308,7 @@ def _render(
     """Render the ``todo`` shards (each written as it comes back), then the ``metric``
     jobs (their samples returned, in order), where ``run_jobs`` says;
     ``progress(done, shards + metric jobs)``."""
-    jobs: list[_Job | MetricJob] = [*todo, *metric]
+    jobs: list[ShardJob | MetricJob] = [*todo, *metric]
     total = n_shards + len(metric)
     done = n_shards - len(todo)
     if progress:
@@ -363,23 +329,30 @@ def _render(
     return [samples[i] for i in sorted(samples)]
 
 
-def _merge(settings: BankSettings, folder: Path, manifest: dict[str, Any]) -> dict[str, np.ndarray]:
-    """The bank's arrays: every shard (checked again) concatenated."""
+def _merge(settings: BankSettings, folder: Path, manifest: dict[str, Any]) -> dict[str, Any]:
+    """Every shard (checked again) copied into ``features.npy`` and ``root_motion.npy``,
+    one shard at a time; returns the manifest's ``blocks`` (their hashes)."""
     views, size = settings.n_views, settings.features.size
-    parts = []
-    for s in manifest["shards"]:  # checked again: a shard may have been damaged since
-        path = folder / str(s["file"])
-        if not _shard_ok(path, int(s["stop"]) - int(s["start"]), views, size):
-            raise BankFileError(path, "a shard damaged during the build: build again")
-        parts.append(_read_npz(path, ("features", "root_motion")))
-    arrays: dict[str, np.ndarray] = {
-        "features": np.concatenate([p["features"] for p in parts]).astype(FEATURE_DTYPE),
-        "root_motion": np.concatenate([p["root_motion"] for p in parts]),
-        "clip_start": np.asarray(manifest["clip_start"], dtype=np.int64),
-        "key": np.array(manifest["key"]),
-    }
-    del parts
-    return arrays
+    n = int(manifest["clip_start"][-1])
+    shapes = {"features": (n, views, size), "root_motion": (n, views, 2)}
+    blocks: dict[str, Any] = {"rows": BLOCK_ROWS}
+    with (
+        npy_file(folder / "features.npy", _MAPPED["features"], shapes["features"]) as feats,
+        npy_file(
+            folder / "root_motion.npy", _MAPPED["root_motion"], shapes["root_motion"]
+        ) as moves,
+    ):
+        for s in manifest["shards"]:  # checked again: a shard may have been damaged since
+            path = folder / str(s["file"])
+            a, b = int(s["start"]), int(s["stop"])
+            if not _shard_ok(path, b - a, views, size):
+                raise BankFileError(path, "a shard damaged during the build: build again")
+            part = _read_npz(path, ("features", "root_motion"))
+            feats[a:b] = part["features"]
+            moves[a:b] = part["root_motion"]
+        blocks["features"] = block_hashes(feats, BLOCK_ROWS)
+        blocks["root_motion"] = block_hashes(moves, BLOCK_ROWS)
+    return blocks
 
 
 def load_bank(
@@ -431,21 +404,26 @@ def _bank_of(
     if settings is not None and settings.digest() != manifest["settings_digest"]:
         raise StaleBankError(mpath, "built with other render settings")
     settings_read = BankSettings.from_dict(manifest["settings"])
-    keys = ["features", "root_motion", "clip_start", "key"]
+    keys = ["clip_start", "key"]
     if settings_read.metric_dims:
         keys += ["metric_mean", "metric"]
     d = _read_npz(npz, keys)
-    # one checksum covers manifest.json and bank.npz: a mismatch names the bank's folder
+    # one checksum covers manifest.json (with the blocks' hashes) and bank.npz: a
+    # mismatch names the bank's folder
     verify_checksum(manifest, d, folder, BankFileError)
     n = int(manifest["clip_start"][-1])
     views = int(manifest["views"])
     if str(d["key"]) != manifest["key"]:
         raise BankFileError(npz, "does not belong to this manifest")
     size = get_descriptor(str(manifest["settings"].get("descriptor", "hu"))).size
-    if d["features"].shape != (n, views, size) or d["root_motion"].shape != (n, views, 2):
-        raise BankFileError(npz, "arrays of the wrong shape")
-    if d["features"].dtype != FEATURE_DTYPE:
-        raise BankFileError(npz, f"features of type {d['features'].dtype}, not {FEATURE_DTYPE}")
+    shapes = {"features": (n, views, size), "root_motion": (n, views, 2)}
+    blocks = manifest["blocks"]
+    rows = blocks.get("rows") if isinstance(blocks, dict) else None
+    if not isinstance(rows, int) or rows < 1:
+        raise BankFileError(mpath, f"blocks of {rows!r} frames")
+    for name, dtype in _MAPPED.items():
+        path = folder / f"{name}.npy"
+        d[name] = open_mapped(path, shapes[name], dtype, blocks[name], rows, BankFileError)
     metric = None
     if settings_read.metric_dims:
         s = settings_read.features.n_shape

@@ -18,8 +18,9 @@ __all__ = ["BANK_VERSION", "METRIC_DIMS", "BankSettings", "robust_settings"]
 #: Bump when features or rendering change for the same settings.
 #: 2: grid cells sampled to a fraction of a pixel, pose banks; 3: the pose scale; 4: the
 #: pose bank's root motion in the same scale; 5: checksums, no shards kept once merged;
-#: 6: the merged features stored at half precision (``_bank.FEATURE_DTYPE``)
-BANK_VERSION = 6
+#: 6: the merged features stored at half precision (``_bank.FEATURE_DTYPE``); 7: the
+#: features and root motion in memory-mapped ``.npy`` files, hashed by blocks
+BANK_VERSION = 7
 
 #: dimensions of the learned metric by default, per descriptor (the others: none); the
 #: outline's 200 numbers keep more (24: 0.80, 32: 0.80, 48 and 64: 0.82 on the

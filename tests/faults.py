@@ -226,10 +226,16 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
         "marked incomplete": lambda p: edit_json(p, lambda d: _set(d, "complete", False)),
     }
 
-    def nan_features(p: Path) -> None:
+    def nan_features(p: Path) -> None:  # a frame's features NaN, the file well formed
+        a = np.load(p, mmap_mode="r+", allow_pickle=False)
+        a[0] = np.nan
+        a.flush()
+        del a
+
+    def clip_start_moved(p: Path) -> None:
         with np.load(p, allow_pickle=False) as z:
             a = {k: z[k] for k in z.files}
-        a["features"][0] = np.nan
+        a["clip_start"][1] += 1
         with p.open("wb") as fh:
             np.savez(fh, **a)
 
@@ -297,8 +303,16 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
             load_bank,
             _same_bank,
             (BankFileError,),
-            {"features NaN": nan_features},
+            {"a clip's start moved": clip_start_moved},
             named=lambda target: target.parent,
+        ),
+        Artifact(
+            "bank features.npy",
+            lambda r: r / "bank" / "features.npy",
+            load_bank,
+            _same_bank,
+            (BankFileError,),
+            {"features NaN": nan_features},
         ),
         Artifact(
             "motion arrays (.motion.npz)",
@@ -329,6 +343,7 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
         "higher layer (cache)": layer,
         "bank manifest.json": bank,
         "bank.npz": bank,
+        "bank features.npy": bank,
         "motion arrays (.motion.npz)": arrays,
         "window index (beside the bank)": index,
     }

@@ -35,15 +35,21 @@ def test_every_damaged_artifact_is_rebuilt_or_named(mocap: Path) -> None:
     bad = [o for o in outcomes if o.outcome not in GOOD]
     assert not bad, bad
     rows = table(outcomes)
-    assert len(rows) == 8
-    rebuilt = ("motion cache entry", "graph (cache)", "higher layer (cache)", "bank.npz")
+    assert len(rows) == 9
+    rebuilt = (
+        "motion cache entry",
+        "graph (cache)",
+        "higher layer (cache)",
+        "bank.npz",
+        "bank features.npy",
+    )
     for name in (*rebuilt, "window index (beside the bank)"):
         assert rows[name].get("rebuilt", 0) >= 5, (name, rows[name])
     for name in ("graph file (load_graph)", "motion arrays (.motion.npz)"):
         assert rows[name].get("error", 0) >= 5, (name, rows[name])  # nothing to rebuild from
     # each consistent edit is caught: none is used as it stands
     edits = [o for o in outcomes if not o.case.startswith(("flip", "truncate"))]
-    assert len(edits) == 31
+    assert len(edits) == 32
     assert all(o.outcome in ("rebuilt", "error") for o in edits if o.case != "marked incomplete")
 
 

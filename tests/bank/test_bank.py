@@ -117,6 +117,23 @@ def test_stale_and_broken_banks(lib: Library, tmp_path: Path) -> None:
     assert built and bank.settings == other  # rebuilt, not used
     bank, built = ensure_bank(lib.clips, other, folder, shard_frames=50, workers=1)
     assert not built
+    np.testing.assert_array_equal(load_bank(folder).features, bank.features)
+    assert isinstance(load_bank(folder).features, np.memmap)  # opened, not read in
+    # a byte of a block changed: the frames of that block are named
+    data = (folder / "features.npy").read_bytes()
+    flipped = bytearray(data)
+    flipped[-5] ^= 0x40
+    (folder / "features.npy").write_bytes(bytes(flipped))
+    n = bank.n_frames
+    with pytest.raises(BankFileError, match=rf"features\.npy: frames 0-{n - 1}: checksum mismatch"):
+        load_bank(folder)
+    (folder / "features.npy").write_bytes(data[: len(data) // 2])
+    with pytest.raises(BankFileError, match=r"features\.npy: unreadable, truncated or damaged"):
+        load_bank(folder)
+    (folder / "features.npy").write_bytes(data)
+    (folder / "root_motion.npy").unlink()
+    with pytest.raises(BankFileError, match=r"root_motion\.npy: missing"):
+        load_bank(folder)
     data = (folder / "bank.npz").read_bytes()
     (folder / "bank.npz").write_bytes(data[: len(data) // 3])
     with pytest.raises(BankFileError, match=r"bank\.npz: unreadable, truncated or damaged"):
@@ -338,3 +355,28 @@ def test_a_bank_another_process_builds_is_waited_for_then_loaded(
         assert waiter.is_alive() and is_locked(folder)  # waiting for the lock
     waiter.join(timeout=60)
     assert got == {"built": False} and not is_locked(folder)
+
+
+def test_a_damaged_block_is_named_by_its_frames(
+    lib: Library, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import silhouette_bank._bank as bank_module
+
+    monkeypatch.setattr(bank_module, "BLOCK_ROWS", 16)
+    folder = tmp_path / "b"
+    bank = build_bank(lib.clips, SMALL, folder, shard_frames=50, workers=1)
+    blocks = json.loads((folder / "manifest.json").read_text())["blocks"]
+    assert blocks["rows"] == 16 and len(blocks["features"]) == -(-bank.n_frames // 16)
+    feats = np.load(folder / "root_motion.npy", mmap_mode="r+")
+    was = feats[40, 0, 0].copy()
+    feats[40, 0, 0] += 1.0  # frame 40: the third block
+    feats.flush()
+    del feats
+    with pytest.raises(BankFileError, match=r"root_motion\.npy: frames 32-47: checksum mismatch"):
+        load_bank(folder)
+    monkeypatch.setattr(bank_module, "BLOCK_ROWS", 4096)  # a bank is read with its own blocks
+    feats = np.load(folder / "root_motion.npy", mmap_mode="r+")
+    feats[40, 0, 0] = was
+    feats.flush()
+    del feats
+    np.testing.assert_array_equal(load_bank(folder).root_motion, bank.root_motion)

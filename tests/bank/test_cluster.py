@@ -35,10 +35,9 @@ def test_a_bank_built_on_a_two_worker_cluster_is_the_local_build(
         progress=lambda d, t: done.append(d),
     )
     assert done[-1] == 6 and sorted(done) == done  # 103 frames in shards of 20
-    # bit for bit: the same arrays, so the same file
-    assert (tmp_path / "here" / "bank.npz").read_bytes() == (
-        tmp_path / "there" / "bank.npz"
-    ).read_bytes()
+    # bit for bit: the same arrays, so the same files
+    for name in ("bank.npz", "features.npy", "root_motion.npy"):
+        assert (tmp_path / "here" / name).read_bytes() == (tmp_path / "there" / name).read_bytes()
     np.testing.assert_array_equal(there.features, here.features)
 
 
