@@ -167,7 +167,9 @@ def graph_for(
     options = options or graph_options(args)
     library = library or library_for(args)
     with step("motion graph"):
-        graph, path, built = cached_graph(library.clips, options, rebuild=args.rebuild)
+        graph, path, built = cached_graph(
+            library.clips, options, rebuild=args.rebuild, cluster=getattr(args, "cluster", None)
+        )
     return library, graph, path, built
 
 

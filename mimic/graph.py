@@ -34,6 +34,12 @@ def add_graph_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser])
     )
     add_library_args(build)
     add_graph_args(build)
+    build.add_argument(
+        "--cluster",
+        help="search the frame pairs on a Dask cluster: a scheduler's address "
+        "(tcp://host:8786) or local:N (default: $MIMIC_CLUSTER, else this machine); "
+        "the graph is the one this machine builds",
+    )
     build.add_argument("--out", help="also write the graph to this .npz file")
     build.add_argument("--json", action="store_true", help="print the report as JSON")
     build.set_defaults(func=_graph_build)

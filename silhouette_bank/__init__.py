@@ -1,5 +1,7 @@
 """Offline half of the vision interface (Lee et al. §5.3): the silhouette bank."""
 
+from control.jobs import CLUSTER_ENV, ClusterError, cluster_address, run_jobs
+
 from ._bank import (
     FEATURE_DTYPE,
     Bank,
@@ -46,7 +48,6 @@ from ._render import (
     write_mp4,
 )
 from ._settings import BANK_VERSION, METRIC_DIMS, BankSettings, robust_settings
-from ._workers import CLUSTER_ENV, ClusterError, cluster_address, run_jobs
 
 __all__ = [
     "BANK_VERSION",

@@ -22,7 +22,7 @@ holds a SHA-256 of every block of ``BLOCK_ROWS`` frames of the two ``.npy`` file
 block by block when the bank is opened (streamed: the check reads the pages once and
 holds none of them). Shards are independent, so they
 can be built by several processes (``workers``) or on a Dask cluster (``cluster``:
-``_workers``) and merged; an interrupted build finds its finished shards (checked
+``control.jobs``) and merged; an interrupted build finds its finished shards (checked
 against the manifest's key) and does only the rest. A bank whose library or settings
 differ from the requested ones is stale: it is rebuilt, never used. Files are read
 without pickle; a corrupt or truncated file is a ``BankFileError`` that names it.
@@ -53,6 +53,7 @@ from control.artifacts import (
     touch,
     verify_checksum,
 )
+from control.jobs import run_jobs
 from control.motion import Clip, clips_digest
 
 from ._arrays import block_hashes, npy_file, open_mapped
@@ -60,7 +61,6 @@ from ._descriptor import get_descriptor
 from ._metric import MetricJob, fit_metric, metric_jobs, metric_samples
 from ._settings import BANK_VERSION, BankSettings
 from ._shard import ShardJob, shard_job
-from ._workers import run_jobs
 
 __all__ = [
     "FEATURE_DTYPE",
@@ -184,7 +184,7 @@ def build_bank(
     With ``workers`` > 1 the shards and the learned metric's renders (``metric_jobs``)
     are made in *spawned* processes (numba's OpenMP threads make fork unsafe), so a
     script that calls this must guard its entry point with ``if __name__ ==
-    "__main__":``. With a ``cluster`` (or ``$MIMIC_CLUSTER``: ``silhouette_bank._workers``)
+    "__main__":``. With a ``cluster`` (or ``$MIMIC_CLUSTER``: ``control.jobs``)
     they are made on a Dask cluster instead; the bank is the same bit for bit.
     ``progress(done, total)`` counts both.
     """

@@ -1,6 +1,6 @@
 """One shard of a bank rendered: the features and root motion of its frames in every view
 (and body variant) of the bank's settings, by the rasterizer, the GL renderer or, for the
-pose descriptor, the projected joints. A job of ``silhouette_bank._workers.run_jobs``."""
+pose descriptor, the projected joints. A job of ``control.jobs.run_jobs``."""
 
 from __future__ import annotations
 

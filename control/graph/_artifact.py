@@ -143,8 +143,10 @@ def cached_graph(
     options: GraphOptions | None = None,
     cache_dir: str | Path | None = None,
     rebuild: bool = False,
+    cluster: str | None = None,
 ) -> tuple[MotionGraph, Path, bool]:
-    """The graph of ``clips`` from the cache, built and stored when missing or stale.
+    """The graph of ``clips`` from the cache, built and stored when missing or stale
+    (built on ``cluster`` where one is named: ``build_graph``).
 
     Returns ``(graph, path, built)``. A cache file that cannot be used (unreadable,
     damaged, edited) is rebuilt, with a warning naming it.
@@ -163,7 +165,7 @@ def cached_graph(
             log.warning("rebuilding the graph: %s was built from another library", path)
         except GraphFileError as exc:
             log.warning("rebuilding the graph: %s", exc)
-    graph = build_graph(clips, options)
+    graph = build_graph(clips, options, cluster=cluster)
     save_graph(graph, path)
     if cache_dir is None:
         bound_cache(keep=[path])

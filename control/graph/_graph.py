@@ -24,9 +24,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..motion import Clip, clips_digest
-from ._distance import close_pair_blocks, lower_bound_features, pair_distances
+from ._distance import pair_distances
 from ._features import COORDS, FrameFeatures, frame_features
-from ._prune import CONTACT_RULES, case4, contact_groups, largest_scc, local_maxima
+from ._pairs import likely_pairs
+from ._prune import CONTACT_RULES, case4, largest_scc, local_maxima
 
 __all__ = [
     "GRAPH_VERSION",
@@ -262,75 +263,6 @@ def graph_sigma(feat: FrameFeatures, fps: float, options: GraphOptions) -> float
     return sigma
 
 
-#: candidate pairs measured by the exact kernel at a time (``_likely_pairs``)
-_MEASURE = 1 << 21
-
-
-def _likely_pairs(
-    feat: FrameFeatures, options: GraphOptions, dmax: float
-) -> tuple[tuple[IntArray, IntArray, NDArray[np.float64], NDArray[np.float32]], dict[str, Any]]:
-    """Frame pairs ``(a, b)`` that the contact rule allows and whose exact distance ``d``
-    is within ``dmax`` (the likelihood rule), with the alignment ``align`` that takes
-    ``b`` onto ``a``. Rows are searched (lower bound, then exact distances) a block at a
-    time, so that no more than a batch of candidates is held beside the survivors; at
-    500,000 frames nearly every candidate survives, so the alignments are held at
-    float32, as the graph stores them (16 bytes a pair, not 32). The counts:
-    ``contact``, ``candidates``, and the seconds of the lower-bound ``search``."""
-    groups = contact_groups(feat.states, feat.clip_start, options.contact)
-    n_contact = 0
-    for rows, cols in groups:
-        n_contact += rows.size * cols.size - np.intersect1d(rows, cols, assume_unique=True).size
-    x, norms = lower_bound_features(feat, options.nu)
-    # the survivors' a, b, d and align, a part per measured batch
-    out: tuple[list[Any], ...] = ([], [], [], [])
-    n_candidates = 0
-    t_search = 0.0
-    held: list[tuple[IntArray, IntArray]] = []  # candidates not yet measured
-
-    def measure() -> None:
-        a = np.concatenate([h[0] for h in held])
-        b = np.concatenate([h[1] for h in held])
-        held.clear()
-        d, align = pair_distances(feat, a, b, options.nu, **options.terrain_args())
-        keep = d <= dmax
-        got = (a[keep], b[keep], d[keep], align[keep].astype(np.float32))
-        for part, arr in zip(out, got, strict=True):
-            part.append(arr)
-
-    for rows, cols in groups:
-        blocks = close_pair_blocks(feat, rows, cols, dmax, options.nu, x, norms)
-        while True:
-            t0 = time.perf_counter()
-            got = next(blocks, None)
-            t_search += time.perf_counter() - t0
-            if got is not None:
-                held.append(got)
-                n_candidates += got[0].size
-            # measured a few million at a time (one kernel call on every core)
-            if held and (got is None or sum(h[0].size for h in held) >= _MEASURE):
-                measure()
-            if got is None:
-                break
-    if not out[0]:
-        out[0].append(np.zeros(0, dtype=np.int64))
-        out[1].append(np.zeros(0, dtype=np.int64))
-        out[2].append(np.zeros(0))
-        out[3].append(np.zeros((0, 4), dtype=np.float32))
-    # joined one array at a time, its parts let go once copied: the peak is the
-    # survivors and one more array, not the survivors twice
-    joined = []
-    for part in out:
-        joined.append(np.concatenate(part))
-        part.clear()
-    pairs = (joined[0], joined[1], joined[2], joined[3])
-    counts = {
-        "contact": int(n_contact),
-        "candidates": int(n_candidates),
-        "search": t_search,
-    }
-    return pairs, counts
-
-
 def _prune_rules(
     feat: FrameFeatures,
     options: GraphOptions,
@@ -366,8 +298,13 @@ def build_graph(
     clips: Sequence[Clip],
     options: GraphOptions | None = None,
     progress: Callable[[str], None] | None = None,
+    cluster: str | None = None,
 ) -> MotionGraph:
     """Build the pruned motion graph of ``clips`` (one frame rate).
+
+    The search for likely pairs (the lower bound and the exact distances) runs on a Dask
+    cluster when ``cluster`` (or ``$MIMIC_CLUSTER``, ``control.jobs``) names one, in
+    blocks of rows; the graph is the local build's, array for array.
 
     The report (``graph.report``) has the Table 1 counts: ``frames``, ``possible``
     (frames squared), then transitions left after ``contact``, ``likelihood``,
@@ -386,7 +323,7 @@ def build_graph(
     dmax = sigma * math.log(1.0 / options.threshold)
     t_feat = time.perf_counter()
 
-    (a, b, d, align), counts = _likely_pairs(feat, options, dmax)
+    (a, b, d, align), counts = likely_pairs(feat, options, dmax, cluster)
     n_likely = a.size
     t_search = t_feat + counts["search"]
     if progress:

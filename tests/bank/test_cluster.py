@@ -1,4 +1,4 @@
-"""The bank built on a Dask cluster (``silhouette_bank._workers``): a local cluster of two
+"""The bank built on a Dask cluster (``control.jobs``): a local cluster of two
 worker processes, as a user's cluster would run it."""
 
 from __future__ import annotations
@@ -101,6 +101,6 @@ class _PoolThatBreaks:
 
 
 def test_a_local_pool_that_loses_a_worker_says_why(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr("silhouette_bank._workers.ProcessPoolExecutor", _PoolThatBreaks)
+    monkeypatch.setattr("control.jobs.ProcessPoolExecutor", _PoolThatBreaks)
     with pytest.raises(ClusterError, match=r"worker process of the local pool .* workers=1"):
         run_jobs(abs, [1, 2], lambda i, r: None, workers=2)

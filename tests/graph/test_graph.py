@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -67,11 +68,11 @@ def test_blocks_and_chunks_give_the_same_graph(
 ) -> None:
     """The likely pairs measured a few at a time and the local maxima looked up in small
     chunks (as at 500,000 frames) give the graph of one pass, array for array."""
-    from control.graph import _graph, _prune
+    from control.graph import _pairs, _prune
 
     options = GraphOptions(coords="relative")
     whole = build_graph(medium_lib.clips, options)
-    monkeypatch.setattr(_graph, "_MEASURE", 997)
+    monkeypatch.setattr(_pairs, "_MEASURE", 997)
     monkeypatch.setattr(_prune, "_CHUNK", 613)
     parts = build_graph(medium_lib.clips, options)
     assert whole.n_edges > 100 and parts.report["likelihood"] > 10 * 997
@@ -79,6 +80,32 @@ def test_blocks_and_chunks_give_the_same_graph(
         assert np.array_equal(getattr(whole, name), getattr(parts, name)), name
     counts = ("contact", "candidates", "likelihood", "similarity", "scc")
     assert {k: whole.report[k] for k in counts} == {k: parts.report[k] for k in counts}
+
+
+def test_a_graph_built_on_a_two_worker_cluster_is_the_local_build(
+    medium_lib: Library, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The likely pairs searched and measured as jobs on a local Dask cluster of two
+    workers (blocks of rows, the frame features sent once) give the local graph."""
+    from control.graph import _pairs
+
+    options = GraphOptions(coords="relative")
+    here = build_graph(medium_lib.clips, options)
+    jobs: list[int] = []
+    real = _pairs.run_jobs
+
+    def counted(*args: Any, **kwargs: Any) -> None:
+        jobs.append(len(args[1]))
+        real(*args, **kwargs)
+
+    monkeypatch.setattr(_pairs, "_JOB_ELEMS", medium_lib.n_frames * 50)  # many small jobs
+    monkeypatch.setattr(_pairs, "run_jobs", counted)
+    there = build_graph(medium_lib.clips, options, cluster="local:2")
+    assert jobs and jobs[0] > 10
+    for name in ("src", "dst", "dist", "align", "in_scc"):
+        assert np.array_equal(getattr(here, name), getattr(there, name)), name
+    counts = ("contact", "candidates", "likelihood", "similarity", "scc")
+    assert {k: here.report[k] for k in counts} == {k: there.report[k] for k in counts}
 
 
 def _check_component(g: MotionGraph) -> None:

@@ -1,7 +1,8 @@
-"""Where a bank's render jobs run: in this process, in spawned local processes, or on a
-Dask cluster (``distributed``).
+"""Where a build's jobs run (a bank's render jobs, a graph's blocks of frame pairs): in
+this process, in spawned local processes, or on a Dask cluster (``distributed``).
 
-A cluster is named by ``cluster`` (``mimic bank build --cluster``) or, failing that, the
+A cluster is named by ``cluster`` (``mimic bank build --cluster``, ``mimic graph build
+--cluster``) or, failing that, the
 environment variable ``MIMIC_CLUSTER``: a scheduler's address (``tcp://host:8786``, as
 ``dask scheduler`` prints it) or ``local:N`` (a cluster of ``N`` worker processes on this
 machine, started for the build and closed after it). The jobs are the same everywhere and
@@ -23,6 +24,7 @@ tcp://scheduler:8786``).
 
 from __future__ import annotations
 
+import functools
 import multiprocessing
 import os
 from collections.abc import Callable, Iterator, Sequence
@@ -52,32 +54,38 @@ def cluster_address(cluster: str | None = None) -> str | None:
 
 
 def run_jobs(
-    fn: Callable[[Any], Any],
+    fn: Callable[..., Any],
     jobs: Sequence[Any],
     on_result: Callable[[int, Any], None],
     workers: int | None = None,
     cluster: str | None = None,
+    shared: Any = None,
 ) -> None:
     """``on_result(i, fn(jobs[i]))`` for every job, in this process, as the results
     come (in any order on a cluster; in order otherwise). On the cluster ``cluster``
     (see the module) when one is named; else in ``workers`` spawned processes (default:
-    the cores, at most 4) when more than one, else here."""
+    the cores, at most 4) when more than one, else here. With ``shared`` (not ``None``),
+    ``fn(shared, jobs[i])``: ``shared`` is sent to each worker once (scattered to every
+    worker of a cluster; given to each local process as it starts), not with every job."""
     address = cluster_address(cluster)
     if not jobs:
         return
+    call: Callable[[Any], Any] = fn if shared is None else functools.partial(_with_shared, fn)
     if address is not None:
-        _on_cluster(address, fn, jobs, on_result)
+        _on_cluster(address, fn, jobs, on_result, shared)
         return
     n_workers = min(workers or min(os.cpu_count() or 1, 4), len(jobs))
     if n_workers <= 1:
         for i, job in enumerate(jobs):
-            on_result(i, fn(job))
+            on_result(i, fn(job) if shared is None else fn(shared, job))
         return
     # spawn, not fork: numba's OpenMP threads in this process make fork unsafe
     ctx = multiprocessing.get_context("spawn")
     try:
-        with ProcessPoolExecutor(n_workers, mp_context=ctx) as pool:
-            for i, out in enumerate(pool.map(fn, jobs)):
+        with ProcessPoolExecutor(
+            n_workers, mp_context=ctx, initializer=_keep_shared, initargs=(shared,)
+        ) as pool:
+            for i, out in enumerate(pool.map(call, jobs)):
                 on_result(i, out)
     except BrokenProcessPool as exc:
         raise ClusterError(
@@ -87,6 +95,19 @@ def run_jobs(
             "'if __name__ == \"__main__\":' guard, cannot use it); build with workers=1 "
             "(--workers 1) to render in this process"
         ) from exc
+
+
+#: a local worker process's ``shared`` (``run_jobs``), set as it starts
+_SHARED: Any = None
+
+
+def _keep_shared(shared: Any) -> None:
+    global _SHARED
+    _SHARED = shared
+
+
+def _with_shared(fn: Callable[[Any, Any], Any], job: Any) -> Any:
+    return fn(_SHARED, job)
 
 
 @contextmanager
@@ -123,15 +144,19 @@ def _client(address: str) -> Iterator[Any]:
 
 def _on_cluster(
     address: str,
-    fn: Callable[[Any], Any],
+    fn: Callable[..., Any],
     jobs: Sequence[Any],
     on_result: Callable[[int, Any], None],
+    shared: Any = None,
 ) -> None:
     from distributed import as_completed
 
     with _client(address) as client:
+        first = () if shared is None else (client.scatter(shared, broadcast=True),)
         futures = [
-            client.submit(fn, job, key=f"mimic-job-{i}-{os.getpid()}", retries=RETRIES, pure=False)
+            client.submit(
+                fn, *first, job, key=f"mimic-job-{i}-{os.getpid()}", retries=RETRIES, pure=False
+            )
             for i, job in enumerate(jobs)
         ]
         where = {f.key: i for i, f in enumerate(futures)}
@@ -141,7 +166,7 @@ def _on_cluster(
         except Exception as exc:  # a job that failed on every try, or a lost scheduler
             raise ClusterError(
                 f"the build on the cluster {address!r} failed ({type(exc).__name__}: {exc}); "
-                "the shards finished so far are kept: build again to resume"
+                "a bank's shards finished so far are kept: build again to resume"
             ) from exc
         finally:
             client.cancel(futures)
