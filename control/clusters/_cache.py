@@ -212,10 +212,11 @@ def cached_higher_layer(
     max_states: int = 200_000,
     cache_dir: str | Path | None = None,
     rebuild: bool = False,
+    cluster: str | None = None,
 ) -> tuple[HigherLayer, Path, bool]:
     """The higher layer of ``graph`` from the cache (beside the graphs), built and stored
-    when missing, stale or unreadable (with a warning naming the file). Returns
-    ``(layer, path, built)``."""
+    when missing, stale or unreadable (with a warning naming the file; its trees built on
+    ``cluster`` where one is named). Returns ``(layer, path, built)``."""
     settings = {
         "k": k,
         "ks": list(ks),
@@ -236,7 +237,7 @@ def cached_higher_layer(
         except LayerFileError as exc:
             log.warning("rebuilding the higher layer: %s", exc)
     layer = build_higher_layer(
-        graph, clips, k, ks, seeding, seed, bound_seconds, max_nodes, max_states
+        graph, clips, k, ks, seeding, seed, bound_seconds, max_nodes, max_states, cluster
     )
     save_layer(layer, path, key)
     if cache_dir is None:

@@ -31,6 +31,7 @@ from numba.typed import Dict
 from numpy.typing import NDArray
 
 from ..graph import MotionGraph
+from ..jobs import cluster_address, run_jobs
 
 __all__ = ["ClusterForest", "ClusterTree", "build_forest"]
 
@@ -286,14 +287,26 @@ def _build_tree(
     return ClusterTree(root, parent, cluster, arrival, bool(truncated), int(horizon))
 
 
+#: trees built by one job on a cluster (``build_forest``)
+_TREES_PER_JOB = 512
+
+
+def _trees_job(shared: tuple[Any, ...], roots: list[int]) -> list[ClusterTree]:
+    """One cluster job: the trees of the branching frames ``roots``."""
+    return [_build_tree(f, *shared) for f in roots]
+
+
 def build_forest(
     graph: MotionGraph,
     labels: IntArray,
     bound_seconds: float = 15.0,
     max_nodes: int = 4096,
     max_states: int = 200_000,
+    cluster: str | None = None,
 ) -> ClusterForest:
-    """Cluster trees for every branching frame of ``graph`` with frame clusters ``labels``."""
+    """Cluster trees for every branching frame of ``graph`` with frame clusters ``labels``:
+    by threads here, or as jobs on a Dask cluster when ``cluster`` (or
+    ``$MIMIC_CLUSTER``: ``control.jobs``) names one (the same trees, in the same order)."""
     labels = np.asarray(labels, dtype=np.int64)
     if labels.shape != (graph.n_frames,):
         raise ValueError(f"labels must have one cluster per graph frame ({graph.n_frames})")
@@ -313,12 +326,22 @@ def build_forest(
     n_clusters = int(labels.max()) + 1
     dst = np.ascontiguousarray(graph.dst, dtype=np.int64)
 
-    def one(f: int) -> ClusterTree:
-        return _build_tree(f, labels, runs, indptr, dst, bound, max_nodes, n_clusters, max_states)
+    shared = (labels, runs, indptr, dst, bound, max_nodes, n_clusters, max_states)
+    address = cluster_address(cluster)
+    if address is not None:
+        roots = [int(f) for f in branching]
+        jobs = [roots[i : i + _TREES_PER_JOB] for i in range(0, len(roots), _TREES_PER_JOB)]
+        got: dict[int, list[ClusterTree]] = {}
+        run_jobs(_trees_job, jobs, got.__setitem__, cluster=address, shared=shared)
+        trees = [t for i in range(len(jobs)) for t in got[i]]
+    else:
 
-    # the kernel releases the GIL: threads build trees in parallel
-    with ThreadPoolExecutor(max_workers=min(4, os.cpu_count() or 1)) as pool:
-        trees = list(pool.map(one, (int(f) for f in branching)))
+        def one(f: int) -> ClusterTree:
+            return _build_tree(f, *shared)
+
+        # the kernel releases the GIL: threads build trees in parallel
+        with ThreadPoolExecutor(max_workers=min(4, os.cpu_count() or 1)) as pool:
+            trees = list(pool.map(one, (int(f) for f in branching)))
     tree_of = np.full(graph.n_frames, -1, dtype=np.int64)
     tree_of[branching] = np.arange(branching.size)
     # single-exit frames: the tree of the first branching frame they play into

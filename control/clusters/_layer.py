@@ -91,9 +91,11 @@ def build_higher_layer(
     bound_seconds: float = 15.0,
     max_nodes: int = 4096,
     max_states: int = 200_000,
+    cluster: str | None = None,
 ) -> HigherLayer:
     """Cluster the graph's frames (``k`` clusters, or chosen by effective BIC over ``ks``)
-    and build the cluster forest with a ``bound_seconds`` time bound."""
+    and build the cluster forest with a ``bound_seconds`` time bound (its trees on
+    ``cluster``, or ``$MIMIC_CLUSTER``, where one is named: ``build_forest``)."""
     chosen = graph.clips_of(clips)
     feat = frame_features(chosen, graph.options.coords)
     x, q_hat = state_vectors(feat)
@@ -105,7 +107,7 @@ def build_higher_layer(
         best, fits, curve = select_by_bic(
             x, ks, seeding=seeding, seed=seed, clip_start=feat.clip_start
         )
-    forest = build_forest(graph, best.labels, bound_seconds, max_nodes, max_states)
+    forest = build_forest(graph, best.labels, bound_seconds, max_nodes, max_states, cluster)
     return HigherLayer(
         graph, x, q_hat, best, tuple(fits), curve, forest, transition_log_probs(graph)
     )

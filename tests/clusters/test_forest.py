@@ -78,3 +78,22 @@ def test_caps_truncate_and_say_so() -> None:
         build_forest(g, labels[:-1])
     with pytest.raises(ValueError, match=r"max_nodes in 1\.\.65536"):
         build_forest(g, labels, max_nodes=1 << 17)  # (a node must fit the heap's 16 bits)
+
+
+def test_trees_built_on_a_two_worker_cluster_are_the_local_ones(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from control.clusters import _forest
+
+    rng = np.random.default_rng(5)
+    g = small_graph(rng, n_clips=6, length=12, n_edges=40)
+    labels = rng.integers(0, 4, g.n_frames)
+    here = build_forest(g, labels, bound_seconds=9 / g.fps)
+    monkeypatch.setattr(_forest, "_TREES_PER_JOB", 3)  # several jobs
+    there = build_forest(g, labels, bound_seconds=9 / g.fps, cluster="local:2")
+    assert len(here.trees) > 6 and len(there.trees) == len(here.trees)
+    np.testing.assert_array_equal(there.tree_of, here.tree_of)
+    for a, b in zip(here.trees, there.trees, strict=True):
+        assert a.root_frame == b.root_frame and a.truncated == b.truncated
+        for name in ("parent", "cluster", "arrival"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
