@@ -23,7 +23,7 @@ import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -279,8 +279,9 @@ def _parse_all(
         cache_file = cache / f"{cache_key(src, bvh_units, asf_digests)}.npz"
         used.append(cache_file)
         hit = load_cached(cache_file) if cache_file.is_file() else None
-        if hit is not None:
-            motions[src.name] = hit
+        if hit is not None:  # (two files of the same bytes share an entry: the name and
+            # the path are this file's, not those of the file that made the entry)
+            motions[src.name] = replace(hit, name=src.name, source=str(src.path))
         else:
             todo.append((src, bvh_units, str(cache_file)))
     n_workers = min(workers or min(os.cpu_count() or 1, 4), len(todo))

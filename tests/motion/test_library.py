@@ -91,6 +91,22 @@ def test_cache_hit_skips_parsing_and_a_changed_file_is_reparsed(
     )
 
 
+def test_two_files_of_the_same_bytes_keep_their_own_names_from_the_cache(
+    small_lib: Path, tmp_path: Path
+) -> None:
+    """A copy of a file under another name shares its cache entry (the key is the
+    bytes), but a warm load names each clip by its own file, as the cold load did."""
+    shutil.copy(small_lib / "bvh" / "09_01.bvh", small_lib / "bvh" / "99_01.bvh")
+    cache = tmp_path / "c"
+    cold = load_library(small_lib, cache_dir=cache, workers=1)
+    warm = load_library(small_lib, cache_dir=cache, workers=1)
+    assert len(list(cache.glob("*.npz"))) == 3  # the two copies: one entry
+    for lib in (cold, warm):
+        assert [c.name for c in lib.clips] == ["02_03", "02_04", "09_01", "99_01"]
+        assert lib.clip("99_01").motion.source.endswith("99_01.bvh")
+        assert lib.clip("09_01").motion.source.endswith("09_01.bvh")
+
+
 def test_corrupt_cache_entry_is_reparsed(
     small_lib: Path, tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
