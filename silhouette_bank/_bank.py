@@ -9,7 +9,7 @@ Layout of a bank folder::
     features.npy           all shards' features merged, at half precision
                            (``FEATURE_DTYPE``), and
     root_motion.npy        their root motion: plain ``.npy`` files, opened memory-mapped
-                           (a bank is not read into memory; its pages are read as used)
+                           (a bank is not copied into memory)
     bank.npz               the small arrays (clip starts, key, the learned metric)
     index-<hash>.npz       the matcher's window index of these features
                            (``vision.cached_window_index``: made by the first run that
