@@ -33,7 +33,7 @@ from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from typing import Any
 
-__all__ = ["CLUSTER_ENV", "RETRIES", "ClusterError", "cluster_address", "run_jobs"]
+__all__ = ["CLUSTER_ENV", "RETRIES", "ClusterError", "cluster_address", "map_jobs", "run_jobs"]
 
 #: the environment variable naming a cluster when no ``cluster`` argument does
 CLUSTER_ENV = "MIMIC_CLUSTER"
@@ -95,6 +95,19 @@ def run_jobs(
             "'if __name__ == \"__main__\":' guard, cannot use it); build with workers=1 "
             "(--workers 1) to render in this process"
         ) from exc
+
+
+def map_jobs(
+    fn: Callable[..., Any],
+    jobs: Sequence[Any],
+    workers: int | None = None,
+    cluster: str | None = None,
+    shared: Any = None,
+) -> list[Any]:
+    """``run_jobs``' results in the order of ``jobs`` (held until the last has come)."""
+    got: dict[int, Any] = {}
+    run_jobs(fn, jobs, got.__setitem__, workers, cluster, shared)
+    return [got[i] for i in range(len(jobs))]
 
 
 #: a local worker process's ``shared`` (``run_jobs``), set as it starts

@@ -31,7 +31,7 @@ from numba.typed import Dict
 from numpy.typing import NDArray
 
 from ..graph import MotionGraph
-from ..jobs import cluster_address, run_jobs
+from ..jobs import cluster_address, map_jobs
 
 __all__ = ["ClusterForest", "ClusterTree", "build_forest"]
 
@@ -331,9 +331,8 @@ def build_forest(
     if address is not None:
         roots = [int(f) for f in branching]
         jobs = [roots[i : i + _TREES_PER_JOB] for i in range(0, len(roots), _TREES_PER_JOB)]
-        got: dict[int, list[ClusterTree]] = {}
-        run_jobs(_trees_job, jobs, got.__setitem__, cluster=address, shared=shared)
-        trees = [t for i in range(len(jobs)) for t in got[i]]
+        done = map_jobs(_trees_job, jobs, cluster=address, shared=shared)
+        trees = [t for part in done for t in part]
     else:
 
         def one(f: int) -> ClusterTree:

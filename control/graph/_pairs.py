@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..jobs import cluster_address, run_jobs
+from ..jobs import cluster_address, map_jobs
 from ._distance import close_pair_blocks, lower_bound_features, pair_distances
 from ._features import FrameFeatures
 from ._prune import contact_groups
@@ -27,7 +27,7 @@ IntArray = NDArray[np.int64]
 _MEASURE = 1 << 21
 
 
-#: lower-bound comparisons (rows x columns) of one job on a cluster (``_pairs_on_cluster``)
+#: lower-bound comparisons (rows x columns) of one job on a cluster (``likely_pairs``)
 _JOB_ELEMS = 1 << 27
 
 _Pairs = tuple[IntArray, IntArray, NDArray[np.float64], NDArray[np.float32]]
@@ -43,47 +43,51 @@ def _measured(
     return a[keep], b[keep], d[keep], align[keep].astype(np.float32)
 
 
-def _pairs_job(
-    shared: tuple[FrameFeatures, np.ndarray, np.ndarray, GraphOptions, float, list[Any]],
-    job: tuple[int, int, int],
-) -> tuple[_Pairs, int]:
-    """One cluster job: rows ``[r0, r1)`` of contact group ``g`` searched (the lower
-    bound) and measured (exact distances, a batch at a time); its likely pairs and its
-    number of candidates."""
-    feat, x, norms, options, dmax, groups = shared
-    g, r0, r1 = job
-    rows, cols = groups[g]
-    found = list(close_pair_blocks(feat, rows[r0:r1], cols, dmax, options.nu, x, norms))
-    a = np.concatenate([f[0] for f in found]) if found else np.zeros(0, dtype=np.int64)
-    b = np.concatenate([f[1] for f in found]) if found else np.zeros(0, dtype=np.int64)
-    parts = [
-        _measured(feat, options, dmax, a[k : k + _MEASURE], b[k : k + _MEASURE])
-        for k in range(0, a.size, _MEASURE)
-    ] or [_measured(feat, options, dmax, a, b)]
-    joined = tuple(np.concatenate([p[i] for p in parts]) for i in range(4))
-    return (joined[0], joined[1], joined[2], joined[3]), int(a.size)
-
-
-def _pairs_on_cluster(
+def _search_rows(
     feat: FrameFeatures,
     options: GraphOptions,
     dmax: float,
-    groups: list[tuple[IntArray, IntArray]],
     x: np.ndarray,
     norms: np.ndarray,
-    address: str,
+    rows: IntArray,
+    cols: IntArray,
+) -> tuple[list[_Pairs], int, float]:
+    """``rows`` against ``cols``: the lower bound's candidates a block of rows at a time,
+    measured (``_measured``) once about ``_MEASURE`` of them are held; the likely pairs
+    a part per batch, the candidates counted and the seconds of the lower bound."""
+    parts: list[_Pairs] = []
+    held: list[tuple[IntArray, IntArray]] = []  # candidates not yet measured
+    n_candidates = 0
+    t_search = 0.0
+    blocks = close_pair_blocks(feat, rows, cols, dmax, options.nu, x, norms)
+    while True:
+        t0 = time.perf_counter()
+        got = next(blocks, None)
+        t_search += time.perf_counter() - t0
+        if got is not None:
+            held.append(got)
+            n_candidates += got[0].size
+        # measured a few million at a time (one kernel call on every core)
+        if held and (got is None or sum(h[0].size for h in held) >= _MEASURE):
+            a = np.concatenate([h[0] for h in held])
+            b = np.concatenate([h[1] for h in held])
+            held.clear()
+            parts.append(_measured(feat, options, dmax, a, b))
+        if got is None:
+            return parts, n_candidates, t_search
+
+
+def _pairs_job(
+    shared: tuple[FrameFeatures, np.ndarray, np.ndarray, GraphOptions, float, list[Any]],
+    job: tuple[int, int, int],
 ) -> tuple[list[_Pairs], int]:
-    """``likely_pairs``'s search and measure as jobs on the cluster ``address`` (blocks
-    of rows of each contact group; the frame features sent to each worker once), their
-    parts in the order the local build makes them; and the candidates counted."""
-    jobs = []
-    for g, (rows, cols) in enumerate(groups):
-        step = max(1, _JOB_ELEMS // max(1, cols.size))
-        jobs += [(g, r0, min(rows.size, r0 + step)) for r0 in range(0, rows.size, step)]
-    got: dict[int, tuple[_Pairs, int]] = {}
-    shared = (feat, x, norms, options, dmax, groups)
-    run_jobs(_pairs_job, jobs, got.__setitem__, cluster=address, shared=shared)
-    return [got[i][0] for i in range(len(jobs))], sum(got[i][1] for i in range(len(jobs)))
+    """One cluster job: rows ``[r0, r1)`` of contact group ``g`` (``_search_rows``); its
+    likely pairs and its number of candidates."""
+    feat, x, norms, options, dmax, groups = shared
+    g, r0, r1 = job
+    rows, cols = groups[g]
+    parts, n_candidates, _ = _search_rows(feat, options, dmax, x, norms, rows[r0:r1], cols)
+    return parts, n_candidates
 
 
 def likely_pairs(
@@ -95,61 +99,50 @@ def likely_pairs(
     time, so that no more than a batch of candidates is held beside the survivors; at
     500,000 frames nearly every candidate survives, so the alignments are held at
     float32, as the graph stores them (16 bytes a pair, not 32). On a ``cluster``
-    (``control.jobs``) the blocks are jobs, and the same pairs come back in the same
-    order. The counts: ``contact``, ``candidates``, and the seconds of the lower-bound
-    ``search`` (on a cluster: of the jobs, search and measure together)."""
+    (``control.jobs``) blocks of rows of each contact group are jobs (the frame features
+    sent to each worker once), and the same pairs come back in the same order. The
+    counts: ``contact``, ``candidates``, and the seconds of the lower-bound ``search``
+    (on a cluster: of the jobs, search and measure together)."""
     groups = contact_groups(feat.states, feat.clip_start, options.contact)
     n_contact = 0
     for rows, cols in groups:
         n_contact += rows.size * cols.size - np.intersect1d(rows, cols, assume_unique=True).size
     x, norms = lower_bound_features(feat, options.nu)
-    # the survivors' a, b, d and align, a part per measured batch
-    out: tuple[list[Any], ...] = ([], [], [], [])
+    parts: list[_Pairs] = []  # the survivors, a part per measured batch
     n_candidates = 0
     t_search = 0.0
-    held: list[tuple[IntArray, IntArray]] = []  # candidates not yet measured
-
-    def measure() -> None:
-        a = np.concatenate([h[0] for h in held])
-        b = np.concatenate([h[1] for h in held])
-        held.clear()
-        for part, arr in zip(out, _measured(feat, options, dmax, a, b), strict=True):
-            part.append(arr)
-
     address = cluster_address(cluster)
     if address is not None:
+        jobs = []
+        for g, (rows, cols) in enumerate(groups):
+            step = max(1, _JOB_ELEMS // max(1, cols.size))
+            jobs += [(g, r0, min(rows.size, r0 + step)) for r0 in range(0, rows.size, step)]
         t0 = time.perf_counter()
-        parts, n_candidates = _pairs_on_cluster(feat, options, dmax, groups, x, norms, address)
+        shared = (feat, x, norms, options, dmax, groups)
+        for got, n in map_jobs(_pairs_job, jobs, cluster=address, shared=shared):
+            parts += got
+            n_candidates += n
         t_search = time.perf_counter() - t0
-        for piece in parts:
-            for part, arr in zip(out, piece, strict=True):
-                part.append(arr)
-        groups = []  # (searched)
-    for rows, cols in groups:
-        blocks = close_pair_blocks(feat, rows, cols, dmax, options.nu, x, norms)
-        while True:
-            t0 = time.perf_counter()
-            got = next(blocks, None)
-            t_search += time.perf_counter() - t0
-            if got is not None:
-                held.append(got)
-                n_candidates += got[0].size
-            # measured a few million at a time (one kernel call on every core)
-            if held and (got is None or sum(h[0].size for h in held) >= _MEASURE):
-                measure()
-            if got is None:
-                break
-    if not out[0]:
-        out[0].append(np.zeros(0, dtype=np.int64))
-        out[1].append(np.zeros(0, dtype=np.int64))
-        out[2].append(np.zeros(0))
-        out[3].append(np.zeros((0, 4), dtype=np.float32))
+    else:
+        for rows, cols in groups:
+            got, n, t = _search_rows(feat, options, dmax, x, norms, rows, cols)
+            parts += got
+            n_candidates += n
+            t_search += t
+    empty = (
+        np.zeros(0, dtype=np.int64),
+        np.zeros(0, dtype=np.int64),
+        np.zeros(0),
+        np.zeros((0, 4), dtype=np.float32),
+    )
+    columns: list[list[Any]] = [[part[i] for part in parts] or [empty[i]] for i in range(4)]
+    del parts
     # joined one array at a time, its parts let go once copied: the peak is the
     # survivors and one more array, not the survivors twice
     joined = []
-    for part in out:
-        joined.append(np.concatenate(part))
-        part.clear()
+    for column in columns:
+        joined.append(np.concatenate(column))
+        column.clear()
     pairs = (joined[0], joined[1], joined[2], joined[3])
     counts = {
         "contact": int(n_contact),
