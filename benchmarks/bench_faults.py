@@ -5,8 +5,8 @@ Usage: python -m benchmarks.bench_faults [LIBRARY_DIR] [--flips N] [--truncation
        [--seed S] [--out FILE]
 
 For each artifact (a parsed-motion cache entry, a graph in the cache and given as a file,
-a higher layer, a bank's manifest.json, bank.npz and features.npy, the window index beside
-a bank, a .motion.npz), ``--flips`` single bytes flipped at random, ``--truncations`` random
+a higher layer, a bank's manifest.json, bank.npz and features.npy, the window index and
+the window tables (their manifest and a table) beside a bank, a .motion.npz), ``--flips`` single bytes flipped at random, ``--truncations`` random
 truncations and every consistent edit in ``tests/faults.py`` (a manifest's fps set to 30,
 sigma NaN, clip names swapped, a bank's n_views set to 9, the root moved 1 m, features of
 NaN, ...). The outcome of each: the same

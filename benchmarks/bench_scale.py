@@ -2,7 +2,7 @@
 frames.
 
 Usage: python -m benchmarks.bench_scale [LIBRARY_DIR] [--sizes 50000,200000,500000]
-       [--steps graph,layer,bank,search] [--timeout 900] [--out FILE]
+       [--steps graph,layer,bank,search,open] [--timeout 900] [--out FILE]
 
 The synthetic library: every shared clip with the exercise subject's 31 joints, loaded
 at 15, 16, 17, ... frames/s and each played back at 15 frames/s (so a clip loaded at
@@ -20,6 +20,10 @@ memory, which includes the library's):
   default bank's features of the shared library tiled to ``N`` frames (mirrored on every
   other copy), queried with the committed recording's 1 s windows: index build time and
   p50/p99 per query (its speed, not its accuracy: the tiles repeat);
+- ``open``: the vision half of a ``perform`` start-up on a bank of ``N`` frames (tiled
+  like ``search``'s, written to disk as ``build_bank`` writes one): opening the bank, its
+  shape statistics, window tables and index, and the first search, cold and warm
+  (``benchmarks/_scale_open.py``);
 
 and a plot of each against frames (``benchmarks/results/scale.png``). A step that passes
 ``--timeout`` seconds or fails (memory) is recorded as such, and a step that passed the
@@ -210,7 +214,13 @@ def _search(root: Path, n: int) -> dict[str, Any]:
     }
 
 
-STEPS = {"graph": _graph, "layer": _layer, "bank": _bank, "search": _search}
+def _open(root: Path, n: int) -> dict[str, Any]:
+    from benchmarks._scale_open import open_step
+
+    return open_step(root, n, RECORDING)
+
+
+STEPS = {"graph": _graph, "layer": _layer, "bank": _bank, "search": _search, "open": _open}
 
 
 def _run(root: Path, step: str, n: int, timeout: float) -> dict[str, Any]:
@@ -241,6 +251,7 @@ def _plot(result: dict[str, Any], path: Path) -> None:
         ("bank", "seconds_per_worker", 0),
         ("search", "build_seconds", 0),
         ("search", "query_ms_p99", 1),
+        ("open", "warm_seconds", 0),
         ("graph", "peak_rss_mb", 1),
         ("layer", "peak_rss_mb", 1),
     ):
@@ -262,7 +273,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("root", nargs="?", default=str(default_library_path()))
     ap.add_argument("--sizes", default="50000,200000,500000")
-    ap.add_argument("--steps", default="graph,layer,bank,search")
+    ap.add_argument("--steps", default="graph,layer,bank,search,open")
     ap.add_argument("--timeout", type=float, default=900.0)
     ap.add_argument("--out", default="benchmarks/results/scale.json")
     ap.add_argument(

@@ -2,6 +2,7 @@
 
 from control.jobs import CLUSTER_ENV, ClusterError, cluster_address, run_jobs
 
+from ._arrays import CHECKED_FILE, RACY_NS, block_hash, block_hashes, npy_file, open_mapped
 from ._bank import (
     FEATURE_DTYPE,
     Bank,
@@ -51,6 +52,7 @@ from ._settings import BANK_VERSION, METRIC_DIMS, BankSettings, robust_settings
 
 __all__ = [
     "BANK_VERSION",
+    "CHECKED_FILE",
     "CLUSTER_ENV",
     "DEFAULT_DESCRIPTOR",
     "DESCRIPTORS",
@@ -59,6 +61,7 @@ __all__ = [
     "METRIC_DIMS",
     "METRIC_FRAMES",
     "POSE_JOINTS",
+    "RACY_NS",
     "SHIN_RATIO",
     "THIGH_RATIO",
     "Bank",
@@ -76,6 +79,8 @@ __all__ = [
     "PoseDescriptor",
     "StaleBankError",
     "bank_cache_dir",
+    "block_hash",
+    "block_hashes",
     "build_bank",
     "capsule_body",
     "capsule_segments",
@@ -96,6 +101,8 @@ __all__ = [
     "motion_features",
     "motion_features_both",
     "motion_silhouettes",
+    "npy_file",
+    "open_mapped",
     "outline_extents",
     "rasterize",
     "render_motion_video",

@@ -14,13 +14,18 @@ Layout of a bank folder::
     index-<hash>.npz       the matcher's window index of these features
                            (``vision.cached_window_index``: made by the first run that
                            needs it, loaded by the next)
+    windows-<hash>.*       the matcher's window tables and shape statistics made from
+                           these features (``vision.cached_window_tables``: likewise)
+    checked.json           which ``.npy`` files were checked, as the file system saw
+                           them (``open_mapped``: an unchanged file is not read again)
     .building.lock         held while a process builds the bank (``ensure_bank``)
 
 Everything is written to a temporary file and renamed; ``manifest.json`` is written last
 (the bank is complete). One checksum covers the manifest and ``bank.npz``; the manifest
 holds a SHA-256 of every block of ``BLOCK_ROWS`` frames of the two ``.npy`` files, checked
-block by block when the bank is opened (streamed: the check reads the pages once and
-holds none of them). Shards are independent, so they
+block by block when the bank is first opened (streamed: the check reads the pages once
+and holds none of them); later opens trust a file the file system says is unchanged
+since (``_arrays``), so a large bank opens without being read. Shards are independent, so they
 can be built by several processes (``workers``) or on a Dask cluster (``cluster``:
 ``control.jobs``) and merged; an interrupted build finds its finished shards (checked
 against the manifest's key) and does only the rest. A bank whose library or settings
@@ -115,6 +120,8 @@ class Bank:
     clip_names, clip_start : which frames belong to which clip.
     settings : how it was rendered. library_digest : what it was rendered from.
     path : the folder.
+    checksum : the manifest's checksum (it covers every array): what the bank's derived
+        files (window tables, index) are keyed by; ``""`` for a bank not read from disk.
     metric : ``(mean (S,), projection (S, d))`` of the learned metric, or ``None``: shape
         numbers ``x`` are compared as ``(x - mean) @ projection``.
     """
@@ -127,6 +134,7 @@ class Bank:
     library_digest: str
     path: str
     metric: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+    checksum: str = ""
 
     @property
     def n_frames(self) -> int:
@@ -442,6 +450,7 @@ def _bank_of(
         library_digest=str(manifest["library_digest"]),
         path=str(folder),
         metric=metric,
+        checksum=str(manifest["checksum"]),
     )
 
 

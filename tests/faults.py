@@ -38,7 +38,7 @@ from control.motion import (
     write_motion_arrays,
 )
 from silhouette_bank import BankFileError, BankSettings, CameraRing, ensure_bank
-from vision import IndexFileError, Matcher, MatchSettings
+from vision import IndexFileError, Matcher, MatchSettings, WindowTablesError
 
 GOOD = ("same", "rebuilt", "error")
 SMALL_BANK = BankSettings(CameraRing(n_views=4, width=64, height_px=48), descriptor="hu")
@@ -160,7 +160,9 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
     cached_higher_layer(graph, lib.clips, k=LAYER_K, cache_dir=root / "graph")
     layer, _, _ = cached_higher_layer(graph, lib.clips, k=LAYER_K, cache_dir=root / "graph")
     bank, _ = ensure_bank(lib.clips, SMALL_BANK, root / "bank", workers=1)
-    index = Matcher(layer, bank, MatchSettings()).index()  # stored in the bank's folder
+    matcher = Matcher(layer, bank, MatchSettings())
+    index = matcher.index()  # stored in the bank's folder, and the tables beside it
+    tables = tuple(np.array(t) for t in matcher._global_tables())
     write_motion_arrays(root / "arrays" / "02_01.motion.npz", lib.clips[0].motion)
     arrays = read_motion_arrays(root / "arrays" / "02_01.motion.npz")
 
@@ -182,6 +184,10 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
     def load_index(r: Path) -> Any:
         stored = ensure_bank(lib.clips, SMALL_BANK, r / "bank", workers=1)[0]
         return Matcher(layer, stored, MatchSettings()).index()
+
+    def load_tables(r: Path) -> Any:
+        stored = ensure_bank(lib.clips, SMALL_BANK, r / "bank", workers=1)[0]
+        return Matcher(layer, stored, MatchSettings())._global_tables()
 
     def moved(a: dict[str, Any], key: str) -> None:
         a[key] = a[key] + np.array([1.0, 0.0, 0.0], dtype=a[key].dtype)  # 1 m along x
@@ -248,6 +254,12 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
                 np.savez(fh, **a)
 
         return edit
+
+    def nan_table(p: Path) -> None:  # a value NaN, the file well formed
+        a = np.load(p, mmap_mode="r+", allow_pickle=False)
+        a[1, 0, 0] = np.nan
+        a.flush()
+        del a
 
     index_edits: dict[str, Callable[[Path], object]] = {
         "mean shifted": index_edit(lambda a: _set(a, "mean", a["mean"] + 1.0)),
@@ -335,6 +347,22 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
             (IndexFileError,),
             index_edits,
         ),
+        Artifact(
+            "window tables (beside the bank)",
+            one("bank", "windows-*-shape.npy"),
+            load_tables,
+            lambda a, b: all(np.array_equal(x, y) for x, y in zip(a, b, strict=True)),
+            (WindowTablesError,),
+            {"a value NaN": nan_table},
+        ),
+        Artifact(
+            "window tables manifest",
+            one("bank", "windows-*.json"),
+            load_tables,
+            lambda a, b: all(np.array_equal(x, y) for x, y in zip(a, b, strict=True)),
+            (WindowTablesError,),
+            {"key changed": lambda p: edit_json(p, lambda d: _set(d, "key", "0" * 64))},
+        ),
     ]
     pristine = {
         "motion cache entry": lib,
@@ -346,6 +374,8 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
         "bank features.npy": bank,
         "motion arrays (.motion.npz)": arrays,
         "window index (beside the bank)": index,
+        "window tables (beside the bank)": tables,
+        "window tables manifest": tables,
     }
     return found, pristine
 

@@ -35,13 +35,15 @@ def test_every_damaged_artifact_is_rebuilt_or_named(mocap: Path) -> None:
     bad = [o for o in outcomes if o.outcome not in GOOD]
     assert not bad, bad
     rows = table(outcomes)
-    assert len(rows) == 9
+    assert len(rows) == 11
     rebuilt = (
         "motion cache entry",
         "graph (cache)",
         "higher layer (cache)",
         "bank.npz",
         "bank features.npy",
+        "window tables (beside the bank)",
+        "window tables manifest",
     )
     for name in (*rebuilt, "window index (beside the bank)"):
         assert rows[name].get("rebuilt", 0) >= 5, (name, rows[name])
@@ -49,7 +51,7 @@ def test_every_damaged_artifact_is_rebuilt_or_named(mocap: Path) -> None:
         assert rows[name].get("error", 0) >= 5, (name, rows[name])  # nothing to rebuild from
     # each consistent edit is caught: none is used as it stands
     edits = [o for o in outcomes if not o.case.startswith(("flip", "truncate"))]
-    assert len(edits) == 32
+    assert len(edits) == 34
     assert all(o.outcome in ("rebuilt", "error") for o in edits if o.case != "marked incomplete")
 
 

@@ -230,18 +230,21 @@ def cached_window_index(
     starts: IntArray,
     length: int,
     folder: str | Path | None,
+    key: str = "",
     **options: Any,
 ) -> WindowIndex:
     """``WindowIndex(shape, centre, starts, length, **options)``, stored in ``folder`` (a bank's
-    folder: the index is made from its features) as ``index-<hash of the tables>.npz``
-    and loaded from there next time, checked (``control.artifacts``). A damaged file is
-    built again with a warning naming it; a folder that cannot be written is only read."""
+    folder: the index is made from its features) as ``index-<hash>.npz`` and loaded from
+    there next time, checked (``control.artifacts``). The hash is of the tables' ``key``
+    (``cached_window_tables``: what names their content) and ``starts``, or without a key
+    of the tables themselves (read in full). A damaged file is built again with a
+    warning naming it; a folder that cannot be written is only read."""
     import faiss
 
     if folder is None:
         return WindowIndex(shape, centre, starts, length, **options)
-    h = hashlib.sha256(f"{INDEX_VERSION}|{length}|{sorted(options.items())}".encode())
-    for table in (shape, centre, starts):
+    h = hashlib.sha256(f"{INDEX_VERSION}|{length}|{sorted(options.items())}|{key}".encode())
+    for table in (starts,) if key else (shape, centre, starts):
         a = np.ascontiguousarray(table)
         h.update(f"{a.dtype}{a.shape}".encode())
         h.update(a.tobytes())

@@ -32,13 +32,8 @@ from silhouette_bank import Bank
 
 from ._decision import Decision, MatchSettings
 from ._index import WindowIndex, cached_window_index
-from ._windows import (
-    best_window,
-    per_frame_cost,
-    performer_queries,
-    shape_stats,
-    window_tables,
-)
+from ._tables import cached_shape_stats, cached_window_tables
+from ._windows import best_window, per_frame_cost, performer_queries
 
 __all__ = ["EARLY_WINDOWS", "Matcher"]
 
@@ -76,7 +71,7 @@ class Matcher:
         )
         if self.to_bank.size != self.graph.n_frames:
             raise ValueError("the bank and the graph disagree on clip lengths (rebuild the bank)")
-        self.mean, self.proj = shape_stats(bank)
+        self.mean, self.proj = cached_shape_stats(bank)
         #: what one performer frame is reduced to: the bank's descriptor
         self.desc = bank.settings.features
         self.descriptor = self.desc.name
@@ -95,6 +90,7 @@ class Matcher:
             self.plays[self.graph.clip_start[1:] - 1] = False
         self._cache: dict[tuple[int, int], tuple[IntArray, IntArray] | None] = {}
         self._tables: tuple[FloatArray, FloatArray, IntArray] | None = None
+        self._tables_key = ""
         self._index: WindowIndex | None = None
         #: the run of playback each frame belongs to (a run breaks where playing on cannot)
         self._runs = np.cumsum(np.concatenate(([0], ~self.plays[:-1])))
@@ -120,7 +116,7 @@ class Matcher:
         the centre weight) in every view, and the frames a window may start at (in the
         component, with ``n`` frames of playback ahead)."""
         if self._tables is None:
-            shape, centre = window_tables(
+            shape, centre, self._tables_key = cached_window_tables(
                 self.bank,
                 self.to_bank,
                 self.graph.clip_start,
@@ -151,7 +147,9 @@ class Matcher:
         if self._index is None:
             shape, centre, starts = self._global_tables()
             folder = self.bank.path or None
-            self._index = cached_window_index(shape, centre, starts, self.n, folder)
+            self._index = cached_window_index(
+                shape, centre, starts, self.n, folder, key=self._tables_key
+            )
         return self._index
 
     def queries(self, performer: FloatArray) -> list[FloatArray] | None:

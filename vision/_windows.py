@@ -87,25 +87,28 @@ def window_tables(
     mean: FloatArray,
     proj: FloatArray,
     centre_weight: float,
+    out: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """What the whole-library window search compares: for rows ``frames`` (bank frames;
     ``clip_start`` splits them into clips), the mapped shape numbers ``(N, V, d)``
     and the centre accumulated along each clip ``(N, V, 2)``, times ``centre_weight``
-    (a window's centre is taken relative to its first frame by the DTW kernel)."""
+    (a window's centre is taken relative to its first frame by the DTW kernel); written
+    into ``out`` (two float64 arrays of those shapes: a memory map) when given."""
     desc = bank.settings.features
     n, v = frames.size, bank.features.shape[1]
-    shape = np.empty((n, v, proj.shape[1]))
-    place = np.empty((n, v, 2))
+    shape, centre = out if out is not None else (np.empty((n, v, proj.shape[1])), None)
+    if centre is None:
+        centre = np.empty((n, v, 2))
     for a in range(0, n, 2048):  # in blocks: a bank of many views is large in float64
         f = bank.features[frames[a : a + 2048]].astype(np.float64)  # (b, V, F)
-        shape[a : a + f.shape[0]] = (desc.shape(f) - mean) @ proj
-        place[a : a + f.shape[0]] = desc.centre(f)
-    np.nan_to_num(shape, copy=False, nan=0.0)
+        b = a + f.shape[0]
+        shape[a:b] = np.nan_to_num((desc.shape(f) - mean) @ proj, nan=0.0)
+        centre[a:b] = desc.centre(f)
     move = bank.root_motion[frames].astype(np.float64)
-    centre = np.empty_like(move)
     for a, b in itertools.pairwise(clip_start):
-        centre[a:b] = np.cumsum(move[a:b], axis=0) - move[a]
-    centre = np.nan_to_num((centre + place) * centre_weight, nan=0.0)
+        centre[a:b] += np.cumsum(move[a:b], axis=0) - move[a]
+    centre *= centre_weight
+    np.nan_to_num(centre, copy=False, nan=0.0)
     return shape, centre
 
 

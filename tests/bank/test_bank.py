@@ -380,3 +380,44 @@ def test_a_damaged_block_is_named_by_its_frames(
     feats.flush()
     del feats
     np.testing.assert_array_equal(load_bank(folder).root_motion, bank.root_motion)
+
+
+def test_an_unchanged_bank_is_opened_without_reading_it(
+    lib: Library, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import silhouette_bank._arrays as arrays
+
+    folder = tmp_path / "b"
+    bank = build_bank(lib.clips, SMALL, folder, shard_frames=50, workers=1)
+    hashed: list[int] = []
+    real = arrays.block_hash
+
+    def counting(a: np.ndarray, k: int, rows: int) -> str:
+        hashed.append(k)
+        return real(a, k, rows)
+
+    monkeypatch.setattr(arrays, "block_hash", counting)
+    # just written: too soon after the change for its file times to be trusted
+    load_bank(folder)
+    assert hashed and not (folder / "checked.json").exists()
+    # a check long after the last change (as when it comes seconds later) is remembered,
+    # and the next open reads no block
+    monkeypatch.setattr(arrays, "RACY_NS", -(10**18))
+    load_bank(folder)
+    assert (folder / "checked.json").is_file()
+    hashed.clear()
+    again = load_bank(folder)
+    assert hashed == []
+    np.testing.assert_array_equal(again.features, bank.features)
+    # a write changes what the file system says of it: checked again, and the damage named
+    feats = np.load(folder / "features.npy", mmap_mode="r+")
+    feats[3, 0, 0] += 1.0
+    feats.flush()
+    del feats
+    with pytest.raises(BankFileError, match=r"features\.npy: frames 0-.*checksum mismatch"):
+        load_bank(folder)
+    assert hashed
+    # a damaged record is no record
+    (folder / "checked.json").write_text("{not json")
+    with pytest.raises(BankFileError, match="checksum mismatch"):
+        load_bank(folder)

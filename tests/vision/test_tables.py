@@ -1,0 +1,97 @@
+"""The matcher's window tables and shape statistics, stored beside the bank."""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+import vision._tables as tables_module
+from silhouette_bank import load_bank
+from vision import (
+    KEEP_TABLES,
+    Matcher,
+    MatchSettings,
+    cached_shape_stats,
+    cached_window_tables,
+    shape_stats,
+    window_tables,
+)
+
+
+def _copy(bank, tmp_path: Path):
+    """The session's bank copied to a folder of its own (its derived files left out)."""
+    folder = tmp_path / "bank"
+    keep = ("manifest.json", "bank.npz", "features.npy", "root_motion.npy")
+    folder.mkdir()
+    for name in keep:
+        shutil.copy(Path(bank.path) / name, folder / name)
+    return load_bank(folder)
+
+
+def test_stored_tables_are_the_made_ones_and_are_mapped_next_time(
+    setup, tmp_path, caplog, monkeypatch
+) -> None:
+    _, layer, session_bank = setup
+    bank = _copy(session_bank, tmp_path)
+    folder = Path(bank.path)
+    mean, proj = cached_shape_stats(bank)
+    want_mean, want_proj = shape_stats(bank)
+    np.testing.assert_array_equal(mean, want_mean)
+    np.testing.assert_array_equal(proj, want_proj)
+    assert (folder / "windows-stats.npz").is_file()
+    m = Matcher(layer, bank, MatchSettings())
+    frames, cs, w = m.to_bank, layer.graph.clip_start, m.settings.centre_weight
+    want = window_tables(bank, frames, cs, mean, proj, w)
+    shape, centre, key = cached_window_tables(bank, frames, cs, mean, proj, w)
+    assert key and isinstance(shape, np.memmap) and isinstance(centre, np.memmap)
+    np.testing.assert_array_equal(shape, want[0])
+    np.testing.assert_array_equal(centre, want[1])
+    # next time they are mapped from the folder, not made
+    def made(*_a, **_k):
+        raise AssertionError("made again")
+
+    monkeypatch.setattr(tables_module, "window_tables", made)
+    monkeypatch.setattr(tables_module, "shape_stats", made)
+    assert cached_shape_stats(bank)[0].tolist() == mean.tolist()
+    again = cached_window_tables(bank, frames, cs, mean, proj, w)
+    assert again[2] == key
+    np.testing.assert_array_equal(again[0], want[0])
+    # the matcher's index is keyed by them, and found again by a second matcher
+    m.index()
+    (index,) = folder.glob("index-*.npz")
+    Matcher(layer, bank, MatchSettings()).index()
+    assert list(folder.glob("index-*.npz")) == [index]
+    monkeypatch.undo()
+    # a damaged table is made again, with a warning naming it
+    (shape_file,) = folder.glob("windows-*-shape.npy")
+    data = bytearray(shape_file.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    shape_file.write_bytes(bytes(data))
+    with caplog.at_level(logging.WARNING):
+        fixed = cached_window_tables(bank, frames, cs, mean, proj, w)
+    assert shape_file.name in caplog.text and "checksum mismatch" in caplog.text
+    np.testing.assert_array_equal(fixed[0], want[0])
+    # other arguments: other tables; at most KEEP_TABLES pairs are kept
+    for k in range(KEEP_TABLES + 1):
+        cached_window_tables(bank, frames, cs, mean, proj, w + 0.1 * (k + 1))
+    assert len(list(folder.glob("windows-*.json"))) == KEEP_TABLES
+    assert len(list(folder.glob("windows-*-shape.npy"))) == KEEP_TABLES
+
+
+def test_a_bank_not_read_from_its_folder_keeps_its_tables_in_memory(setup, tmp_path) -> None:
+    _, layer, session_bank = setup
+    bank = _copy(session_bank, tmp_path)
+    changed = dataclasses.replace(bank, features=np.array(bank.features) * 2)
+    m = Matcher(layer, changed, MatchSettings())
+    shape, centre, key = cached_window_tables(
+        changed, m.to_bank, layer.graph.clip_start, m.mean, m.proj, 1.0
+    )
+    assert key == "" and not isinstance(shape, np.memmap)
+    assert not list(Path(bank.path).glob("windows-*"))
+    want = window_tables(changed, m.to_bank, layer.graph.clip_start, m.mean, m.proj, 1.0)
+    np.testing.assert_array_equal(shape, want[0])
+    np.testing.assert_array_equal(centre, want[1])

@@ -1,0 +1,233 @@
+"""The matcher's whole-library window tables and shape statistics, stored beside the bank
+they are made from, so that a ``perform`` on a large bank starts without reading it.
+
+Both are made from every frame of the bank: the statistics (``shape_stats``) from a
+sample spread over all of it, the tables (``window_tables``) from all of it. A bank read
+from its folder (``silhouette_bank.load_bank``: memory-mapped, with its manifest's
+checksum) keeps them there, keyed by that checksum and what else they are made from:
+
+    windows-stats.npz           the statistics, with the bank checksum they belong to
+    windows-<hash>.json         a table pair's manifest: what it was made from, its
+                                shapes and the SHA-256 of every block of frames
+    windows-<hash>-shape.npy    the mapped shape numbers ``(N, V, d)`` and
+    windows-<hash>-centre.npy   the accumulated centre ``(N, V, 2)``, float64, opened
+                                memory-mapped (``silhouette_bank.open_mapped``: checked
+                                in full once, then trusted while unchanged)
+
+The first run that needs them writes them (each file to a temporary one, then renamed);
+the next maps them. A damaged or mismatched file is made again with a warning naming it;
+a folder that cannot be written is only read. At most ``KEEP_TABLES`` table pairs are kept
+per bank (the least recently used go first).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import logging
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from control.artifacts import atomic_write, checksum, read_npz, verify_checksum
+from silhouette_bank import Bank, block_hashes, npy_file, open_mapped
+
+from ._windows import shape_stats, window_tables
+
+log = logging.getLogger(__name__)
+
+__all__ = [
+    "KEEP_TABLES",
+    "TABLES_VERSION",
+    "WindowTablesError",
+    "cached_shape_stats",
+    "cached_window_tables",
+]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+#: the stored tables' format
+TABLES_VERSION = 1
+#: table pairs kept in a bank's folder
+KEEP_TABLES = 3
+#: frames of a stored table hashed as one block
+_ROWS = 4096
+
+
+class WindowTablesError(ValueError):
+    """A stored window table or statistics file that cannot be used (names the file)."""
+
+    def __init__(self, path: str | Path, problem: str) -> None:
+        self.path = Path(path)
+        self.problem = problem
+        super().__init__(f"{path}: {problem}")
+
+
+def _stored(bank: Bank) -> Path | None:
+    """The bank's folder when its arrays are the ones mapped from there (so that its
+    checksum says what they hold), else ``None``."""
+    if not bank.path or not bank.checksum:
+        return None
+    folder = Path(bank.path)
+    for a, name in ((bank.features, "features.npy"), (bank.root_motion, "root_motion.npy")):
+        if not isinstance(a, np.memmap) or a.filename is None:
+            return None
+        if Path(a.filename).resolve() != (folder / name).resolve():
+            return None
+    return folder
+
+
+def cached_shape_stats(bank: Bank) -> tuple[FloatArray, FloatArray]:
+    """``shape_stats(bank)``, kept in the bank's folder (``windows-stats.npz``)."""
+    folder = _stored(bank)
+    if folder is None:
+        return shape_stats(bank)
+    path = folder / "windows-stats.npz"
+    if path.is_file():
+        try:
+            d = read_npz(path, ("checksum", "bank", "mean", "proj"), WindowTablesError, "stats")
+            verify_checksum({"checksum": str(d.pop("checksum"))}, d, path, WindowTablesError)
+            if str(d["bank"]) == bank.checksum:
+                return d["mean"].astype(np.float64), d["proj"].astype(np.float64)
+        except WindowTablesError as exc:
+            log.warning("making the shape statistics again: %s", exc)
+    mean, proj = shape_stats(bank)
+    arrays = {"bank": np.array(bank.checksum), "mean": mean, "proj": proj}
+    with contextlib.suppress(OSError), atomic_write(path, "wb") as fh:  # (a read-only folder)
+        np.savez(fh, checksum=np.array(checksum({}, arrays)), **arrays)  # type: ignore[arg-type]
+    return mean, proj
+
+
+def _key(
+    bank: Bank,
+    frames: IntArray,
+    clip_start: IntArray,
+    mean: FloatArray,
+    proj: FloatArray,
+    centre_weight: float,
+) -> str:
+    h = hashlib.sha256(f"{TABLES_VERSION}|{bank.checksum}|{float(centre_weight)!r}".encode())
+    for a in (frames, clip_start, mean, proj):
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype}{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def cached_window_tables(
+    bank: Bank,
+    frames: IntArray,
+    clip_start: IntArray,
+    mean: FloatArray,
+    proj: FloatArray,
+    centre_weight: float,
+) -> tuple[FloatArray, FloatArray, str]:
+    """``(*window_tables(...), key)``: stored in (and mapped from) the bank's folder
+    when the bank was read from one; ``key`` (a hash of the bank's checksum and the other
+    arguments) names them, ``""`` when they are made in memory."""
+    frames = np.asarray(frames, dtype=np.int64)
+    clip_start = np.asarray(clip_start, dtype=np.int64)
+    folder = _stored(bank)
+    if folder is None:
+        return (*window_tables(bank, frames, clip_start, mean, proj, centre_weight), "")
+    key = _key(bank, frames, clip_start, mean, proj, centre_weight)
+    stem = folder / f"windows-{key[:24]}"
+    shapes = {
+        "shape": (frames.size, bank.features.shape[1], proj.shape[1]),
+        "centre": (frames.size, bank.features.shape[1], 2),
+    }
+    manifest = Path(f"{stem}.json")
+    if manifest.is_file():
+        try:
+            shape, centre = _open(manifest, stem, key, shapes)
+            with contextlib.suppress(OSError):
+                os.utime(manifest)  # (used: the last to be pruned)
+            return shape, centre, key
+        except WindowTablesError as exc:
+            log.warning("making the window tables again: %s", exc)
+    try:
+        shape, centre = _write(bank, frames, clip_start, mean, proj, centre_weight, stem, key)
+    except OSError as exc:  # a bank folder that is only ours to read
+        log.info("the window tables are not stored: %s", exc)
+        return (*window_tables(bank, frames, clip_start, mean, proj, centre_weight), key)
+    _prune(folder)
+    return shape, centre, key
+
+
+def _open(
+    manifest: Path, stem: Path, key: str, shapes: dict[str, tuple[int, ...]]
+) -> tuple[FloatArray, FloatArray]:
+    try:
+        m = json.loads(manifest.read_bytes().decode("utf-8"))
+        ok = isinstance(m, dict) and isinstance(m.get("blocks"), dict)
+    except (OSError, ValueError):
+        ok = False
+    if not ok or m.get("format") != "mimic-window-tables":
+        raise WindowTablesError(manifest, "unreadable, or not a window tables manifest")
+    verify_checksum(m, {}, manifest, WindowTablesError)
+    if m.get("version") != TABLES_VERSION or m.get("key") != key:
+        raise WindowTablesError(manifest, "made by another version or from another bank")
+    out = []
+    for name in ("shape", "centre"):
+        path = Path(f"{stem}-{name}.npy")
+        out.append(
+            open_mapped(
+                path, shapes[name], np.float64, m["blocks"].get(name), _ROWS, WindowTablesError
+            )
+        )
+    return out[0], out[1]
+
+
+def _write(
+    bank: Bank,
+    frames: IntArray,
+    clip_start: IntArray,
+    mean: FloatArray,
+    proj: FloatArray,
+    centre_weight: float,
+    stem: Path,
+    key: str,
+) -> tuple[FloatArray, FloatArray]:
+    n, v = frames.size, bank.features.shape[1]
+    blocks: dict[str, Any] = {}
+    with (
+        npy_file(Path(f"{stem}-shape.npy"), np.float64, (n, v, proj.shape[1])) as shape,
+        npy_file(Path(f"{stem}-centre.npy"), np.float64, (n, v, 2)) as centre,
+    ):
+        window_tables(bank, frames, clip_start, mean, proj, centre_weight, out=(shape, centre))
+        blocks["shape"] = block_hashes(shape, _ROWS)
+        blocks["centre"] = block_hashes(centre, _ROWS)
+    m: dict[str, Any] = {
+        "format": "mimic-window-tables",
+        "version": TABLES_VERSION,
+        "key": key,
+        "bank": bank.checksum,
+        "blocks": blocks,
+    }
+    m["checksum"] = checksum(m, {})
+    with atomic_write(Path(f"{stem}.json")) as fh:
+        json.dump(m, fh, indent=1)
+    # (mapped as written: the next run checks them, ``open_mapped``)
+    return (
+        np.load(f"{stem}-shape.npy", mmap_mode="r", allow_pickle=False),
+        np.load(f"{stem}-centre.npy", mmap_mode="r", allow_pickle=False),
+    )
+
+
+def _prune(folder: Path) -> None:
+    """Remove all but the ``KEEP_TABLES`` most recently used table pairs of ``folder``."""
+    sets = []
+    for m in folder.glob("windows-*.json"):
+        with contextlib.suppress(OSError):
+            sets.append((m.stat().st_mtime_ns, m))
+    for _, m in sorted(sets, reverse=True)[KEEP_TABLES:]:
+        stem = str(m)[: -len(".json")]
+        with contextlib.suppress(OSError):
+            m.unlink()
+            for name in ("shape", "centre"):
+                Path(f"{stem}-{name}.npy").unlink(missing_ok=True)
