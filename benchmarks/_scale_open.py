@@ -60,7 +60,7 @@ def _tiled_bank(root: Path, n: int, folder: Path) -> None:
             feats = np.asarray(bank.features[: b - a])
             moves = np.asarray(bank.root_motion[: b - a])
             f[a:b] = desc.mirror(feats) if i % 2 else feats
-            r[a:b] = moves * np.float32([-1, 1]) if i % 2 else moves
+            r[a:b] = moves * np.array([-1, 1], dtype=np.float32) if i % 2 else moves
         blocks["features"] = block_hashes(f, rows)
         blocks["root_motion"] = block_hashes(r, rows)
     names, starts = [], []
@@ -126,7 +126,7 @@ def open_run(folder: Path, recording: Path) -> dict[str, Any]:
     index = cached_window_index(shape, centre, starts, length, folder, key=key)
     t = lap("index", t)
     src = VideoSource(recording, silhouette=True)
-    feats = []
+    feats: list[np.ndarray] = []
     while (fr := src.read()) is not None and len(feats) < length:
         if fr.index % 2 == 0:
             feats.append(

@@ -6,12 +6,13 @@ Usage: python -m benchmarks.bench_faults [LIBRARY_DIR] [--flips N] [--truncation
 
 For each artifact (a parsed-motion cache entry, a graph in the cache and given as a file,
 a higher layer, a bank's manifest.json, bank.npz and features.npy, the window index and
-the window tables (their manifest and a table) beside a bank, a .motion.npz), ``--flips`` single bytes flipped at random, ``--truncations`` random
-truncations and every consistent edit in ``tests/faults.py`` (a manifest's fps set to 30,
-sigma NaN, clip names swapped, a bank's n_views set to 9, the root moved 1 m, features of
-NaN, ...). The outcome of each: the same
-result, a rebuild with a warning naming the file, or an error naming the file; anything
-else (a traceback, other data used silently) is a failure, listed in full.
+the window tables (their manifest and a table) beside a bank, a .motion.npz),
+``--flips`` single bytes flipped at random, ``--truncations`` random truncations and
+every consistent edit in ``tests/faults.py`` (a manifest's fps set to 30, sigma NaN,
+clip names swapped, a bank's n_views set to 9, the root moved 1 m, features of NaN,
+...). The outcome of each: the same result, a rebuild with a warning naming the file,
+or an error naming the file; anything else (a traceback, other data used silently) is a
+failure, listed in full.
 """
 
 from __future__ import annotations

@@ -112,8 +112,8 @@ def _key(
     centre_weight: float,
 ) -> str:
     h = hashlib.sha256(f"{TABLES_VERSION}|{bank.checksum}|{float(centre_weight)!r}".encode())
-    for a in (frames, clip_start, mean, proj):
-        a = np.ascontiguousarray(a)
+    for table in (frames, clip_start, mean, proj):
+        a = np.ascontiguousarray(table)
         h.update(f"{a.dtype}{a.shape}".encode())
         h.update(a.tobytes())
     return h.hexdigest()
@@ -137,7 +137,7 @@ def cached_window_tables(
         return (*window_tables(bank, frames, clip_start, mean, proj, centre_weight), "")
     key = _key(bank, frames, clip_start, mean, proj, centre_weight)
     stem = folder / f"windows-{key[:24]}"
-    shapes = {
+    shapes: dict[str, tuple[int, ...]] = {
         "shape": (frames.size, bank.features.shape[1], proj.shape[1]),
         "centre": (frames.size, bank.features.shape[1], 2),
     }

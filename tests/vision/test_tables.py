@@ -50,6 +50,7 @@ def test_stored_tables_are_the_made_ones_and_are_mapped_next_time(
     assert key and isinstance(shape, np.memmap) and isinstance(centre, np.memmap)
     np.testing.assert_array_equal(shape, want[0])
     np.testing.assert_array_equal(centre, want[1])
+
     # next time they are mapped from the folder, not made
     def made(*_a, **_k):
         raise AssertionError("made again")
