@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from ..jobs import cluster_address, map_jobs
 from ..motion import FloatArray
 
 __all__ = [
@@ -163,21 +164,34 @@ def effective_bic(fit: Clustering, n: int, n_eff: float) -> float:
     return 2.0 * fit.log_likelihood * n_eff / n - fit.n_params * np.log(n_eff)
 
 
+def _fit_job(shared: tuple[FloatArray, str, int], k: int) -> Clustering:
+    """One cluster job: the mixture of ``k`` components (``select_by_bic``)."""
+    x, seeding, seed = shared
+    return fit_mixture(x, k, seeding=seeding, seed=seed)
+
+
 def select_by_bic(
     x: FloatArray,
     ks: Sequence[int],
     seeding: str = "keyframes",
     seed: int = 0,
     clip_start: NDArray[np.int64] | None = None,
+    cluster: str | None = None,
 ) -> tuple[Clustering, list[Clustering], dict[str, object]]:
     """Fit every ``k`` in ``ks``; return the best, all fits in order, and the curve.
+    The fits are made here, or as jobs (one a ``k``) on the Dask cluster that
+    ``cluster`` (or ``$MIMIC_CLUSTER``: ``control.jobs``) names.
 
     With ``clip_start`` the choice uses ``effective_bic`` (frames are not independent:
     plain BIC keeps rising with k on motion data); without, plain BIC as in the paper.
     The curve holds ``k``, ``bic``, ``bic_effective`` (or None), the log-likelihood and the
     decorrelation length.
     """
-    fits = [fit_mixture(x, k, seeding=seeding, seed=seed) for k in ks]
+    address = cluster_address(cluster)
+    if address is None:
+        fits = [fit_mixture(x, k, seeding=seeding, seed=seed) for k in ks]
+    else:  # one job a k, the states sent to each worker once
+        fits = map_jobs(_fit_job, list(ks), cluster=address, shared=(x, seeding, seed))
     n = x.shape[0]
     curve: dict[str, object] = {
         "k": [f.k for f in fits],

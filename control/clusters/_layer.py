@@ -94,8 +94,9 @@ def build_higher_layer(
     cluster: str | None = None,
 ) -> HigherLayer:
     """Cluster the graph's frames (``k`` clusters, or chosen by effective BIC over ``ks``)
-    and build the cluster forest with a ``bound_seconds`` time bound (its trees on
-    ``cluster``, or ``$MIMIC_CLUSTER``, where one is named: ``build_forest``)."""
+    and build the cluster forest with a ``bound_seconds`` time bound (the BIC search's
+    fits and the trees as jobs on ``cluster``, or ``$MIMIC_CLUSTER``, where one is named:
+    ``select_by_bic``, ``build_forest``)."""
     chosen = graph.clips_of(clips)
     feat = frame_features(chosen, graph.options.coords)
     x, q_hat = state_vectors(feat)
@@ -105,7 +106,7 @@ def build_higher_layer(
         curve: dict[str, Any] = {"k": [k], "bic": [best.bic], "chosen_k": k}
     else:
         best, fits, curve = select_by_bic(
-            x, ks, seeding=seeding, seed=seed, clip_start=feat.clip_start
+            x, ks, seeding=seeding, seed=seed, clip_start=feat.clip_start, cluster=cluster
         )
     forest = build_forest(graph, best.labels, bound_seconds, max_nodes, max_states, cluster)
     return HigherLayer(

@@ -89,6 +89,20 @@ def test_mixture_finds_known_clusters_and_bic_picks_three(rng: np.random.Generat
     assert best.bic == pytest.approx(2 * ll - best.n_params * np.log(600))
 
 
+def test_the_bic_search_on_a_two_worker_cluster_is_the_local_one(
+    rng: np.random.Generator,
+) -> None:
+    x, _ = _blobs(rng)
+    cs = np.array([0, 250, 600])
+    here = select_by_bic(x, [2, 3, 4, 5], clip_start=cs)
+    there = select_by_bic(x, [2, 3, 4, 5], clip_start=cs, cluster="local:2")
+    assert there[0].k == here[0].k and there[2] == here[2]
+    for a, b in zip(here[1], there[1], strict=True):
+        np.testing.assert_array_equal(a.labels, b.labels)
+        np.testing.assert_array_equal(a.means, b.means)
+        assert a.log_likelihood == b.log_likelihood and a.bic == b.bic
+
+
 def test_seeding_is_reproducible_and_from_real_frames(rng: np.random.Generator) -> None:
     x, _ = _blobs(rng)
     s1 = keyframe_seeds(x, 5, seed=3)
