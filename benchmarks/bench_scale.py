@@ -120,7 +120,8 @@ def _layer(root: Path, n: int) -> dict[str, Any]:
         "peak_rss_mb": round(_peak_mb(), 1),
         "rss_before_mb": round(before, 1),
         "clusters": layer.clustering.k,
-        "trees": len(layer.forest.trees),
+        "trees": layer.forest.report["trees"],
+        "lazy": layer.forest.report["lazy"],  # (trees built on first use: none here)
     }
 
 

@@ -191,6 +191,7 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
         f"library: {len(graph.clip_names)} clips, {graph.n_frames} frames "
         f"({int(graph.in_scc.sum())} reachable); graph coords {graph.options.coords}; "
         f"{layer.clustering.k} clusters ({'built' if layer_built else 'cached'}); "
+        f"{'cluster trees built on first use (a dense graph); ' if layer.forest.lazy else ''}"
         f"{time.perf_counter() - t0:.1f} s",
         file=sys.stderr,
     )

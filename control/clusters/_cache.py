@@ -22,7 +22,7 @@ import numpy as np
 from ..artifacts import atomic_write, bound_cache, checksum, read_npz, touch, verify_checksum
 from ..graph import MotionGraph, graph_cache_dir
 from ..motion import Clip
-from ._forest import ClusterForest, ClusterTree
+from ._forest import ClusterForest, ClusterTree, lazy_forest
 from ._gmm import Clustering
 from ._layer import DEFAULT_KS, HigherLayer, build_higher_layer
 from ._paths import transition_log_probs
@@ -67,8 +67,10 @@ def save_layer(layer: HigherLayer, path: str | Path, key: str = "") -> Path:
     """Write ``layer`` to ``path`` (``.npz``) atomically."""
     path = Path(path)
     c = layer.clustering
-    trees = layer.forest.trees
+    trees = layer.forest.trees  # (none for a lazy forest: its roots are stored)
+    lazy = layer.forest.lazy
     sizes = np.array([t.size for t in trees], dtype=np.int64)
+    roots = lazy.roots if lazy is not None else [t.root_frame for t in trees]
     manifest = {
         "format": "mimic-layer",
         "version": LAYER_VERSION,
@@ -81,13 +83,14 @@ def save_layer(layer: HigherLayer, path: str | Path, key: str = "") -> Path:
         "curve": layer.curve,
         "bound": layer.forest.bound,
         "report": layer.forest.report,
+        "lazy": lazy is not None,
     }
     arrays: dict[str, np.ndarray] = {
         "states": layer.states,
         "q_hat": layer.q_hat,
         "tree_of": layer.forest.tree_of,
         **{f"c_{name}": getattr(c, name) for name in _CLUSTERING},
-        "t_root_frame": np.array([t.root_frame for t in trees], dtype=np.int64),
+        "t_root_frame": np.array(roots, dtype=np.int64),
         "t_parent": np.concatenate([t.parent for t in trees]) if trees else np.zeros(0, int),
         "t_cluster": np.concatenate([t.cluster for t in trees]) if trees else np.zeros(0, int),
         "t_arrival": np.concatenate([t.arrival for t in trees]) if trees else np.zeros(0, int),
@@ -127,9 +130,10 @@ def load_layer(path: str | Path, graph: MotionGraph) -> HigherLayer:
     verify_checksum(manifest, a, path, LayerFileError)
     if manifest.get("graph") != graph_digest(graph):
         raise LayerFileError(path, "built on another graph")
-    _check_arrays(a, graph.n_frames, path)
+    lazy = manifest.get("lazy") is True
+    _check_arrays(a, graph.n_frames, path, lazy)
     off = a["t_offset"].astype(np.int64)
-    n_trees = a["t_root_frame"].size
+    n_trees = 0 if lazy else a["t_root_frame"].size
     labels = a["c_labels"].astype(np.int64)
     trees = tuple(
         ClusterTree(
@@ -154,12 +158,17 @@ def load_layer(path: str | Path, graph: MotionGraph) -> HigherLayer:
         seeding=str(manifest["seeding"]),
         seeds=a["c_seeds"].astype(np.int64),
     )
-    forest = ClusterForest(
-        trees,
-        a["tree_of"].astype(np.int64),
-        int(manifest["bound"]),
-        dict(manifest.get("report", {})),
-    )
+    report = dict(manifest.get("report", {}))
+    if lazy:
+        try:
+            caps = int(report["max_nodes"]), int(report["max_states"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise LayerFileError(path, f"a lazy forest without its caps ({exc!r})") from None
+        roots, tree_of = a["t_root_frame"].astype(np.int64), a["tree_of"].astype(np.int64)
+        bound = int(manifest["bound"])
+        forest = lazy_forest(graph, labels, roots, tree_of, bound, *caps, report)
+    else:
+        forest = ClusterForest(trees, a["tree_of"].astype(np.int64), int(manifest["bound"]), report)
     return HigherLayer(
         graph,
         a["states"].astype(np.float64),
@@ -172,24 +181,27 @@ def load_layer(path: str | Path, graph: MotionGraph) -> HigherLayer:
     )
 
 
-def _check_arrays(a: dict[str, np.ndarray], n: int, path: Path) -> None:
-    """``LayerFileError`` unless the arrays fit one another and a graph of ``n`` frames."""
+def _check_arrays(a: dict[str, np.ndarray], n: int, path: Path, lazy: bool) -> None:
+    """``LayerFileError`` unless the arrays fit one another and a graph of ``n`` frames
+    (a lazy forest's: its roots, and no tree)."""
     off = a["t_offset"].astype(np.int64)
     n_trees = a["t_root_frame"].size
     labels = a["c_labels"].astype(np.int64)
+    built = 0 if lazy else n_trees
     try:
         ok = (
             labels.shape == (n,)
             and a["c_posterior"].shape == (n,)
             and a["states"].shape[0] == n
             and a["tree_of"].shape == (n,)
-            and off.shape == (n_trees + 1,)
+            and off.shape == (built + 1,)
             and off[0] == 0
             and bool(np.all(np.diff(off) >= 1))
             and off[-1] == a["t_parent"].size == a["t_cluster"].size == a["t_arrival"].size
-            and a["t_truncated"].shape == a["t_horizon"].shape == (n_trees,)
+            and a["t_truncated"].shape == a["t_horizon"].shape == (built,)
             and int(a["tree_of"].max(initial=-1)) < n_trees
             and int(a["t_root_frame"].max(initial=0)) < n
+            and int(a["t_root_frame"].min(initial=0)) >= 0
             and labels.min(initial=0) >= 0
             and labels.max(initial=0) < a["c_means"].shape[0]
             and all(np.isfinite(a[k]).all() for k in ("states", "c_posterior", "c_means"))

@@ -14,11 +14,19 @@ holds the nearest behaviours); capped trees are counted in the report.
 
 Frames with a single exit (playback only) share the tree of the first branching frame
 they play into, as in the paper.
+
+A tree per branching frame does not scale to dense graphs: in relative coordinates the
+synthetic 50k-frame library has 240,782 transitions and 34,103 branching frames, and its
+2 s trees take 254 ms each (about 2.4 hours on one core, for trees of which a ``perform``
+visits a few hundred). So when a sample of trees projects the whole forest past
+``LAZY_SECONDS``, the forest is *lazy*: a tree is built the first time it is asked for
+(``ClusterForest.tree``) and kept; the trees are the ones an eager build makes.
 """
 
 from __future__ import annotations
 
 import os
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -33,7 +41,7 @@ from numpy.typing import NDArray
 from ..graph import MotionGraph
 from ..jobs import cluster_address, map_jobs
 
-__all__ = ["ClusterForest", "ClusterTree", "build_forest"]
+__all__ = ["LAZY_SECONDS", "ClusterForest", "ClusterTree", "LazyTrees", "build_forest"]
 
 IntArray = NDArray[np.int64]
 
@@ -94,21 +102,50 @@ class ClusterTree:
         return self.cluster[self.path_to(node)]
 
 
+class LazyTrees:
+    """The trees of a lazy forest, each built the first time it is asked for and kept
+    (thread-safe: the matcher's background search may ask too)."""
+
+    def __init__(self, roots: IntArray, shared: tuple[Any, ...]) -> None:
+        #: the branching frame of each tree
+        self.roots = roots
+        self.shared = shared
+        self.built: dict[int, ClusterTree] = {}
+        self._lock = threading.Lock()
+
+    def __len__(self) -> int:
+        return int(self.roots.size)
+
+    def __getitem__(self, t: int) -> ClusterTree:
+        tree = self.built.get(t)
+        if tree is None:
+            tree = _build_tree(int(self.roots[t]), *self.shared)
+            with self._lock:
+                tree = self.built.setdefault(t, tree)
+        return tree
+
+
 @dataclass(frozen=True, eq=False)
 class ClusterForest:
     """Trees for the branching frames; ``tree_of[f]`` indexes ``trees`` (-1: no tree,
-    for frames outside the graph's strongly connected component)."""
+    for frames outside the graph's strongly connected component). A lazy forest's
+    ``trees`` is empty: ``lazy`` builds them as ``tree`` asks for them."""
 
     trees: tuple[ClusterTree, ...]
     tree_of: IntArray
     bound: int
     report: dict[str, Any] = field(default_factory=dict)
+    lazy: LazyTrees | None = None
 
     def tree(self, frame: int) -> ClusterTree:
         t = int(self.tree_of[frame])
         if t < 0:
             raise ValueError(f"frame {frame} is outside the graph's component: no tree")
-        return self.trees[t]
+        return self.lazy[t] if self.lazy is not None else self.trees[t]
+
+    @property
+    def n_trees(self) -> int:
+        return len(self.lazy) if self.lazy is not None else len(self.trees)
 
 
 class _Runs:
@@ -120,14 +157,11 @@ class _Runs:
         self.branch = (indptr[1:] - indptr[:-1]) > 0
         self.plays = graph.plays_on()
         # next_event[f]: first g >= f that is a branch, cannot play on, or whose
-        # successor changes cluster; found by a backward sweep.
-        nxt = np.empty(n, dtype=np.int64)
-        following = n  # sentinel
-        for f in range(n - 1, -1, -1):
-            stop = self.branch[f] or not self.plays[f] or labels[f + 1] != labels[f]
-            following = f if stop else following
-            nxt[f] = following
-        self.next_event = nxt
+        # successor changes cluster (a backward running minimum)
+        stop = self.branch | ~self.plays
+        stop[:-1] |= labels[1:] != labels[:-1]
+        at = np.where(stop, np.arange(n, dtype=np.int64), n)
+        self.next_event = np.minimum.accumulate(at[::-1])[::-1].copy()
 
 
 #: a search state (time, frame, node) packed into one int64 that orders as the tuple
@@ -296,6 +330,13 @@ def _trees_job(shared: tuple[Any, ...], roots: list[int]) -> list[ClusterTree]:
     return [_build_tree(f, *shared) for f in roots]
 
 
+#: a forest projected (from a sample of its trees) to take longer than this, in seconds
+#: on this machine's threads, is built lazily (``LazyTrees``)
+LAZY_SECONDS = 120.0
+#: trees timed to project the forest's build time
+_SAMPLE = 48
+
+
 def build_forest(
     graph: MotionGraph,
     labels: IntArray,
@@ -303,10 +344,13 @@ def build_forest(
     max_nodes: int = 4096,
     max_states: int = 200_000,
     cluster: str | None = None,
+    lazy: bool | None = None,
 ) -> ClusterForest:
     """Cluster trees for every branching frame of ``graph`` with frame clusters ``labels``:
     by threads here, or as jobs on a Dask cluster when ``cluster`` (or
-    ``$MIMIC_CLUSTER``: ``control.jobs``) names one (the same trees, in the same order)."""
+    ``$MIMIC_CLUSTER``: ``control.jobs``) names one (the same trees, in the same order).
+    ``lazy``: each tree built when first asked for (``None``: when a sample of trees
+    projects the whole build past ``LAZY_SECONDS``; never on a cluster)."""
     labels = np.asarray(labels, dtype=np.int64)
     if labels.shape != (graph.n_frames,):
         raise ValueError(f"labels must have one cluster per graph frame ({graph.n_frames})")
@@ -320,15 +364,24 @@ def build_forest(
     t0 = time.perf_counter()
     bound = max(1, round(bound_seconds * graph.fps))
     runs = _Runs(graph, labels)
-    indptr = graph.indptr
-    in_scc = graph.in_scc
-    branching = np.flatnonzero(runs.branch & in_scc)
+    branching = np.flatnonzero(runs.branch & graph.in_scc)
     n_clusters = int(labels.max()) + 1
     dst = np.ascontiguousarray(graph.dst, dtype=np.int64)
-
-    shared = (labels, runs, indptr, dst, bound, max_nodes, n_clusters, max_states)
+    shared = (labels, runs, graph.indptr, dst, bound, max_nodes, n_clusters, max_states)
     address = cluster_address(cluster)
-    if address is not None:
+    threads = min(4, os.cpu_count() or 1)
+    sample: list[ClusterTree] = []
+    if lazy is None and address is None and branching.size > _SAMPLE:
+        picked = np.random.default_rng(0).choice(branching, _SAMPLE, replace=False)
+        t = time.perf_counter()
+        sample = [_build_tree(int(f), *shared) for f in picked]
+        per_tree = (time.perf_counter() - t) / _SAMPLE
+        lazy = per_tree * branching.size / threads > LAZY_SECONDS
+    forest_of: LazyTrees | None = None
+    trees: list[ClusterTree] = []
+    if lazy and address is None:
+        forest_of = LazyTrees(branching, shared)
+    elif address is not None:
         roots = [int(f) for f in branching]
         jobs = [roots[i : i + _TREES_PER_JOB] for i in range(0, len(roots), _TREES_PER_JOB)]
         done = map_jobs(_trees_job, jobs, cluster=address, shared=shared)
@@ -339,20 +392,56 @@ def build_forest(
             return _build_tree(f, *shared)
 
         # the kernel releases the GIL: threads build trees in parallel
-        with ThreadPoolExecutor(max_workers=min(4, os.cpu_count() or 1)) as pool:
+        with ThreadPoolExecutor(max_workers=threads) as pool:
             trees = list(pool.map(one, (int(f) for f in branching)))
     tree_of = np.full(graph.n_frames, -1, dtype=np.int64)
     tree_of[branching] = np.arange(branching.size)
     # single-exit frames: the tree of the first branching frame they play into
     for f in range(graph.n_frames - 1, -1, -1):
-        if in_scc[f] and tree_of[f] < 0 and runs.plays[f]:
+        if graph.in_scc[f] and tree_of[f] < 0 and runs.plays[f]:
             tree_of[f] = tree_of[f + 1]
+    report = _report(trees or sample, graph, tree_of, bound, max_nodes, max_states)
+    # (a lazy forest's figures are its sample's)
+    lazy_now = forest_of is not None
+    report.update(trees=int(branching.size), lazy=lazy_now, sampled=len(sample) if lazy_now else 0)
+    report["seconds"] = round(time.perf_counter() - t0, 3)
+    return ClusterForest(tuple(trees), tree_of, bound, report, forest_of)
+
+
+def lazy_forest(
+    graph: MotionGraph,
+    labels: IntArray,
+    roots: IntArray,
+    tree_of: IntArray,
+    bound: int,
+    max_nodes: int,
+    max_states: int,
+    report: dict[str, Any],
+) -> ClusterForest:
+    """A lazy forest of ``graph`` again (as ``build_forest`` made it, read from a file):
+    the trees of the branching frames ``roots``, built when asked for."""
+    labels = np.asarray(labels, dtype=np.int64)
+    runs = _Runs(graph, labels)
+    dst = np.ascontiguousarray(graph.dst, dtype=np.int64)
+    n_clusters = int(labels.max()) + 1
+    shared = (labels, runs, graph.indptr, dst, bound, max_nodes, n_clusters, max_states)
+    return ClusterForest((), tree_of, bound, report, LazyTrees(roots, shared))
+
+
+def _report(
+    trees: list[ClusterTree],
+    graph: MotionGraph,
+    tree_of: IntArray,
+    bound: int,
+    max_nodes: int,
+    max_states: int,
+) -> dict[str, Any]:
+    """The forest's report over ``trees`` (all of them; a lazy forest's: a sample)."""
     sizes = np.array([t.size for t in trees]) if trees else np.zeros(1, dtype=np.int64)
     leaves = np.array([t.leaves().size for t in trees]) if trees else np.zeros(1, dtype=np.int64)
-    report = {
-        "trees": len(trees),
+    return {
         "frames_with_tree": int((tree_of >= 0).sum()),
-        "frames_in_component": int(in_scc.sum()),
+        "frames_in_component": int(graph.in_scc.sum()),
         "bound_frames": bound,
         "nodes": {
             "mean": float(sizes.mean()),
@@ -368,6 +457,4 @@ def build_forest(
         },
         "max_nodes": max_nodes,
         "max_states": max_states,
-        "seconds": round(time.perf_counter() - t0, 3),
     }
-    return ClusterForest(tuple(trees), tree_of, bound, report)

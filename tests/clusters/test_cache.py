@@ -69,3 +69,32 @@ def test_a_damaged_or_foreign_layer_is_rebuilt_with_a_warning(
     path.write_text("not a zip")
     with pytest.raises(LayerFileError, match=str(path)):
         load_layer(path, graph)
+
+
+def test_a_lazy_layer_builds_the_eager_trees_before_and_after_the_cache(
+    graph, walk_lib, tmp_path, monkeypatch
+) -> None:
+    from control.clusters import _forest
+
+    eager, _, _ = cached_higher_layer(graph, walk_lib.clips, k=4, cache_dir=tmp_path, **SMALL)
+    assert not eager.forest.report["lazy"] and eager.forest.lazy is None
+    # a forest projected past LAZY_SECONDS (here: any) is lazy
+    monkeypatch.setattr(_forest, "LAZY_SECONDS", 0.0)
+    monkeypatch.setattr(_forest, "_SAMPLE", 4)
+    lazy, _, built = cached_higher_layer(
+        graph, walk_lib.clips, k=4, cache_dir=tmp_path / "lazy", **SMALL
+    )
+    assert built and lazy.forest.report["lazy"] and lazy.forest.report["sampled"] == 4
+    assert lazy.forest.trees == () and lazy.forest.n_trees == eager.forest.n_trees
+    again, _, built_again = cached_higher_layer(
+        graph, walk_lib.clips, k=4, cache_dir=tmp_path / "lazy", **SMALL
+    )
+    assert not built_again and again.forest.lazy is not None and not again.forest.lazy.built
+    np.testing.assert_array_equal(again.forest.tree_of, eager.forest.tree_of)
+    for forest in (lazy.forest, again.forest):
+        for f in np.flatnonzero(eager.forest.tree_of >= 0):
+            a, b = forest.tree(int(f)), eager.forest.tree(int(f))
+            assert a.root_frame == b.root_frame and a.truncated == b.truncated
+            for name in ("parent", "cluster", "arrival"):
+                np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+        assert len(forest.lazy.built) == eager.forest.n_trees  # each built once, then kept
