@@ -140,8 +140,12 @@ def _client(address: str) -> Iterator[Any]:
         if n < 1:
             raise ClusterError(f"cluster {address!r}: local:N needs a number of workers N >= 1")
         with (
-            LocalCluster(
-                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None
+            LocalCluster(  # (its dashboard on a free port: None would take 8787, which
+                # another cluster on this machine may hold)
+                n_workers=n,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=":0",
             ) as local,
             Client(local) as client,
         ):

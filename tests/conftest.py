@@ -36,6 +36,19 @@ def mocap() -> Path:
     return MOCAP
 
 
+@pytest.fixture(scope="session")
+def dask_cluster(_private_cache: None) -> Iterator[str]:
+    """The address of a local Dask cluster of two worker processes, started once for the
+    tests that build on a cluster (as a user's ``dask scheduler`` + two ``dask worker``
+    would serve them; ``local:N``'s own start and stop is tested apart)."""
+    from distributed import LocalCluster
+
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
+    ) as cluster:
+        yield str(cluster.scheduler_address)
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20021122)

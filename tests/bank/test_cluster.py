@@ -22,7 +22,7 @@ from tests.bank.conftest import SMALL
 
 
 def test_a_bank_built_on_a_two_worker_cluster_is_the_local_build(
-    lib: Library, tmp_path: Path
+    lib: Library, tmp_path: Path, dask_cluster: str
 ) -> None:
     here = build_bank(lib.clips, SMALL, tmp_path / "here", shard_frames=20, workers=1)
     done: list[int] = []
@@ -31,7 +31,7 @@ def test_a_bank_built_on_a_two_worker_cluster_is_the_local_build(
         SMALL,
         tmp_path / "there",
         shard_frames=20,
-        cluster="local:2",
+        cluster=dask_cluster,
         progress=lambda d, t: done.append(d),
     )
     assert done[-1] == 6 and sorted(done) == done  # 103 frames in shards of 20

@@ -81,7 +81,7 @@ def test_caps_truncate_and_say_so() -> None:
 
 
 def test_trees_built_on_a_two_worker_cluster_are_the_local_ones(
-    monkeypatch: pytest.MonkeyPatch,
+    monkeypatch: pytest.MonkeyPatch, dask_cluster: str
 ) -> None:
     from control.clusters import _forest
 
@@ -90,7 +90,7 @@ def test_trees_built_on_a_two_worker_cluster_are_the_local_ones(
     labels = rng.integers(0, 4, g.n_frames)
     here = build_forest(g, labels, bound_seconds=9 / g.fps)
     monkeypatch.setattr(_forest, "_TREES_PER_JOB", 3)  # several jobs
-    there = build_forest(g, labels, bound_seconds=9 / g.fps, cluster="local:2")
+    there = build_forest(g, labels, bound_seconds=9 / g.fps, cluster=dask_cluster)
     assert len(here.trees) > 6 and len(there.trees) == len(here.trees)
     np.testing.assert_array_equal(there.tree_of, here.tree_of)
     for a, b in zip(here.trees, there.trees, strict=True):

@@ -90,12 +90,12 @@ def test_mixture_finds_known_clusters_and_bic_picks_three(rng: np.random.Generat
 
 
 def test_the_bic_search_on_a_two_worker_cluster_is_the_local_one(
-    rng: np.random.Generator,
+    rng: np.random.Generator, dask_cluster: str
 ) -> None:
     x, _ = _blobs(rng)
     cs = np.array([0, 250, 600])
     here = select_by_bic(x, [2, 3, 4, 5], clip_start=cs)
-    there = select_by_bic(x, [2, 3, 4, 5], clip_start=cs, cluster="local:2")
+    there = select_by_bic(x, [2, 3, 4, 5], clip_start=cs, cluster=dask_cluster)
     assert there[0].k == here[0].k and there[2] == here[2]
     for a, b in zip(here[1], there[1], strict=True):
         np.testing.assert_array_equal(a.labels, b.labels)

@@ -83,7 +83,7 @@ def test_blocks_and_chunks_give_the_same_graph(
 
 
 def test_a_graph_built_on_a_two_worker_cluster_is_the_local_build(
-    medium_lib: Library, monkeypatch: pytest.MonkeyPatch
+    medium_lib: Library, monkeypatch: pytest.MonkeyPatch, dask_cluster: str
 ) -> None:
     """The likely pairs searched and measured as jobs on a local Dask cluster of two
     workers (blocks of rows, the frame features sent once) give the local graph."""
@@ -100,7 +100,7 @@ def test_a_graph_built_on_a_two_worker_cluster_is_the_local_build(
 
     monkeypatch.setattr(_pairs, "_JOB_ELEMS", medium_lib.n_frames * 50)  # many small jobs
     monkeypatch.setattr(_pairs, "map_jobs", counted)
-    there = build_graph(medium_lib.clips, options, cluster="local:2")
+    there = build_graph(medium_lib.clips, options, cluster=dask_cluster)
     assert jobs and jobs[0] > 10
     for name in ("src", "dst", "dist", "align", "in_scc"):
         assert np.array_equal(getattr(here, name), getattr(there, name)), name
