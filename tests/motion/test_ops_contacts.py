@@ -139,3 +139,17 @@ def test_quats_are_local_relative_rotations(walk: Motion) -> None:
     p = walk.skeleton.parents[j]
     rel = qmul(qconj(pose.orientations[:, p]), pose.orientations[:, j])
     assert np.allclose(qlog(qmul(qconj(rel), walk.quats[:, j])), 0, atol=1e-9)
+
+
+def test_the_kinematics_kernel_is_the_numpy_reference_bit_for_bit(
+    walk: Motion, rng: np.random.Generator
+) -> None:
+    from control.motion._fk import _fk, _fk_numpy
+
+    # a real clip, and random rotations (every joint turning, none of them unit-length)
+    quats = rng.normal(size=walk.quats.shape)
+    for q in (walk.quats, quats):
+        got = _fk(walk.skeleton, walk.root_pos, q)
+        want = _fk_numpy(walk.skeleton, walk.root_pos, q)
+        for a, b in zip(got, want, strict=True):
+            assert a.shape == b.shape and np.array_equal(a, b)
