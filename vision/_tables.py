@@ -23,7 +23,6 @@ per bank (the least recently used go first).
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import logging
 import os
@@ -111,12 +110,13 @@ def _key(
     proj: FloatArray,
     centre_weight: float,
 ) -> str:
-    h = hashlib.sha256(f"{TABLES_VERSION}|{bank.checksum}|{float(centre_weight)!r}".encode())
-    for table in (frames, clip_start, mean, proj):
-        a = np.ascontiguousarray(table)
-        h.update(f"{a.dtype}{a.shape}".encode())
-        h.update(a.tobytes())
-    return h.hexdigest()
+    made_of = {
+        "version": TABLES_VERSION,
+        "bank": bank.checksum,
+        "centre_weight": float(centre_weight),
+    }
+    arrays = {"frames": frames, "clip_start": clip_start, "mean": mean, "proj": proj}
+    return checksum(made_of, arrays)
 
 
 def cached_window_tables(

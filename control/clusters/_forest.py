@@ -363,24 +363,24 @@ def build_forest(
         raise ValueError("trees of over 2^19 frames, or graphs of over 2^28, are not built")
     t0 = time.perf_counter()
     bound = max(1, round(bound_seconds * graph.fps))
-    runs = _Runs(graph, labels)
+    runs, shared = _tree_args(graph, labels, bound, max_nodes, max_states)
     branching = np.flatnonzero(runs.branch & graph.in_scc)
-    n_clusters = int(labels.max()) + 1
-    dst = np.ascontiguousarray(graph.dst, dtype=np.int64)
-    shared = (labels, runs, graph.indptr, dst, bound, max_nodes, n_clusters, max_states)
     address = cluster_address(cluster)
     threads = min(4, os.cpu_count() or 1)
-    sample: list[ClusterTree] = []
+    sampled: dict[int, ClusterTree] = {}  # (kept: the build below does not make them again)
     if lazy is None and address is None and branching.size > _SAMPLE:
         picked = np.random.default_rng(0).choice(branching, _SAMPLE, replace=False)
         t = time.perf_counter()
-        sample = [_build_tree(int(f), *shared) for f in picked]
+        sampled = {int(f): _build_tree(int(f), *shared) for f in picked}
         per_tree = (time.perf_counter() - t) / _SAMPLE
         lazy = per_tree * branching.size / threads > LAZY_SECONDS
+    sample = list(sampled.values())
     forest_of: LazyTrees | None = None
     trees: list[ClusterTree] = []
     if lazy and address is None:
         forest_of = LazyTrees(branching, shared)
+        for f, tree in sampled.items():
+            forest_of.built[int(np.searchsorted(branching, f))] = tree
     elif address is not None:
         roots = [int(f) for f in branching]
         jobs = [roots[i : i + _TREES_PER_JOB] for i in range(0, len(roots), _TREES_PER_JOB)]
@@ -389,7 +389,8 @@ def build_forest(
     else:
 
         def one(f: int) -> ClusterTree:
-            return _build_tree(f, *shared)
+            tree = sampled.get(f)
+            return tree if tree is not None else _build_tree(f, *shared)
 
         # the kernel releases the GIL: threads build trees in parallel
         with ThreadPoolExecutor(max_workers=threads) as pool:
@@ -420,12 +421,19 @@ def lazy_forest(
 ) -> ClusterForest:
     """A lazy forest of ``graph`` again (as ``build_forest`` made it, read from a file):
     the trees of the branching frames ``roots``, built when asked for."""
-    labels = np.asarray(labels, dtype=np.int64)
+    _, shared = _tree_args(graph, np.asarray(labels, dtype=np.int64), bound, max_nodes, max_states)
+    return ClusterForest((), tree_of, bound, report, LazyTrees(roots, shared))
+
+
+def _tree_args(
+    graph: MotionGraph, labels: IntArray, bound: int, max_nodes: int, max_states: int
+) -> tuple[_Runs, tuple[Any, ...]]:
+    """The playback shortcuts and the arguments every tree of the forest is built with
+    after its root (``_build_tree``)."""
     runs = _Runs(graph, labels)
     dst = np.ascontiguousarray(graph.dst, dtype=np.int64)
     n_clusters = int(labels.max()) + 1
-    shared = (labels, runs, graph.indptr, dst, bound, max_nodes, n_clusters, max_states)
-    return ClusterForest((), tree_of, bound, report, LazyTrees(roots, shared))
+    return runs, (labels, runs, graph.indptr, dst, bound, max_nodes, n_clusters, max_states)
 
 
 def _report(
