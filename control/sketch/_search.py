@@ -4,13 +4,12 @@ search in the lower layer for a path of ``step_frames`` frames, committed."""
 from __future__ import annotations
 
 import heapq
+import math
 import time
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-
-from ..graph import compose
 
 if TYPE_CHECKING:
     from ._track import SketchTracker
@@ -26,7 +25,6 @@ def search_step(tr: SketchTracker) -> int:
     the number of frames added (0: every way on collides)."""
     t0 = time.perf_counter()
     s = tr.settings
-    g = tr.graph
     x, z, a = tr.position()
     first, goal0 = tr._score(x, z, a, tr.goal)
     tr.goal = goal0  # goals within reach where the avatar stands (a grown sketch)
@@ -50,20 +48,7 @@ def search_step(tr: SketchTracker) -> int:
             continue
         deepest = max(deepest, (depth, -score, i))
         expanded += 1
-        succ: list[tuple[int, int]] = []
-        if tr._plays[f] and g.in_scc[f + 1]:
-            succ.append((f + 1, -1))
-        for e in range(tr._indptr[f], tr._indptr[f + 1]):
-            succ.append((int(g.dst[e]), e))
-        for h, e in succ:
-            if e >= 0:
-                al = tr._align[e]
-                yaw2, trans2 = compose(yaw, trans, float(al[0]), al[1:])
-            else:
-                yaw2, trans2 = yaw, trans
-            x2, z2, a2 = tr._ground(h, yaw2, trans2)
-            if tr.env is not None and tr.env.clearance(np.array([[x2, z2]]))[0] < s.body_radius:
-                continue
+        for h, e, yaw2, trans2, x2, z2, a2 in _successors(tr, f, yaw, trans):
             if tr.blocks is not None and not tr.blocks.fits(h, yaw2, trans2):
                 continue
             score, goal2 = tr._score(x2, z2, a2, goal)
@@ -92,3 +77,60 @@ def search_step(tr: SketchTracker) -> int:
     last = nodes[found]
     tr._yaw, tr._trans, tr.goal = last[1], last[2], last[6]
     return len(chain)
+
+
+class SearchTable:
+    """What the search reads of each frame, as Python numbers (the search opens hundreds
+    of thousands of nodes, one to a few successors each: numbers, not small arrays):
+    per frame its root ``(x, y, z)``, heading, and the ways on ``(frame, edge (-1: plays
+    on), alignment yaw, alignment x, y, z)``."""
+
+    def __init__(self, tr: SketchTracker) -> None:
+        g = tr.graph
+        self.root: list[list[float]] = tr._root.tolist()
+        self.heading: list[float] = tr._heading.tolist()
+        dst, align, indptr = g.dst.tolist(), tr._align.tolist(), tr._indptr.tolist()
+        on = [*(tr._plays[:-1] & g.in_scc[1:]).tolist(), False]
+        self.ways: list[list[tuple[int, int, float, float, float, float]]] = []
+        for f in range(len(self.root)):
+            ways = [(f + 1, -1, 0.0, 0.0, 0.0, 0.0)] if on[f] else []
+            for e in range(indptr[f], indptr[f + 1]):
+                a = align[e]
+                ways.append((dst[e], e, a[0], a[1], a[2], a[3]))
+            self.ways.append(ways)
+
+
+def _successors(
+    tr: SketchTracker, f: int, yaw: float, trans: FloatArray
+) -> list[tuple[int, int, float, FloatArray, float, float, float]]:
+    """The frames the avatar can go on to from frame ``f`` placed by ``(yaw, trans)``:
+    ``(frame, edge (-1: plays on), yaw, trans, x, z, facing)`` each, those whose root
+    stands closer than the body's radius to an obstacle left out. The maps compose as
+    ``control.graph.compose`` does and the roots are placed as ``SketchTracker._ground``
+    does, in the same floating-point operations."""
+    table = tr._search_table
+    if table is None:
+        table = tr._search_table = SearchTable(tr)
+    ways = table.ways[f]
+    if not ways:
+        return []
+    c, s = math.cos(yaw), math.sin(yaw)
+    tx, ty, tz = trans.tolist()
+    out = []
+    for h, e, ayaw, ax, ay, az in ways:
+        if e < 0:
+            yaw2, trans2 = yaw, trans
+        else:
+            yaw2 = yaw + ayaw
+            trans2 = np.array((c * ax + s * az + tx, ay + ty, -s * ax + c * az + tz))
+        rx, _ry, rz = table.root[h]
+        c2, s2 = math.cos(yaw2), math.sin(yaw2)
+        mx, _, mz = trans2.tolist()
+        x2 = c2 * rx + s2 * rz + mx
+        z2 = -s2 * rx + c2 * rz + mz
+        out.append((h, e, yaw2, trans2, x2, z2, yaw2 + table.heading[h]))
+    if tr.env is not None:
+        xz = np.array([(o[4], o[5]) for o in out])
+        keep = tr.env.clearance(xz) >= tr.settings.body_radius
+        out = [o for o, k in zip(out, keep.tolist(), strict=True) if k]
+    return out

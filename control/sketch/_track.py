@@ -52,7 +52,7 @@ from ._actions import ActionPlanner
 from ._blocks import BlockFit
 from ._files import Environment
 from ._ground import SketchSettings, ground_path, path_deviation, resample_polyline, start_map
-from ._search import search_step
+from ._search import SearchTable, search_step
 
 __all__ = ["SketchTracker"]
 
@@ -101,6 +101,7 @@ class SketchTracker:
         self._plays = graph.plays_on()
         self._indptr = graph.indptr
         self._align = graph.align.astype(np.float64)
+        self._search_table: SearchTable | None = None  # made by the search's first step
         self.sketch = np.asarray(sketch, dtype=np.float64).reshape(-1, 2)
         self.goals = np.zeros((0, 2))
         self._ahead = np.zeros(0)
