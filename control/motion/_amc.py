@@ -1,8 +1,9 @@
 """Acclaim AMC motion reader, for a skeleton read by ``_asf.read_asf``.
 
-A fast vectorised parse handles regular files (every frame lists the same bones in the
-same order, one value per dof); anything irregular is re-read line by line, which either
-accepts it or says exactly where it is wrong.
+A one-pass numba scan (``_amc_scan``) reads strictly regular files, the vectorised parse
+here regular ones (every frame lists the same bones in the same order, one value per
+dof); anything irregular is re-read line by line, which either accepts it or says
+exactly where it is wrong.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._amc_scan import scan_amc
 from ._asf import ROT_DOFS, TRANS_DOFS, AsfSkeleton
 from ._errors import MotionFormatError
 from ._quat import FloatArray, euler_to_q, qconj, qmul
@@ -51,7 +53,9 @@ def read_amc(
     header_lines, body_start = _amc_header(text)
     body = text[body_start:]
     moving = [j for j, d in enumerate(asf.dofs) if d]
-    values = _amc_fast(body, asf, moving)
+    values = scan_amc(body, asf, moving)
+    if values is None:
+        values = _amc_fast(body, asf, moving)
     if values is None:
         values = _amc_slow(path, body, header_lines, asf, moving)
     if values.shape[0] == 0:

@@ -224,3 +224,66 @@ def test_radians_and_other_units(tmp_path: Path) -> None:
     # :units length 0.5 makes every length twice as long (1 / 0.5 inches a unit).
     half = read_asf(_write(tmp_path, "h.asf", TINY_ASF.replace("length 1.0", "length 0.5")))
     assert half.metres_per_unit == pytest.approx(2 * INCH)
+
+
+# --- the one-pass AMC scan (control/motion/_amc_scan.py) ----------------------------------
+
+
+def _tiny_asf(tmp_path: Path):  # type: ignore[no-untyped-def]
+    return read_asf(_write(tmp_path, "tiny.asf", TINY_ASF))
+
+
+def test_the_scan_reads_numbers_as_float_does(tmp_path: Path) -> None:
+    """Every way a number is written (Clinger's exact cases, and those handed back to
+    float(): long mantissas, powers of ten past 1e22, subnormals), bit for bit."""
+    from control.motion._amc_scan import scan_amc
+
+    rng = np.random.default_rng(7)
+    values = np.concatenate(
+        (rng.normal(0, 100, 300), rng.normal(0, 1e-15, 100), 10.0 ** rng.uniform(-30, 8, 200))
+    )
+    formats = ["%.6g", "%.17g", "%e", "%.3f", "%.10E", "%+.4f", "%.25f", "%.20e"]
+    tokens = [f % v for v in values for f in formats]
+    tokens += ["-0", "0.", ".5", "-.25", "1e22", "9007199254740993", "123456789012345678901"]
+    tokens += ["4.9e-324", "2.2250738585072014e-308", "1.7976931348623157e308", "+7", "0e0"]
+    tokens = [t for t in tokens if abs(float(t)) <= 1e9]  # the readers' plausible range
+    body = "".join(f"{i + 1}\nroot 0 0 0 0 0 0\na {t}\nb 0\n" for i, t in enumerate(tokens))
+    table = scan_amc(body, _tiny_asf(tmp_path), [0, 1, 2])
+    assert table is not None and table.shape == (len(tokens), 8)
+    want = np.array([float(t) for t in tokens])
+    assert np.array_equal(table[:, 6].view(np.int64), want.view(np.int64))
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        "1\nroot 0 0 0 0 0 0\na 1 2\nb 0\n",  # a number too many
+        "1\nroot 0 0 0 0 0 0\na\nb 0\n",  # one too few
+        "1\nroot 0 0 0 0 0 0\nab 1\nb 0\n",  # a longer name that begins with a bone's
+        "1\nroot 0 0 0 0 0 0\na 1\nb 0\n3\nroot 0 0 0 0 0 0\na 1\nb 0\n",  # frame 3 after 1
+        "1\nroot 0 0 0 0 0 0\na nan\nb 0\n",
+        "1\nroot 0 0 0 0 0 0\na 1x\nb 0\n",
+        "1\nroot 0 0 0 0 0 0\nb 0\na 1\n2\nroot 0 0 0 0 0 0\na 1\nb 0\n",  # order changed
+        "1\nroot 0 0 0 0 0 0\n# a comment\na 1\nb 0\n",
+    ],
+)
+def test_the_scan_leaves_anything_irregular_to_the_other_parses(tmp_path: Path, body: str) -> None:
+    from control.motion._amc_scan import scan_amc
+
+    assert scan_amc(body, _tiny_asf(tmp_path), [0, 1, 2]) is None
+
+
+def test_the_scan_is_the_vectorised_parse_on_real_files() -> None:
+    """(01_07 and 02_01 hold numbers past 1e-22, handed back to float().)"""
+    from control.motion._amc import _amc_fast, _amc_header
+    from control.motion._amc_scan import scan_amc
+    from control.motion._text import decode, read_bytes
+
+    for clip in ["01_07", "02_01", "13_29"]:
+        asf = read_asf(asf_path(clip))
+        text = decode(amc_path(clip), read_bytes(amc_path(clip)))
+        body = text[_amc_header(text)[1] :]
+        moving = [j for j, d in enumerate(asf.dofs) if d]
+        got, want = scan_amc(body, asf, moving), _amc_fast(body, asf, moving)
+        assert got is not None and want is not None
+        assert np.array_equal(got.view(np.int64), want.view(np.int64)), clip
