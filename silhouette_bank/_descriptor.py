@@ -38,6 +38,7 @@ action with the other side, or a mirrored camera), so that the matcher can try b
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import cv2
 import numpy as np
@@ -140,9 +141,13 @@ def _crop(
 
 
 def _cells(crop: NDArray[np.float32], rows: int, cols: int) -> FloatArray:
-    cells = cv2.resize(crop, (cols, rows), interpolation=cv2.INTER_AREA)
     # the area average of values in [0, 1], less float32's rounding (1.0000002 seen)
-    return np.clip(np.asarray(cells, dtype=np.float64).ravel(), 0.0, 1.0)
+    return np.clip(_cells_unclipped(crop, rows, cols).astype(np.float64), 0.0, 1.0)
+
+
+def _cells_unclipped(crop: NDArray[np.float32], rows: int, cols: int) -> NDArray[np.float32]:
+    cells = cv2.resize(crop, (cols, rows), interpolation=cv2.INTER_AREA)
+    return np.asarray(cells, dtype=np.float32).ravel()
 
 
 @dataclass(frozen=True)
@@ -230,7 +235,14 @@ class Descriptor:
         tops, bottoms, cxs = top.tolist(), bottom.tolist(), cx.tolist()
         for i, k in enumerate(seen.tolist()):
             out[k, : self.n_shape] = self._shape_of(m[k], tops[i], bottoms[i], cxs[i])
+        if self._fractions:  # once for all, not per mask (NaN rows stay NaN)
+            shape = out[:, : self.n_shape]
+            np.clip(shape, 0.0, 1.0, out=shape)
         return out
+
+    #: the shape numbers are fractions: ``from_masks`` clips them to [0, 1] (float32's
+    #: rounding of an area average), ``_shape_of`` need not
+    _fractions: ClassVar[bool] = False
 
     def _shape_of(self, m: NDArray[np.uint8], top: int, bottom: int, cx: float) -> FloatArray:
         """The shape numbers of one non-empty binary mask spanning rows ``[top, bottom)``
@@ -270,6 +282,7 @@ class GridDescriptor(Descriptor):
     name: str = "grid"
     n_shape: int = 32
     levels: tuple[tuple[int, int], ...] = ((8, 4),)
+    _fractions: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         if sum(r * c for r, c in self.levels) != self.n_shape:
@@ -284,7 +297,7 @@ class GridDescriptor(Descriptor):
             crop = crops.get(width)
             if crop is None:
                 crop = crops[width] = _crop(rows, 0, bottom - top, cx, width)
-            cells.append(_cells(crop, r, c))
+            cells.append(_cells_unclipped(crop, r, c))
         return np.concatenate(cells)
 
     def mirror(self, x: NDArray[np.floating]) -> NDArray[np.floating]:
