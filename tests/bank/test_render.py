@@ -123,7 +123,7 @@ def test_pyrender_agrees_with_the_rasterizer(exercise) -> None:
 def test_two_thousand_renders_with_flat_memory(exercise) -> None:
     from silhouette_bank._gl import GLRenderer
 
-    ring = CameraRing()
+    ring = CameraRing(width=160, height_px=120)  # (a leak per render grows at any size)
     body = capsule_body(exercise.skeleton)
     seg = capsule_segments(exercise, body)
     poses = ring.poses(exercise.root_pos)
