@@ -87,6 +87,19 @@ def _space(b: np.uint8) -> bool:
     return b == 32 or b == 9 or b == 13  # space, tab, CR (not the line end)
 
 
+@numba.njit(cache=True, inline="always")
+def _whole(buf: NDArray[np.uint8], pos: int, most: int) -> tuple[int, int]:
+    """The whole number of 1 to ``most`` digits at ``pos``, and the position after it;
+    -1 for none or more digits."""
+    value = 0
+    digits = 0
+    while pos < buf.shape[0] and 48 <= buf[pos] <= 57:
+        value = value * 10 + (buf[pos] - 48)
+        digits += 1
+        pos += 1
+    return (value if 0 < digits <= most else -1), pos
+
+
 @numba.njit(cache=True)
 def _scan_kernel(
     buf: NDArray[np.uint8],
@@ -112,15 +125,8 @@ def _scan_kernel(
         if pos == n:
             return frame, n_hard
         # the frame number, alone on its line
-        number = 0
-        digits = 0
-        while pos < n and 48 <= buf[pos] <= 57:
-            number = number * 10 + (buf[pos] - 48)
-            digits += 1
-            pos += 1
-            if digits > 12:
-                return 0, 0
-        if digits == 0:
+        number, pos = _whole(buf, pos, 12)
+        if number < 0:
             return 0, 0
         while pos < n and _space(buf[pos]):
             pos += 1
@@ -179,14 +185,8 @@ def _scan_kernel(
                     if pos < n and (buf[pos] == 45 or buf[pos] == 43):
                         eneg = buf[pos] == 45
                         pos += 1
-                    edigits = 0
-                    while pos < n and 48 <= buf[pos] <= 57:
-                        exp = exp * 10 + (buf[pos] - 48)
-                        edigits += 1
-                        pos += 1
-                        if edigits > 4:
-                            return 0, 0
-                    if edigits == 0:
+                    exp, pos = _whole(buf, pos, 4)
+                    if exp < 0:
                         return 0, 0
                     if eneg:
                         exp = -exp
