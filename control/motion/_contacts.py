@@ -75,16 +75,38 @@ def _rest_height(
     if floor == "global":
         return np.full(heights.shape, global_ref)
     keys = np.floor(points[..., [0, 2]] / cell).astype(np.int64).reshape(-1, 2)
-    _, inverse = np.unique(keys, axis=0, return_inverse=True)
+    keys -= keys.min(axis=0)  # one number a cell (x major: the rows' order), sorted fast
+    _, inverse = np.unique(keys[:, 0] * (keys[:, 1].max() + 1) + keys[:, 1], return_inverse=True)
     inverse = inverse.reshape(-1)
     ref = np.full(inverse.max() + 1, global_ref)
-    flat_h = heights.ravel()
-    flat_slow = slow.ravel()
-    for c in np.unique(inverse[flat_slow]):
-        hs = flat_h[(inverse == c) & flat_slow]
-        if hs.size >= 3:
-            ref[c] = np.percentile(hs, percentile)
+    slow_at = np.flatnonzero(slow.ravel())
+    cells, ref_heights = _group_percentiles(inverse[slow_at], heights.ravel()[slow_at], percentile)
+    ref[cells] = ref_heights
     return ref[inverse].reshape(heights.shape)
+
+
+def _group_percentiles(
+    groups: NDArray[np.int64], values: FloatArray, percentile: float
+) -> tuple[NDArray[np.int64], FloatArray]:
+    """``np.percentile(values[groups == g], percentile)`` for every group ``g`` of at least
+    3 values, all at once (a clip's cells number in the hundreds): the groups' labels and
+    their percentiles, computed as numpy's default ("linear") method computes them, in
+    the same floating-point operations (tested against ``np.percentile``)."""
+    order = np.lexsort((values, groups))
+    groups, values = groups[order], values[order]
+    starts = np.flatnonzero(np.r_[True, groups[1:] != groups[:-1]]) if groups.size else groups
+    counts = np.diff(np.r_[starts, groups.size])
+    keep = counts >= 3
+    starts, counts = starts[keep], counts[keep]
+    virtual = (counts - 1).astype(np.float64) * (percentile / 100.0)
+    below = np.floor(virtual)
+    t = virtual - below
+    last = virtual >= counts - 1  # (percentile 100) the largest value
+    a = values[np.where(last, starts + counts - 1, starts + below.astype(np.int64))]
+    b = values[np.where(last, starts + counts - 1, starts + below.astype(np.int64) + 1)]
+    diff = b - a
+    out = np.where(t >= 0.5, b - diff * (1 - t), a + diff * t)
+    return groups[starts], out
 
 
 def _clean(states: BoolArray, min_frames: int) -> BoolArray:

@@ -153,3 +153,19 @@ def test_the_kinematics_kernel_is_the_numpy_reference_bit_for_bit(
         want = _fk_numpy(walk.skeleton, walk.root_pos, q)
         for a, b in zip(got, want, strict=True):
             assert a.shape == b.shape and np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("percentile", [0.0, 5.0, 37.5, 50.0, 97.5, 100.0])
+def test_group_percentiles_are_numpys(percentile: float) -> None:
+    """The contacts' resting heights per ground cell, all cells at once: each group's
+    ``np.percentile``, bit for bit; groups under 3 values left out."""
+    from control.motion._contacts import _group_percentiles
+
+    rng = np.random.default_rng(int(percentile * 10))
+    groups = np.r_[rng.integers(0, 60, 3000), 70, 70, 80, 90, 90, 90]  # 70, 80: too few
+    values = np.round(rng.normal(0.1, 0.05, groups.size), 3)  # ties, as heights in mm have
+    labels, got = _group_percentiles(groups, values, percentile)
+    want = {g: np.percentile(values[groups == g], percentile) for g in np.unique(groups)}
+    assert sorted(labels.tolist()) == sorted(g for g in want if (groups == g).sum() >= 3)
+    for g, v in zip(labels.tolist(), got.tolist(), strict=True):
+        assert np.float64(v).tobytes() == np.float64(want[g]).tobytes(), (g, v, want[g])
