@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._amc_scan import scan_amc
+from ._amc_scan import dof_columns, scan_amc
 from ._asf import ROT_DOFS, TRANS_DOFS, AsfSkeleton
 from ._errors import MotionFormatError
 from ._quat import FloatArray, euler_to_q, qconj, qmul
@@ -126,12 +126,7 @@ def _amc_slow(
     names = asf.skeleton.names
     expected = {names[j]: len(asf.dofs[j]) for j in moving}
     all_bones = set(names)
-    col_start: dict[str, int] = {}
-    c = 0
-    for j in moving:
-        col_start[names[j]] = c
-        c += len(asf.dofs[j])
-    width = c
+    col_start, width = dof_columns(asf, moving)
     frames: list[list[float]] = []
     seen: set[str] = set()
     frame_no: int | None = None
