@@ -21,6 +21,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from .kernels import read_only
+
 __all__ = ["dtw", "dtw_batch", "dtw_best_window", "dtw_reference", "dtw_windows"]
 
 FloatArray = NDArray[np.float64]
@@ -163,7 +165,8 @@ def dtw_best_window(
         raise ValueError("query must be (n, S + 2), shape (N, V, S) and centre (N, V, 2)")
     if st.size and (st.min() < 0 or st.max() + length > h.shape[0]):
         raise ValueError("every window must lie inside the sequence")
-    s, v, cost = _best_window_kernel(q, h, c, st, int(length), int(window))
+    # the tables read-only, stored or made: one compiled signature (control.kernels)
+    s, v, cost = _best_window_kernel(q, read_only(h), read_only(c), st, int(length), int(window))
     return int(s), int(v), math.sqrt(cost)
 
 
@@ -219,7 +222,7 @@ def dtw_windows(
     out = np.empty(st.size)
     h = np.ascontiguousarray(shape, dtype=np.float64)
     c = np.ascontiguousarray(centre, dtype=np.float64)
-    _windows_kernel(q, h, c, st, vw, int(length), int(window), out)
+    _windows_kernel(q, read_only(h), read_only(c), st, vw, int(length), int(window), out)
     return np.sqrt(out)
 
 

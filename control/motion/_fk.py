@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from ..kernels import read_only
 from ._quat import FloatArray, qmul, qrot
 from ._types import Motion, Skeleton
 
@@ -88,12 +89,12 @@ def _fk(
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """``(positions, orientations, end_positions)`` by the kernel."""
     return _fk_kernel(
-        np.ascontiguousarray(skeleton.parents, dtype=np.int64),
-        np.ascontiguousarray(skeleton.offsets, dtype=np.float64).reshape(-1, 3),
-        np.ascontiguousarray(skeleton.end_parents, dtype=np.int64),
-        np.ascontiguousarray(skeleton.end_offsets, dtype=np.float64).reshape(-1, 3),
-        np.ascontiguousarray(root_pos, dtype=np.float64),
-        np.ascontiguousarray(quats, dtype=np.float64),
+        read_only(np.ascontiguousarray(skeleton.parents, dtype=np.int64)),
+        read_only(np.ascontiguousarray(skeleton.offsets, dtype=np.float64).reshape(-1, 3)),
+        read_only(np.ascontiguousarray(skeleton.end_parents, dtype=np.int64)),
+        read_only(np.ascontiguousarray(skeleton.end_offsets, dtype=np.float64).reshape(-1, 3)),
+        read_only(np.ascontiguousarray(root_pos, dtype=np.float64)),
+        read_only(np.ascontiguousarray(quats, dtype=np.float64)),
     )
 
 

@@ -119,3 +119,21 @@ def test_a_stored_index_is_the_built_one(setup, tmp_path, caplog, flat_below) ->
     blocked = tmp_path / "a-file"
     blocked.write_text("")
     assert cached_window_index(shape, centre, starts, m.n, blocked).size == built.size
+
+
+def test_the_principal_axes_are_the_svds(rng) -> None:
+    from vision._index import _principal_axes
+
+    # rows of distinct variances along 12 random directions, plus noise
+    q, _ = np.linalg.qr(rng.standard_normal((40, 40)))
+    x = (rng.standard_normal((3000, 12)) * np.linspace(9.0, 2.0, 12)) @ q[:12]
+    x += 0.1 * rng.standard_normal(x.shape)
+    x -= x.mean(axis=0)
+    axes = _principal_axes(x, 8)
+    _, _, vt = np.linalg.svd(x, full_matrices=False)
+    assert axes.shape == (40, 8) and axes.dtype == np.float32
+    # the same axes, in the same order, up to each one's sign; the sign is fixed
+    np.testing.assert_allclose(np.abs(np.sum(axes * vt[:8].T, axis=0)), 1.0, atol=1e-5)
+    top = np.abs(axes).argmax(axis=0)
+    assert np.all(axes[top, np.arange(8)] > 0)
+    np.testing.assert_array_equal(_principal_axes(-x, 8), axes)
