@@ -121,6 +121,7 @@ def _same_library(a: Any, b: Any) -> bool:
         and x.motion.fps == y.motion.fps
         and np.array_equal(x.motion.root_pos, y.motion.root_pos)
         and np.array_equal(x.motion.quats, y.motion.quats)
+        and np.array_equal(x.contacts.states, y.contacts.states)
         for x, y in zip(a.clips, b.clips, strict=True)
     )
 
@@ -172,6 +173,11 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
     def load_lib(r: Path) -> Any:
         return load_library(mocap, clips=CLIPS, cache_dir=r / "motion", workers=1)
 
+    def load_parsed(r: Path) -> Any:  # the parsed files' entries, without the whole's
+        for p in (r / "motion").glob("library-*.npz"):
+            p.unlink()
+        return load_lib(r)
+
     def load_cached_graph(r: Path) -> Any:
         return cached_graph(lib.clips, cache_dir=r / "graph")[0]
 
@@ -197,6 +203,20 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
         "fps set to 30": lambda p: edit_npz(p, lambda a: _set(a["meta"], "fps", 30.0), "meta"),
         "names swapped": lambda p: edit_npz(p, lambda a: _swap_names(a["meta"], "names"), "meta"),
         "meta a JSON list": lambda p: edit_npz(p, lambda a: _set(a, "meta", [1, 2]), "meta"),
+    }
+
+    def first_clip(a: dict[str, Any], key: str, value: Any) -> None:
+        a["meta"]["clips"][0][key] = value
+
+    whole_edits: dict[str, Callable[[Path], object]] = {
+        "roots moved 1 m": lambda p: edit_npz(p, lambda a: moved(a, "root_pos"), "meta"),
+        "a clip one frame longer": lambda p: edit_npz(
+            p, lambda a: first_clip(a, "frames", a["meta"]["clips"][0]["frames"] + 1), "meta"
+        ),
+        "a clip renamed": lambda p: edit_npz(p, lambda a: first_clip(a, "name", "x"), "meta"),
+        "contacts cleared": lambda p: edit_npz(
+            p, lambda a: _set(a, "states", np.zeros_like(a["states"])), "meta"
+        ),
     }
     graph_edits: dict[str, Callable[[Path], object]] = {
         "fps set to 30": lambda p: edit_npz(
@@ -270,11 +290,19 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
     found = [
         Artifact(
             "motion cache entry",
-            one("motion", "*.npz"),
-            load_lib,
+            one("motion", "[0-9a-f]*.npz"),
+            load_parsed,
             _same_library,
             (MotionFormatError,),
             motion_edits,
+        ),
+        Artifact(
+            "library cache entry",
+            one("motion", "library-*.npz"),
+            load_lib,
+            _same_library,
+            (MotionFormatError,),
+            whole_edits,
         ),
         Artifact(
             "graph (cache)",
@@ -366,6 +394,7 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
     ]
     pristine = {
         "motion cache entry": lib,
+        "library cache entry": lib,
         "graph (cache)": graph,
         "graph file (load_graph)": graph,
         "higher layer (cache)": layer,

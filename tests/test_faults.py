@@ -35,9 +35,10 @@ def test_every_damaged_artifact_is_rebuilt_or_named(mocap: Path) -> None:
     bad = [o for o in outcomes if o.outcome not in GOOD]
     assert not bad, bad
     rows = table(outcomes)
-    assert len(rows) == 11
+    assert len(rows) == 12
     rebuilt = (
         "motion cache entry",
+        "library cache entry",
         "graph (cache)",
         "higher layer (cache)",
         "bank.npz",
@@ -51,7 +52,7 @@ def test_every_damaged_artifact_is_rebuilt_or_named(mocap: Path) -> None:
         assert rows[name].get("error", 0) >= 5, (name, rows[name])  # nothing to rebuild from
     # each consistent edit is caught: none is used as it stands
     edits = [o for o in outcomes if not o.case.startswith(("flip", "truncate"))]
-    assert len(edits) == 34
+    assert len(edits) == 38
     assert all(o.outcome in ("rebuilt", "error") for o in edits if o.case != "marked incomplete")
 
 
@@ -137,11 +138,12 @@ def test_mimic_cache_shows_and_clears(
     load_library(mocap, clips=["02_01"], workers=1)
     assert main(["cache"]) == 0
     out = capsys.readouterr().out
-    assert str(root) in out and "motion" in out and "1 entries" in out
+    # the parsed file's entry and the whole library's
+    assert str(root) in out and "motion" in out and "2 entries" in out
     assert main(["cache", "clear", "--kind", "graph"]) == 0
     assert "removed 0 entries" in capsys.readouterr().out
     assert main(["cache", "clear"]) == 0
-    assert "removed 1 entries" in capsys.readouterr().out
+    assert "removed 2 entries" in capsys.readouterr().out
     assert not cache_entries(root)
     assert main(["cache", "clear", "--older-than", "-1"]) == 2
     assert "--older-than" in capsys.readouterr().err

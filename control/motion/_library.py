@@ -12,7 +12,9 @@ neither exists). Metadata:
   1-based inclusive source frames; a range running past the clip's end is clamped).
 
 Parsing dominates a cold load, so each parsed file is cached as ``.npz`` (no pickle) under
-a key hashed from the file's bytes (and its ASF's), the reader version and settings.
+a key hashed from the file's bytes (and its ASF's), the reader version and settings; and
+the clips as made from them (resampled, mirrored, their contacts) are cached as one entry
+(``_whole``), which a warm load reads instead.
 """
 
 from __future__ import annotations
@@ -43,6 +45,7 @@ from ._ops import resample, resample_positions
 from ._parsed import Source, cache_key, discover, is_arrays, load_cached, parse, parse_job
 from ._quat import FloatArray
 from ._types import Motion, Skeleton
+from ._whole import MadeClip, load_whole, save_whole, whole_key
 
 __all__ = [
     "Clip",
@@ -246,44 +249,60 @@ def load_spec(
     workers: int | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> Library:
-    """The library ``spec`` names: its files parsed (or read from the cache), then its
-    clips made (labels, descriptions, mirrored copies, resampling, contacts)."""
+    """The library ``spec`` names: its clips made (parsed or read from the cache, then
+    resampled, mirrored, their contacts found) or read whole from the cache, with their
+    labels and descriptions."""
     sources = spec.sources()
-    motions = _parse_all(spec, sources, cache_dir, use_cache, workers, progress)
-    return _library_of(spec, sources, motions)
+    if not use_cache:
+        motions = _parse_all(spec, sources, None, [None] * len(sources), workers, progress)
+        return _library_of(spec, sources, _made(spec, sources, motions))
+    cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    asf_digests: dict[Path, bytes] = {}
+    keys = [cache_key(src, spec.bvh_units, asf_digests) for src in sources]
+    options = {
+        "fps": spec.fps,
+        "mirror": spec.mirror,
+        "bvh_units": spec.bvh_units,
+        "contacts": spec.contact_options,
+    }
+    whole = cache / f"library-{whole_key(sources, keys, options)}.npz"
+    made = load_whole(whole) if whole.is_file() else None
+    if made is None:
+        entries = [cache / f"{k}.npz" for k in keys]
+        motions = _parse_all(spec, sources, cache, entries, workers, progress)
+        made = _made(spec, sources, motions)
+        try:
+            save_whole(whole, made)
+        except OSError as exc:  # a read-only or full cache only costs speed
+            log.warning("cannot write cache entry %s: %s", whole, exc)
+        if cache_dir is None:  # new entries: bound the cache (never this library's)
+            bound_cache(keep=[whole, *entries])
+    return _library_of(spec, sources, made)
 
 
 def _parse_all(
     spec: LibrarySpec,
     sources: list[Source],
-    cache_dir: str | Path | None,
-    use_cache: bool,
+    cache: Path | None,
+    entries: Sequence[Path | None],
     workers: int | None,
     progress: Callable[[str], None] | None,
 ) -> dict[str, Motion]:
-    """Every source's motion: from the cache where it holds a good entry, else parsed
-    (in ``workers`` processes) and cached."""
+    """Every source's motion: from its cache entry (``entries``, ``None``: no cache) where
+    that holds a good one, else parsed (in ``workers`` processes) and cached there."""
     bvh_units = spec.bvh_units
-    cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     motions: dict[str, Motion] = {}
     todo: list[tuple[Source, str | float, str | None]] = []
-    asf_digests: dict[Path, bytes] = {}
-    used: list[Path] = []  # this library's cache entries, never evicted for it
-    for src in sources:
+    for src, entry in zip(sources, entries, strict=True):
         if is_arrays(src):  # already compact arrays: read directly, never cached
             motions[src.name] = parse(src, bvh_units)
             continue
-        if not use_cache:
-            todo.append((src, bvh_units, None))
-            continue
-        cache_file = cache / f"{cache_key(src, bvh_units, asf_digests)}.npz"
-        used.append(cache_file)
-        hit = load_cached(cache_file) if cache_file.is_file() else None
+        hit = load_cached(entry) if entry is not None and entry.is_file() else None
         if hit is not None:  # (two files of the same bytes share an entry: the name and
             # the path are this file's, not those of the file that made the entry)
             motions[src.name] = replace(hit, name=src.name, source=str(src.path))
         else:
-            todo.append((src, bvh_units, str(cache_file)))
+            todo.append((src, bvh_units, None if entry is None else str(entry)))
     n_workers = min(workers or min(os.cpu_count() or 1, 4), len(todo))
     if n_workers > 1:
         try:
@@ -301,60 +320,61 @@ def _parse_all(
             motions[job[0].name] = parse_job(job)
             if progress:
                 progress(f"parsed {job[0].path.name}")
-    if cache_dir is None and any(job[2] for job in todo):  # new entries: bound the cache
-        bound_cache(keep=used)
     return motions
 
 
-def _library_of(spec: LibrarySpec, sources: list[Source], motions: dict[str, Motion]) -> Library:
-    """The clips of the parsed ``motions``: labels, descriptions, mirrored copies."""
-    described = descriptions(spec.root, {s.name for s in sources})
-    labelled = label_files(spec.root)
-    kept: list[Clip] = []
+def _made(spec: LibrarySpec, sources: list[Source], motions: dict[str, Motion]) -> list[MadeClip]:
+    """Each source's clip (and its mirrored copy) at the library's rate, with contacts."""
+    made = []
     for src in sources:
         raw = motions[src.name]
-        labels, label_names = (
-            read_labels(labelled[src.name], raw.n_frames)
-            if src.name in labelled
-            else (np.full(raw.n_frames, -1, dtype=np.int64), ())
-        )
-        variants = [(raw, False)]
-        if spec.mirror:
-            variants.append((mirror_motion(raw), True))
+        variants = [(raw, False)] + ([(mirror_motion(raw), True)] if spec.mirror else [])
         for motion, mirrored in variants:
+            made.append(_make(motion, spec.fps, mirrored, spec.contact_options))
+    return made
+
+
+def _library_of(spec: LibrarySpec, sources: list[Source], made: list[MadeClip]) -> Library:
+    """The library of the ``made`` clips (each source's, then its mirrored copy's), with
+    their labels and descriptions."""
+    described = descriptions(spec.root, {s.name for s in sources})
+    labelled = label_files(spec.root)
+    per_source = 2 if spec.mirror else 1
+    if len(made) != per_source * len(sources):
+        raise ValueError("one made clip per source (and mirrored copy) is needed")
+    kept: list[Clip] = []
+    for i, src in enumerate(sources):
+        for m in made[per_source * i : per_source * (i + 1)]:
+            labels, label_names = (
+                read_labels(labelled[src.name], m.source_length)
+                if src.name in labelled
+                else (np.full(m.source_length, -1, dtype=np.int64), ())
+            )
+            frame_labels = labels[np.rint(m.source_frames).astype(np.int64)]
             kept.append(
-                _make_clip(
-                    motion,
-                    spec.fps,
+                Clip(
+                    m.motion,
+                    m.contacts,
                     described.get(src.name, ""),
-                    labels,
+                    frame_labels,
                     label_names,
+                    m.source_frames,
                     str(src.path),
-                    mirrored,
-                    spec.contact_options,
+                    m.mirrored,
                 )
             )
     fps = None if spec.fps is None else float(spec.fps)
     return Library(str(spec.root), fps, tuple(kept))
 
 
-def _make_clip(
-    motion: Motion,
-    fps: float | None,
-    description: str,
-    labels: NDArray[np.int64],
-    label_names: tuple[str, ...],
-    path: str,
-    mirrored: bool,
-    contact_options: dict[str, float | str],
-) -> Clip:
+def _make(
+    motion: Motion, fps: float | None, mirrored: bool, contact_options: dict[str, float | str]
+) -> MadeClip:
+    source_length = motion.n_frames
     if fps is None or fps == motion.fps:
         source_frames = np.arange(motion.n_frames, dtype=np.float64)
     else:
         source_frames = resample_positions(motion.n_frames, motion.fps, fps)
         motion = resample(motion, fps)
     contacts = detect_contacts(motion, forward_kinematics(motion), **contact_options)  # type: ignore[arg-type]
-    frame_labels = labels[np.rint(source_frames).astype(np.int64)]
-    return Clip(
-        motion, contacts, description, frame_labels, label_names, source_frames, path, mirrored
-    )
+    return MadeClip(motion, contacts, source_frames, source_length, mirrored)

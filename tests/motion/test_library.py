@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from control.motion import MotionFormatError, _parsed, load_library, read_labels
+from control.motion import Library, MotionFormatError, _parsed, load_library, read_labels
 from mimic.cli import main
 from tests.conftest import BVH_DIR, SUBJECTS
 
@@ -62,12 +62,17 @@ def test_mirror_adds_copies(small_lib: Path, tmp_path: Path) -> None:
     assert lib.clip("02_03_mirror").label_names == ("Jog", "Stop")
 
 
+def _entries(cache: Path) -> list[Path]:
+    """The parsed files' cache entries (not the whole library's)."""
+    return [p for p in cache.glob("*.npz") if not p.name.startswith("library-")]
+
+
 def test_cache_hit_skips_parsing_and_a_changed_file_is_reparsed(
     small_lib: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     cache = tmp_path / "c"
     first = load_library(small_lib, cache_dir=cache, workers=1)
-    assert len(list(cache.glob("*.npz"))) == 3
+    assert len(_entries(cache)) == 3 and len(list(cache.glob("library-*.npz"))) == 1
 
     def no_parse(*args: object) -> None:
         raise AssertionError("parsed although cached")
@@ -100,7 +105,7 @@ def test_two_files_of_the_same_bytes_keep_their_own_names_from_the_cache(
     cache = tmp_path / "c"
     cold = load_library(small_lib, cache_dir=cache, workers=1)
     warm = load_library(small_lib, cache_dir=cache, workers=1)
-    assert len(list(cache.glob("*.npz"))) == 3  # the two copies: one entry
+    assert len(_entries(cache)) == 3  # the two copies: one entry
     for lib in (cold, warm):
         assert [c.name for c in lib.clips] == ["02_03", "02_04", "09_01", "99_01"]
         assert lib.clip("99_01").motion.source.endswith("99_01.bvh")
@@ -117,10 +122,62 @@ def test_corrupt_cache_entry_is_reparsed(
     lib = load_library(small_lib, cache_dir=cache, workers=1)
     assert len(lib.clips) == 3
     assert caplog.text.count("ignoring a bad cache entry") == 3
+    assert caplog.text.count("ignoring a bad library cache entry") == 1
     # ... and rewritten whole.
     caplog.clear()
     assert len(load_library(small_lib, cache_dir=cache, workers=1).clips) == 3
     assert "ignoring" not in caplog.text
+
+
+def _same(a: Library, b: Library) -> None:
+    """Two libraries hold the same clips, array for array."""
+    assert [c.name for c in a.clips] == [c.name for c in b.clips]
+    for x, y in zip(a.clips, b.clips, strict=True):
+        assert x.motion.skeleton.same_as(y.motion.skeleton, atol=0)
+        assert x.motion.skeleton.channels == y.motion.skeleton.channels
+        for f in ("root_pos", "quats"):
+            np.testing.assert_array_equal(getattr(x.motion, f), getattr(y.motion, f))
+        np.testing.assert_array_equal(x.contacts.states, y.contacts.states)
+        assert (x.contacts.ankle_rest, x.contacts.toe_rest) == (
+            y.contacts.ankle_rest,
+            y.contacts.toe_rest,
+        )
+        np.testing.assert_array_equal(x.labels, y.labels)
+        np.testing.assert_array_equal(x.source_frames, y.source_frames)
+        assert (x.motion.fps, x.motion.source, x.path, x.mirrored, x.description) == (
+            y.motion.fps,
+            y.motion.source,
+            y.path,
+            y.mirrored,
+            y.description,
+        )
+        assert x.label_names == y.label_names
+
+
+def test_a_warm_load_reads_the_whole_library_as_made(
+    small_lib: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from control.motion import _library
+
+    cache = tmp_path / "c"
+    made = load_library(small_lib, mirror=True, cache_dir=cache, workers=1)
+    _same(made, load_library(small_lib, mirror=True, use_cache=False, workers=1))
+
+    def no_work(*args: object) -> None:
+        raise AssertionError("a clip was made again although the library is cached")
+
+    for name in ("load_cached", "detect_contacts", "resample"):
+        monkeypatch.setattr(_library, name, no_work)
+    warm = load_library(small_lib, mirror=True, cache_dir=cache, workers=1)
+    _same(made, warm)
+    # labels are read from their files on every load: an edited label file is seen
+    (small_lib / "labels" / "02_03.csv").write_text("first_frame,last_frame,action\n1,9,Walk\n")
+    relabelled = load_library(small_lib, mirror=True, cache_dir=cache, workers=1)
+    assert relabelled.clip("02_03").label_names == ("Walk",)
+    monkeypatch.undo()
+    # other options make other clips: another entry
+    load_library(small_lib, fps=30, cache_dir=cache, workers=1)
+    assert len(list(cache.glob("library-*.npz"))) == 2
 
 
 def test_parallel_cold_load_matches_serial(small_lib: Path, tmp_path: Path) -> None:
