@@ -254,7 +254,7 @@ def load_spec(
     labels and descriptions."""
     sources = spec.sources()
     if not use_cache:
-        motions = _parse_all(spec, sources, None, [None] * len(sources), workers, progress)
+        motions = _parse_all(spec, sources, [None] * len(sources), workers, progress)
         return _library_of(spec, sources, _made(spec, sources, motions))
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     asf_digests: dict[Path, bytes] = {}
@@ -269,7 +269,7 @@ def load_spec(
     made = load_whole(whole) if whole.is_file() else None
     if made is None:
         entries = [cache / f"{k}.npz" for k in keys]
-        motions = _parse_all(spec, sources, cache, entries, workers, progress)
+        motions = _parse_all(spec, sources, entries, workers, progress)
         made = _made(spec, sources, motions)
         try:
             save_whole(whole, made)
@@ -283,7 +283,6 @@ def load_spec(
 def _parse_all(
     spec: LibrarySpec,
     sources: list[Source],
-    cache: Path | None,
     entries: Sequence[Path | None],
     workers: int | None,
     progress: Callable[[str], None] | None,
