@@ -7,9 +7,10 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -35,11 +36,14 @@ __all__ = [
     "discover",
     "is_arrays",
     "load_cached",
+    "load_entry",
     "parse",
     "parse_job",
 ]
 
 log = logging.getLogger(__name__)
+
+T = TypeVar("T")
 
 #: Bump when a reader's output changes, so stale cache entries are never used.
 READER_VERSION = "2"  # 2: cache entries carry a checksum
@@ -122,15 +126,36 @@ def _save(path: Path, m: Motion) -> None:
         np.savez(fh, meta=np.array(json.dumps(meta)), **arrays)  # type: ignore[arg-type]
 
 
-def load_cached(path: Path) -> Motion | None:
-    """The motion in a cache entry, or ``None`` (with a warning naming the file) when it
-    is unreadable, inconsistent, or fails its checksum: it is then parsed again."""
+def load_entry(
+    path: Path,
+    keys: tuple[str, ...],
+    what: str,
+    make: Callable[[dict[str, Any], dict[str, np.ndarray]], T],
+    again: str,
+) -> T | None:
+    """``make(meta, arrays)`` of the cache entry at ``path`` (its JSON ``meta`` and its
+    arrays ``keys``, checksum verified), or ``None`` with a warning naming the file when
+    it is unreadable, inconsistent or fails its checksum (``again``: what is done instead)."""
     try:
-        z = read_npz(path, _CACHED, MotionFormatError, "motion cache entry")
+        z = read_npz(path, keys, MotionFormatError, what)
         meta = json.loads(str(z.pop("meta")))
         if not isinstance(meta, dict):
             raise MotionFormatError(path, "meta is not a JSON object")
         verify_checksum(meta, z, path, MotionFormatError)
+        made = make(meta, z)
+    except (MotionFormatError, ValueError, KeyError, TypeError, IndexError) as exc:
+        said = str(exc) if isinstance(exc, MotionFormatError) else f"{path}: {exc!r}"
+        log.warning("ignoring a bad %s (%s): %s", what, again, said)
+        return None
+    touch(path)
+    return made
+
+
+def load_cached(path: Path) -> Motion | None:
+    """The motion in a cache entry, or ``None`` (with a warning naming the file) when it
+    is unreadable, inconsistent, or fails its checksum: it is then parsed again."""
+
+    def make(meta: dict[str, Any], z: dict[str, np.ndarray]) -> Motion:
         sk = Skeleton(
             tuple(meta["names"]),
             z["parents"],
@@ -139,13 +164,9 @@ def load_cached(path: Path) -> Motion | None:
             z["end_parents"],
             z["end_offsets"],
         )
-        motion = Motion(sk, z["root_pos"], z["quats"], meta["fps"], meta["name"], meta["source"])
-    except (MotionFormatError, ValueError, KeyError, TypeError, IndexError) as exc:
-        said = str(exc) if isinstance(exc, MotionFormatError) else f"{path}: {exc!r}"
-        log.warning("ignoring a bad cache entry (parsing again): %s", said)
-        return None
-    touch(path)
-    return motion
+        return Motion(sk, z["root_pos"], z["quats"], meta["fps"], meta["name"], meta["source"])
+
+    return load_entry(path, _CACHED, "motion cache entry", make, "parsing again")
 
 
 def is_arrays(src: Source) -> bool:

@@ -23,10 +23,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..artifacts import atomic_write, checksum, read_npz, touch, verify_checksum
+from ..artifacts import atomic_write, checksum
 from ._contacts import Contacts
 from ._errors import MotionFormatError
-from ._parsed import READER_VERSION, Source
+from ._parsed import READER_VERSION, Source, load_entry
 from ._quat import FloatArray
 from ._types import Motion, Skeleton
 
@@ -116,19 +116,15 @@ def _joined(parts: list[np.ndarray], name: str) -> np.ndarray:
 def load_whole(path: Path) -> list[MadeClip] | None:
     """The clips of the entry at ``path``, or ``None`` (with a warning naming the file)
     when it is unreadable, inconsistent or fails its checksum: they are made again."""
-    try:
-        z = read_npz(path, ("meta", *_ARRAYS), MotionFormatError, "library cache entry")
-        meta = json.loads(str(z.pop("meta")))
-        if not isinstance(meta, dict) or meta.get("version") != WHOLE_VERSION:
+
+    def make(meta: dict[str, Any], z: dict[str, np.ndarray]) -> list[MadeClip]:
+        if meta.get("version") != WHOLE_VERSION:
             raise MotionFormatError(path, "not a library entry of this version")
-        verify_checksum(meta, z, path, MotionFormatError)
-        made = _clips_of(meta["clips"], z)
-    except (MotionFormatError, ValueError, KeyError, TypeError, IndexError) as exc:
-        said = str(exc) if isinstance(exc, MotionFormatError) else f"{path}: {exc!r}"
-        log.warning("ignoring a bad library cache entry (making the clips again): %s", said)
-        return None
-    touch(path)
-    return made
+        return _clips_of(meta["clips"], z)
+
+    return load_entry(
+        path, ("meta", *_ARRAYS), "library cache entry", make, "making the clips again"
+    )
 
 
 def _clips_of(clips: list[dict[str, Any]], z: dict[str, NDArray[Any]]) -> list[MadeClip]:

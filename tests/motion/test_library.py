@@ -121,7 +121,7 @@ def test_corrupt_cache_entry_is_reparsed(
         p.write_bytes(p.read_bytes()[:100])
     lib = load_library(small_lib, cache_dir=cache, workers=1)
     assert len(lib.clips) == 3
-    assert caplog.text.count("ignoring a bad cache entry") == 3
+    assert caplog.text.count("ignoring a bad motion cache entry") == 3
     assert caplog.text.count("ignoring a bad library cache entry") == 1
     # ... and rewritten whole.
     caplog.clear()
