@@ -86,7 +86,7 @@ def save_whole(path: Path, made: list[MadeClip]) -> None:
                 "names": list(sk.names),
                 "channels": [list(ch) for ch in sk.channels],
                 "frames": m.n_frames,
-                "source_frames": c.source_length,
+                "source_length": c.source_length,
                 "ends": int(sk.end_parents.size),
                 "ankle_rest": c.contacts.ankle_rest,
                 "toe_rest": c.contacts.toe_rest,
@@ -97,20 +97,11 @@ def save_whole(path: Path, made: list[MadeClip]) -> None:
         rows += [m.root_pos, m.quats.reshape(-1, 4), c.contacts.states, c.source_frames]
         for name, a in zip(_ARRAYS, rows, strict=True):
             parts[name].append(np.asarray(a))
-    arrays = {k: _joined(v, k) for k, v in parts.items()}
+    arrays = {k: np.concatenate(v) for k, v in parts.items()}  # (a library has a clip)
     meta: dict[str, Any] = {"version": WHOLE_VERSION, "clips": clips}
     meta["checksum"] = checksum(meta, arrays)
     with atomic_write(path, "wb") as fh:
         np.savez(fh, meta=np.array(json.dumps(meta)), **arrays)  # type: ignore[arg-type]
-
-
-def _joined(parts: list[np.ndarray], name: str) -> np.ndarray:
-    if parts:
-        return np.concatenate(parts)
-    width = {"offsets": 3, "end_offsets": 3, "root_pos": 3, "quats": 4, "states": 2}
-    shape = (0, width[name]) if name in width else (0,)
-    dtype = {"parents": np.int64, "end_parents": np.int64, "states": np.bool_}
-    return np.zeros(shape, dtype=dtype.get(name, np.float64))
 
 
 def load_whole(path: Path) -> list[MadeClip] | None:
@@ -148,7 +139,7 @@ def _clips_of(clips: list[dict[str, Any]], z: dict[str, NDArray[Any]]) -> list[M
         contacts = Contacts(states, float(c["ankle_rest"]), float(c["toe_rest"]))
         frames = z["source_frames"][frame : frame + f]
         made.append(
-            MadeClip(motion, contacts, frames, int(c["source_frames"]), bool(c["mirrored"]))
+            MadeClip(motion, contacts, frames, int(c["source_length"]), bool(c["mirrored"]))
         )
         joint, end, frame, row = joint + j, end + e, frame + f, row + f * j
     sizes = {"parents": joint, "end_parents": end, "root_pos": frame, "quats": row}
