@@ -268,7 +268,7 @@ def dtw_batch(
     grp = np.ascontiguousarray(group, dtype=np.int64)
     if grp.shape != (r.shape[0],) or grp.min() < 0:
         raise ValueError("group must give a non-negative group per reference")
-    _batch_kernel(q, r, grp, int(grp.max()) + 1, int(window), out)
+    _batch_kernel(read_only(q), read_only(r), read_only(grp), int(grp.max()) + 1, int(window), out)
     return np.sqrt(out)
 
 

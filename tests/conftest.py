@@ -135,6 +135,8 @@ def prebuild(
 
     used = {f for item in request.session.items for f in getattr(item, "fixturenames", ())}
     parts = [p for p in PARTS if p in {PREBUILT[f] for f in used & set(PREBUILT)}]
+    if parts:  # a session of the slow fixtures' tests: the test-only kernels too
+        parts.append("kernels")
     proc = None
     if parts:
         with open(session_cache / "prebuild.log", "wb") as log:

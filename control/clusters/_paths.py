@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..graph import MotionGraph
+from ..kernels import kernel_input
 
 __all__ = ["ProbableMotion", "most_probable_motion", "transition_log_probs"]
 
@@ -198,13 +199,13 @@ def most_probable_motion(
         log_post = np.log(np.asarray(posterior, dtype=np.float64))
     frames, edges, score = _viterbi(
         int(start),
-        clusters,
-        np.asarray(labels, dtype=np.int64),
-        log_post,
-        graph.indptr,
-        np.ascontiguousarray(graph.dst, dtype=np.int64),
-        log_edge,
-        log_play,
+        kernel_input(clusters, np.int64),
+        kernel_input(labels, np.int64),
+        kernel_input(log_post, np.float64),
+        kernel_input(graph.indptr, np.int64),
+        kernel_input(graph.dst, np.int64),
+        kernel_input(log_edge, np.float64),
+        kernel_input(log_play, np.float64),
         int(bound),
         int(max_states),
     )

@@ -38,6 +38,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from ..kernels import kernel_input
+
 __all__ = ["Environment", "SketchFileError", "TerrainMap", "read_environment", "read_sketch"]
 
 FloatArray = NDArray[np.float64]
@@ -179,9 +181,10 @@ class Environment:
         else:
             a = b = np.zeros((0, 2))
             ids = np.zeros(0, dtype=np.int64)
-        object.__setattr__(self, "_edges", (a, b - a, ids.astype(np.int64)))
+        edges = (kernel_input(a, np.float64), kernel_input(b - a, np.float64))
+        object.__setattr__(self, "_edges", (*edges, kernel_input(ids, np.int64)))
         bounds = self.bounds if self.bounds is not None else ()
-        object.__setattr__(self, "_bounds", np.asarray(bounds, dtype=np.float64))
+        object.__setattr__(self, "_bounds", kernel_input(bounds, np.float64))
 
     def clearance(self, xz: FloatArray) -> FloatArray:
         """Signed distance ``(n,)`` of ground points ``(n, 2)`` to the nearest obstacle
@@ -189,10 +192,11 @@ class Environment:
         a ray to +x crosses a polygon's edges an odd number of times from inside it).
         The search asks this of every node it opens, one point at a time: a numba
         kernel (``_clearance_kernel``)."""
-        xz = np.ascontiguousarray(xz, dtype=np.float64).reshape(-1, 2)
+        xz = kernel_input(np.reshape(xz, (-1, 2)), np.float64)
         a, ab, ids = self._edges  # type: ignore[attr-defined]
         out = np.empty(xz.shape[0])
-        _clearance_kernel(xz, a, ab, ids, len(self.obstacles), self._bounds, out)  # type: ignore[attr-defined]
+        bounds = self._bounds  # type: ignore[attr-defined]
+        _clearance_kernel(xz, a, ab, ids, len(self.obstacles), bounds, out)
         return out
 
 

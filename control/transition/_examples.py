@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..graph import FrameFeatures, pair_distances
+from ..kernels import kernel_input
 
 __all__ = ["Example", "find_examples", "frame_costs", "register"]
 
@@ -101,7 +102,8 @@ def find_examples(
         a, b = int(a), int(b)
         if b - a < m // 2:
             continue
-        end_cost, first = _subsequence_dtw(frame_costs(feat, ref, np.arange(a, b), nu))
+        cost = frame_costs(feat, ref, np.arange(a, b), nu)
+        end_cost, first = _subsequence_dtw(kernel_input(cost, np.float64))
         per = end_cost / m
         length = np.arange(b - a) - first + 1
         fair = (length >= m // 2) & (length <= 2 * m)
@@ -127,7 +129,7 @@ def register(feat: FrameFeatures, ref: IntArray, frames: IntArray, nu: float = 0
     """Where each reference frame falls in ``frames`` ``(len(ref),)``: fractional indices
     into ``frames``, non-decreasing, from the DTW time warp (both ends matched)."""
     cost = frame_costs(feat, ref, frames, nu)
-    path = _dtw_path(cost)
+    path = _dtw_path(kernel_input(cost, np.float64))
     where = np.zeros(ref.size)
     count = np.zeros(ref.size)
     np.add.at(where, path[:, 0], path[:, 1].astype(np.float64))
