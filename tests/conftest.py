@@ -135,22 +135,25 @@ def prebuild(
 
     used = {f for item in request.session.items for f in getattr(item, "fixturenames", ())}
     parts = [p for p in PARTS if p in {PREBUILT[f] for f in used & set(PREBUILT)}]
-    if parts:  # a session of the slow fixtures' tests: the test-only kernels too
-        parts.append("kernels")
-    proc = None
-    if parts:
-        with open(session_cache / "prebuild.log", "wb") as log:
-            proc = subprocess.Popen(
-                [sys.executable, "-m", "tests.prebuild", *parts],
-                cwd=REPO,
-                env=dict(os.environ),
-                stdout=log,
-                stderr=subprocess.STDOUT,
+    # A session of the slow fixtures' tests also compiles the test-only kernels, in a
+    # process of its own: the first tests that use them come before the parts are done.
+    jobs = [parts, ["kernels"]] if parts else []
+    procs = []
+    for i, job in enumerate(jobs):
+        with open(session_cache / f"prebuild-{i}.log", "wb") as log:
+            procs.append(
+                subprocess.Popen(
+                    [sys.executable, "-m", "tests.prebuild", *job],
+                    cwd=REPO,
+                    env=dict(os.environ),
+                    stdout=log,
+                    stderr=subprocess.STDOUT,
+                )
             )
-    yield Prebuild(proc, session_cache)
-    if proc is not None and proc.poll() is None:
-        proc.kill()
-    if proc is not None:
+    yield Prebuild(procs[0] if procs else None, session_cache)
+    for proc in procs:
+        if proc.poll() is None:
+            proc.kill()
         proc.wait()
 
 
