@@ -2,8 +2,8 @@
 
 A one-pass numba scan (``_amc_scan``) reads strictly regular files, the vectorised parse
 here regular ones (every frame lists the same bones in the same order, one value per
-dof); anything irregular is re-read line by line, which either accepts it or says
-exactly where it is wrong.
+dof); anything irregular is read line by line from the first frame the scan could not
+read, which either accepts it or says exactly where it is wrong.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._amc_scan import dof_columns, scan_amc
+from ._amc_scan import dof_columns, scan_amc_prefix
 from ._asf import ROT_DOFS, TRANS_DOFS, AsfSkeleton
 from ._errors import MotionFormatError
 from ._quat import FloatArray, euler_to_q, qconj, qmul
@@ -53,11 +53,10 @@ def read_amc(
     header_lines, body_start = _amc_header(text)
     body = text[body_start:]
     moving = [j for j, d in enumerate(asf.dofs) if d]
-    values = scan_amc(body, asf, moving)
+    done, rest = scan_amc_prefix(body, asf, moving)
+    values = done if rest == len(body) and done.shape[0] else _amc_fast(body, asf, moving)
     if values is None:
-        values = _amc_fast(body, asf, moving)
-    if values is None:
-        values = _amc_slow(path, body, header_lines, asf, moving)
+        values = _amc_slow(path, body, header_lines, asf, moving, done, rest)
     if values.shape[0] == 0:
         raise MotionFormatError(path, "no frames")
     return _to_motion(path, values, asf, moving, fps, name or Path(path).stem)
@@ -121,8 +120,16 @@ def _amc_fast(body: str, asf: AsfSkeleton, moving: list[int]) -> FloatArray | No
 
 
 def _amc_slow(
-    path: str | Path, body: str, header_lines: int, asf: AsfSkeleton, moving: list[int]
+    path: str | Path,
+    body: str,
+    header_lines: int,
+    asf: AsfSkeleton,
+    moving: list[int],
+    done: FloatArray | None = None,
+    rest: int = 0,
 ) -> FloatArray:
+    """The body read line by line, from ``rest`` (a line's start) when the frames before
+    it are read already (``done``, by ``scan_amc_prefix``); an error names its line."""
     names = asf.skeleton.names
     expected = {names[j]: len(asf.dofs[j]) for j in moving}
     all_bones = set(names)
@@ -131,6 +138,13 @@ def _amc_slow(
     seen: set[str] = set()
     frame_no: int | None = None
     frame_line = 0
+    if done is not None and done.shape[0] and rest > 0:
+        frame_no = int(body.split(maxsplit=1)[0]) + done.shape[0] - 1
+        seen = set(expected)  # the last frame read is whole
+        header_lines += len(body[:rest].splitlines())
+        body = body[rest:]
+    else:
+        done = np.empty((0, width))
 
     def close_frame(at_line: int) -> None:
         missing = [b for b in expected if b not in seen]
@@ -183,7 +197,7 @@ def _amc_slow(
         seen.add(bone)
     if frame_no is not None:
         close_frame(header_lines + len(lines))
-    return np.array(frames, dtype=np.float64).reshape(-1, width)
+    return np.concatenate([done, np.array(frames, dtype=np.float64).reshape(-1, width)])
 
 
 def _to_motion(

@@ -6,10 +6,12 @@ bone that has dofs, in the first frame's order, one line each holding exactly it
 numbers. A number of at most 18 significant digits and a power of ten within 1e±22 is one
 correctly rounded division or product of two exact doubles, the value ``float()`` gives
 (Clinger's fast path); the kernel hands any other number (``3.1e-018``: 1e-23) back to
-``float()`` by its place in the text. Anything else returns ``None``, and the reader falls
-back to its vectorised parse, then to the line-by-line one that says where a file is
-wrong. Tested against the vectorised parse on shared AMCs (two of them holding numbers
-past 1e-22), and against ``float()`` on numbers written in many ways.
+``float()`` by its place in the text. Anything else stops the scan: the reader falls back
+to its vectorised parse, then to the line-by-line one that says where a file is wrong,
+which starts where the scan stopped (``scan_amc_prefix``). Tested against the vectorised
+parse on shared AMCs (two of them holding numbers past 1e-22), against ``float()`` on
+numbers written in many ways, and the line-by-line parse from where the scan stopped
+against the whole one.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from ._asf import AsfSkeleton
 from ._quat import FloatArray
 from ._text import MAX_ABS
 
-__all__ = ["dof_columns", "scan_amc"]
+__all__ = ["dof_columns", "scan_amc", "scan_amc_prefix"]
 
 _POW10 = np.array([10.0**k for k in range(23)])  # all exact in float64
 _MANTISSA_MAX = 2**53
@@ -32,11 +34,23 @@ def scan_amc(body: str, asf: AsfSkeleton, moving: list[int]) -> FloatArray | Non
     """The table ``(frames, values)`` of a regular AMC body (after its header), columns
     in the skeleton's order of the ``moving`` joints' dofs; ``None`` when the body is not
     strictly regular or holds a number this scan does not read exactly."""
+    table, rest = scan_amc_prefix(body, asf, moving)
+    return table if rest == len(body) and table.shape[0] else None
+
+
+def scan_amc_prefix(body: str, asf: AsfSkeleton, moving: list[int]) -> tuple[FloatArray, int]:
+    """``(table, rest)``: the table of the body's first frames that are as ``scan_amc``
+    requires, and where in ``body`` the rest begins (``len(body)``: nowhere), at the start
+    of a line. A reader that must parse the rest another way need not parse these frames
+    again. No frames (and ``rest`` 0) when the first frame is irregular, or a number read
+    cannot be (``nan``) or is out of range: the other parses say where."""
+    _, c = dof_columns(asf, moving)
+    none = np.empty((0, c)), 0
     buf = np.frombuffer(body.encode("utf-8"), dtype=np.uint8)
     names = asf.skeleton.names
     order = _first_frame_order(body)
     if order is None or sorted(order) != sorted(names[j] for j in moving):
-        return None
+        return none
     col, c = dof_columns(asf, moving)
     encoded = [nm.encode("utf-8") for nm in order]
     name_bytes = np.frombuffer(b"".join(encoded), dtype=np.uint8)
@@ -46,19 +60,24 @@ def scan_amc(body: str, asf: AsfSkeleton, moving: list[int]) -> FloatArray | Non
     max_frames = body.count("\n") // (len(order) + 1) + 1
     out = np.empty((max_frames, c))
     hard = np.empty((buf.size // 64 + 16, 3), dtype=np.int64)
-    n, n_hard = _scan_kernel(buf, name_bytes, name_ends, widths, cols, _POW10, out, hard)
+    n, n_hard, stop = _scan_kernel(buf, name_bytes, name_ends, widths, cols, _POW10, out, hard)
     if n <= 0:
-        return None
+        return none
     flat = out.reshape(-1)
     for a, e, at in hard[:n_hard].tolist():
+        if at >= n * c:
+            continue  # a number of the frame where the scan stopped
         try:
             flat[at] = float(bytes(buf[a:e]))
         except ValueError:  # "nan", say: the other parses say where
-            return None
+            return none
     table = out[:n]
     if table.size and not np.max(np.abs(table)) <= MAX_ABS:
-        return None
-    return table
+        return none
+    if stop == buf.size:
+        return table, len(body)
+    # a line's start follows a line end: a whole UTF-8 character
+    return table.copy(), len(buf[:stop].tobytes().decode("utf-8"))
 
 
 def dof_columns(asf: AsfSkeleton, moving: list[int]) -> tuple[dict[str, int], int]:
@@ -118,46 +137,50 @@ def _scan_kernel(
     pow10: FloatArray,
     out: FloatArray,
     hard: NDArray[np.int64],
-) -> tuple[int, int]:
-    """Frames read into ``out``, and the numbers left to ``float()`` as ``(start, end,
-    flat index in out)`` rows of ``hard``; 0 frames when the body is not as ``scan_amc``
-    requires."""
+) -> tuple[int, int, int]:
+    """Frames read into ``out``, the numbers left to ``float()`` as ``(start, end, flat
+    index in out)`` rows of ``hard``, and where the scan stopped: the end of ``buf``, or
+    the start of the line of the first frame that is not as ``scan_amc`` requires (the
+    frames before it are read; ``hard`` may hold numbers of that frame too)."""
     n = buf.shape[0]
     pos = 0
     frame = 0
     first = 0
     n_hard = 0
+    line = 0  # where the line of the frame being read starts
     while True:
         while pos < n and (_space(buf[pos]) or buf[pos] == 10):
+            if buf[pos] == 10:
+                line = pos + 1
             pos += 1
         if pos == n:
-            return frame, n_hard
+            return frame, n_hard, n
         # the frame number, alone on its line
         number, pos = _whole(buf, pos, 12)
         if number < 0:
-            return 0, 0
+            return frame, n_hard, line
         while pos < n and _space(buf[pos]):
             pos += 1
         if pos < n and buf[pos] != 10:
-            return 0, 0
+            return frame, n_hard, line
         if frame == 0:
             first = number
         elif number != first + frame:
-            return 0, 0
+            return frame, n_hard, line
         if frame >= out.shape[0]:
-            return 0, 0
+            return frame, n_hard, line
         for b in range(widths.shape[0]):
             while pos < n and (_space(buf[pos]) or buf[pos] == 10):
                 pos += 1
             a, e = name_ends[b], name_ends[b + 1]
             if pos + (e - a) > n:
-                return 0, 0
+                return frame, n_hard, line
             for k in range(e - a):
                 if buf[pos + k] != name_bytes[a + k]:
-                    return 0, 0
+                    return frame, n_hard, line
             pos += e - a
             if pos < n and not (_space(buf[pos]) or buf[pos] == 10):
-                return 0, 0  # a longer name that begins with this one
+                return frame, n_hard, line  # a longer name that begins with this one
             for d in range(widths[b]):
                 while pos < n and _space(buf[pos]):
                     pos += 1
@@ -185,7 +208,7 @@ def _scan_kernel(
                         frac += 1
                         pos += 1
                 if seen == 0:
-                    return 0, 0
+                    return frame, n_hard, line
                 exp = 0
                 if pos < n and (buf[pos] == 101 or buf[pos] == 69):
                     pos += 1
@@ -195,17 +218,17 @@ def _scan_kernel(
                         pos += 1
                     exp, pos = _whole(buf, pos, 4)
                     if exp < 0:
-                        return 0, 0
+                        return frame, n_hard, line
                     if eneg:
                         exp = -exp
                 if pos < n and not (_space(buf[pos]) or buf[pos] == 10):
-                    return 0, 0
+                    return frame, n_hard, line
                 scale = frac - exp
                 at = frame * out.shape[1] + cols[b] + d
                 exact = not big and mant < _MANTISSA_MAX and (mant == 0 or -22 <= scale <= 22)
                 if not exact:  # float() reads it afterwards
                     if n_hard == hard.shape[0]:
-                        return 0, 0
+                        return frame, n_hard, line
                     hard[n_hard, 0] = start
                     hard[n_hard, 1] = pos
                     hard[n_hard, 2] = at
@@ -221,5 +244,5 @@ def _scan_kernel(
             while pos < n and _space(buf[pos]):
                 pos += 1
             if pos < n and buf[pos] != 10:
-                return 0, 0  # more numbers than the bone's dofs
+                return frame, n_hard, line  # more numbers than the bone's dofs
         frame += 1

@@ -12,6 +12,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from control.motion import (
+    MotionFormatError,
     find_role,
     forward_kinematics,
     mirror,
@@ -287,3 +288,38 @@ def test_the_scan_is_the_vectorised_parse_on_real_files() -> None:
         got, want = scan_amc(body, asf, moving), _amc_fast(body, asf, moving)
         assert got is not None and want is not None
         assert np.array_equal(got.view(np.int64), want.view(np.int64)), clip
+
+
+def test_the_line_by_line_parse_goes_on_where_the_scan_stopped() -> None:
+    """A real AMC (numbers past 1e-22 in it), strictly regular up to a comment in
+    frame 41: the line-by-line parse reads on from there and gives the whole parse's
+    table, bit for bit; an error further on names the same line either way."""
+    from control.motion._amc import _amc_header, _amc_slow
+    from control.motion._amc_scan import scan_amc_prefix
+    from control.motion._text import decode, read_bytes
+
+    path = amc_path("02_01")
+    asf = read_asf(asf_path("02_01"))
+    moving = [j for j, d in enumerate(asf.dofs) if d]
+    lines = decode(path, read_bytes(path)).splitlines(keepends=True)
+    i = next(k for k, line in enumerate(lines) if line.strip() == "41")
+    lines.insert(i + 1, "# a comment\n")
+    good = "".join(lines)
+    bad = good.replace("\n200\nroot ", "\n200\nroot x")  # a number unreadable
+    assert bad != good
+    header, start = _amc_header(good)
+    for text in (good, bad):
+        body = text[start:]
+        done, rest = scan_amc_prefix(body, asf, moving)
+        assert done.shape[0] == 40 and body[:rest].endswith("\n") and body[rest:].startswith("41")
+        if text is good:
+            whole = _amc_slow(path, body, header, asf, moving)
+            resumed = _amc_slow(path, body, header, asf, moving, done, rest)
+            assert np.array_equal(resumed.view(np.int64), whole.view(np.int64))
+            continue
+        with pytest.raises(MotionFormatError) as e:
+            _amc_slow(path, body, header, asf, moving)
+        with pytest.raises(MotionFormatError) as again:
+            _amc_slow(path, body, header, asf, moving, done, rest)
+        where = 1 + text.splitlines().index(next(x for x in text.splitlines() if "root x" in x))
+        assert str(again.value) == str(e.value) and f".amc:{where}: " in str(e.value)
