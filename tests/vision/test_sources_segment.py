@@ -142,6 +142,27 @@ def test_clean_mask_keeps_the_largest_blob_and_fills_holes() -> None:
     assert clean_mask(np.pad(np.ones((2, 2)), 29)) is None  # too small
 
 
+def test_clean_mask_on_its_box_is_clean_mask_on_the_whole_image() -> None:
+    """clean_mask works on the box around the mask with a margin: the same pixels as the
+    smoothing, largest blob and hole filling on the whole image, with blobs inside,
+    touching an edge and a corner, holes open to the box's edge, and speckle."""
+    from vision._segment import _largest_blob
+
+    rng = np.random.default_rng(3)
+    for trial in range(40):
+        m = np.zeros((48, 64), dtype=np.uint8)
+        for _ in range(rng.integers(1, 4)):
+            y, x = rng.integers(-4, 44), rng.integers(-4, 60)
+            m[max(y, 0) : y + rng.integers(3, 30), max(x, 0) : x + rng.integers(3, 30)] = 1
+        m = add_mask_noise(m, rng, edge=1.0, holes=3)
+        m[rng.random(m.shape) < 0.01] = 1  # speckle
+        whole = _largest_blob(m, 0.003 * m.size)
+        got = clean_mask(m)
+        assert (got is None) == (whole is None), trial
+        if got is not None and whole is not None:
+            assert np.array_equal(got, whole), trial
+
+
 def test_clean_mask_keeps_a_thin_arm_with_ragged_edges() -> None:
     """A performer far from the camera: a body and an arm 3 pixels wide held out, the
     mask's edges ragged (a pixel either side flipped at random, as ``mimic record``
