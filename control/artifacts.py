@@ -304,7 +304,32 @@ def bound_cache(
         total -= e.bytes
         removed.append(e)
         log.info("cache over %.1f GB: removed %s (%.1f MB)", limit / 1e9, e.path, e.bytes / 1e6)
+    _warn_if_too_small(limit, total, removed)
     return removed
+
+
+#: an entry used this recently is taken to be one the running work still needs
+RECENT_S = 3600.0
+
+
+def _warn_if_too_small(limit: int, total: int, removed: Sequence[CacheEntry]) -> None:
+    """Say when the limit is below what is in use: what this work kept is over it, or
+    the entries removed were used within the hour (a large library's graph, say, removed
+    for its bank: built again on every run)."""
+    recent = [e for e in removed if time.time() - e.used < RECENT_S]
+    if total <= limit and not recent:
+        return
+    said = [f"{total / 1e9:.1f} GB kept"] if total > limit else []
+    if recent:
+        names = ", ".join(e.path.name for e in recent[:3]) + (", ..." if len(recent) > 3 else "")
+        said.append(f"removed {len(recent)} entries used within the hour ({names})")
+    log.warning(
+        "the cache's limit of %.1f GB ($%s) is below what this work uses: %s; they are "
+        "built again when next needed: raise the limit",
+        limit / 1e9,
+        ENV_LIMIT,
+        "; ".join(said),
+    )
 
 
 def clear_cache(

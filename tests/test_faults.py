@@ -117,6 +117,22 @@ def test_the_cache_keeps_its_bound_least_recently_used_first(tmp_path: Path) -> 
         clear_cache(["banks"], root=tmp_path)
 
 
+def test_a_limit_below_what_is_in_use_is_said(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Eviction of entries unused for days is quiet; removing one used within the hour,
+    or keeping more than the limit, says that the limit is too small."""
+    _entry(tmp_path, "motion/a.npz", 400, 3)
+    with caplog.at_level("WARNING", logger="control.artifacts"):
+        assert len(bound_cache(limit=100, root=tmp_path)) == 1
+        assert not caplog.records
+        graph = _entry(tmp_path, "graph/graph-1.npz", 300, 0.001)  # a minute ago
+        bank = _entry(tmp_path, "bank/0123", 500, 0)
+        assert [e.path for e in bound_cache(keep=[bank], limit=100, root=tmp_path)] == [graph]
+    said = caplog.records[-1].getMessage()
+    assert "MIMIC_CACHE_MAX_GB" in said and "graph-1.npz" in said and "GB kept" in said
+
+
 def test_a_new_graph_evicts_old_entries_beyond_the_limit(
     mocap: Path, monkeypatch: pytest.MonkeyPatch, fresh_cache: Path
 ) -> None:
