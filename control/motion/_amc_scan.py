@@ -44,14 +44,13 @@ def scan_amc_prefix(body: str, asf: AsfSkeleton, moving: list[int]) -> tuple[Flo
     of a line. A reader that must parse the rest another way need not parse these frames
     again. No frames (and ``rest`` 0) when the first frame is irregular, or a number read
     cannot be (``nan``) or is out of range: the other parses say where."""
-    _, c = dof_columns(asf, moving)
+    col, c = dof_columns(asf, moving)
     none = np.empty((0, c)), 0
     buf = np.frombuffer(body.encode("utf-8"), dtype=np.uint8)
     names = asf.skeleton.names
     order = _first_frame_order(body)
     if order is None or sorted(order) != sorted(names[j] for j in moving):
         return none
-    col, c = dof_columns(asf, moving)
     encoded = [nm.encode("utf-8") for nm in order]
     name_bytes = np.frombuffer(b"".join(encoded), dtype=np.uint8)
     name_ends = np.cumsum([0, *map(len, encoded)]).astype(np.int64)
