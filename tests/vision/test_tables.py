@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import logging
 import shutil
 from pathlib import Path
@@ -81,6 +82,35 @@ def test_stored_tables_are_the_made_ones_and_are_mapped_next_time(
         cached_window_tables(bank, frames, cs, mean, proj, w + 0.1 * (k + 1))
     assert len(list(folder.glob("windows-*.json"))) == KEEP_TABLES
     assert len(list(folder.glob("windows-*-shape.npy"))) == KEEP_TABLES
+
+
+def test_tables_just_written_are_checked_in_the_background(setup, tmp_path, monkeypatch) -> None:
+    """The run that writes the tables checks them once the file system's clock tick has
+    passed (here 0.1 s, RACY_NS patched), and records it: the next run maps them without
+    hashing a block."""
+    import silhouette_bank
+    import silhouette_bank._arrays as arrays
+
+    monkeypatch.setattr(arrays, "RACY_NS", 100_000_000)
+    monkeypatch.setattr(silhouette_bank, "RACY_NS", 100_000_000)
+    _, layer, session_bank = setup
+    bank = _copy(session_bank, tmp_path)
+    m = Matcher(layer, bank, MatchSettings())
+    mean, proj = cached_shape_stats(bank)
+    args = (bank, m.to_bank, layer.graph.clip_start, mean, proj, m.settings.centre_weight)
+    want = cached_window_tables(*args)
+    for thread in tables_module.CHECKING:
+        thread.join(timeout=30)
+    checked = json.loads((Path(bank.path) / "checked.json").read_text())
+    stem = f"windows-{want[2][:24]}"
+    assert {f"{stem}-shape.npy", f"{stem}-centre.npy"} <= set(checked)
+
+    def hashed(*_a, **_k):
+        raise AssertionError("read again")
+
+    monkeypatch.setattr(arrays, "block_hash", hashed)
+    again = cached_window_tables(*args)
+    np.testing.assert_array_equal(again[0], want[0])
 
 
 def test_a_bank_not_read_from_its_folder_keeps_its_tables_in_memory(setup, tmp_path) -> None:
