@@ -16,13 +16,14 @@ checksum) keeps them there, keyed by that checksum and what else they are made f
 
 The first run that needs them writes them (each file to a temporary one, then renamed),
 and checks them in a background thread a moment later (``_check_later``); the next maps
-them, without reading them when that check was recorded. A damaged or mismatched file is made again with a warning naming it;
-a folder that cannot be written is only read. At most ``KEEP_TABLES`` table pairs are kept
-per bank (the least recently used go first).
+them, without reading them when that check was recorded. A damaged or mismatched file
+is made again with a warning naming it; a folder that cannot be written is only read. At
+most ``KEEP_TABLES`` table pairs are kept per bank (the least recently used go first).
 """
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import json
 import logging
@@ -174,8 +175,8 @@ def _check_later(manifest: Path, stem: Path, key: str, shapes: dict[str, tuple[i
     clock tick could no longer hide behind the record (``RACY_NS`` after the write): the
     next run then maps them without reading them (at 500,000 frames the first warm
     start-up spent about 2 s checking them). A process that ends first leaves the check
-    to the next run, as before; a failed check leaves it to the next run too, which says
-    what is wrong."""
+    to the next run, as before (but for large tables, ``WAIT_BYTES``, which it waits
+    for); a failed check leaves it to the next run too, which says what is wrong."""
 
     def check() -> None:
         time.sleep(silhouette_bank.RACY_NS / 1e9 + 0.05)
@@ -186,6 +187,15 @@ def _check_later(manifest: Path, stem: Path, key: str, shapes: dict[str, tuple[i
     thread = threading.Thread(target=check, name="mimic-check-tables", daemon=True)
     thread.start()
     CHECKING.append(thread)
+    size = sum(8 * int(np.prod(s)) for s in shapes.values())
+    if size >= WAIT_BYTES:  # worth a short wait at the exit: the next run saves more
+        atexit.register(thread.join)
+
+
+#: tables this large are checked before the process that wrote them exits (a wait of
+#: ``RACY_NS`` at most, then the check: about 2 s for a 500k library's 3.6 GB); smaller
+#: ones only if it runs on long enough
+WAIT_BYTES = 256 * 2**20
 
 
 def _open(

@@ -87,18 +87,22 @@ def test_stored_tables_are_the_made_ones_and_are_mapped_next_time(
 def test_tables_just_written_are_checked_in_the_background(setup, tmp_path, monkeypatch) -> None:
     """The run that writes the tables checks them once the file system's clock tick has
     passed (here 0.1 s, RACY_NS patched), and records it: the next run maps them without
-    hashing a block."""
+    hashing a block. Large tables are waited for at the exit."""
     import silhouette_bank
     import silhouette_bank._arrays as arrays
 
     monkeypatch.setattr(arrays, "RACY_NS", 100_000_000)
     monkeypatch.setattr(silhouette_bank, "RACY_NS", 100_000_000)
+    waited = []  # tables over WAIT_BYTES are waited for at the exit
+    monkeypatch.setattr(tables_module, "WAIT_BYTES", 0)
+    monkeypatch.setattr(tables_module.atexit, "register", waited.append)
     _, layer, session_bank = setup
     bank = _copy(session_bank, tmp_path)
     m = Matcher(layer, bank, MatchSettings())
     mean, proj = cached_shape_stats(bank)
     args = (bank, m.to_bank, layer.graph.clip_start, mean, proj, m.settings.centre_weight)
     want = cached_window_tables(*args)
+    assert [j.__self__.name for j in waited] == ["mimic-check-tables"]
     for thread in tables_module.CHECKING:
         thread.join(timeout=30)
     checked = json.loads((Path(bank.path) / "checked.json").read_text())
