@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from ..kernels import read_only
+from ..kernels import kernel_input
 from ._quat import FloatArray, qmul, qrot
 from ._types import Motion, Skeleton
 
@@ -89,12 +89,12 @@ def _fk(
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """``(positions, orientations, end_positions)`` by the kernel."""
     return _fk_kernel(
-        read_only(np.ascontiguousarray(skeleton.parents, dtype=np.int64)),
-        read_only(np.ascontiguousarray(skeleton.offsets, dtype=np.float64).reshape(-1, 3)),
-        read_only(np.ascontiguousarray(skeleton.end_parents, dtype=np.int64)),
-        read_only(np.ascontiguousarray(skeleton.end_offsets, dtype=np.float64).reshape(-1, 3)),
-        read_only(np.ascontiguousarray(root_pos, dtype=np.float64)),
-        read_only(np.ascontiguousarray(quats, dtype=np.float64)),
+        kernel_input(skeleton.parents, np.int64),
+        kernel_input(np.reshape(skeleton.offsets, (-1, 3)), np.float64),
+        kernel_input(skeleton.end_parents, np.int64),
+        kernel_input(np.reshape(skeleton.end_offsets, (-1, 3)), np.float64),
+        kernel_input(root_pos, np.float64),
+        kernel_input(quats, np.float64),
     )
 
 
