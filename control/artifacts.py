@@ -150,9 +150,9 @@ def read_npz(
             missing = [k for k in keys if k not in z.files]
             arrays = {} if missing else {k: z[k] for k in keys}
     except Exception as exc:
-        # a damaged zip or array header raises many kinds of exception: zlib.error,
-        # EOFError, BadZipFile, tokenize.TokenError, NotImplementedError, MemoryError;
-        # whichever it is, the file is named
+        # a damaged zip or array header raises many kinds of exception (zlib's errors,
+        # an early end of file, a bad zip, a header that does not parse, an array format
+        # numpy does not support, an absurd size): whichever it is, the file is named
         raise error(
             path, f"unreadable, truncated or damaged ({type(exc).__name__}: {exc})"
         ) from exc
