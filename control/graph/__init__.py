@@ -2,6 +2,7 @@
 blended transitions and the random walk."""
 
 from ._artifact import GraphFileError, cached_graph, graph_cache_dir, load_graph, save_graph
+from ._broad import BroadPhase, squared_gaps
 from ._distance import close_pair_blocks, close_pairs, lower_bound_features, pair_distances
 from ._features import (
     COORDS,
@@ -44,6 +45,7 @@ __all__ = [
     "COORDS",
     "GRAPH_VERSION",
     "SOFT_REACH",
+    "BroadPhase",
     "CapturedTerrain",
     "FootTrack",
     "FrameData",
@@ -90,6 +92,7 @@ __all__ = [
     "select_clips",
     "sole_speed",
     "solve_leg",
+    "squared_gaps",
     "synthesize",
     "terrain_options",
     "two_bone_ik",

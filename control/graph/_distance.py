@@ -16,6 +16,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from ._broad import BroadPhase, wants_broad
 from ._features import FrameFeatures, q_embed
 
 __all__ = ["MODE", "close_pair_blocks", "close_pairs", "lower_bound_features", "pair_distances"]
@@ -225,6 +226,7 @@ def close_pairs(
     x: np.ndarray | None = None,
     norms: np.ndarray | None = None,
     max_block_elems: int = 1 << 24,
+    broad: BroadPhase | None = None,
 ) -> tuple[IntArray, IntArray]:
     """All pairs ``(a, b)``, ``a`` in ``rows``, ``b`` in ``cols``, ``a != b``, whose lower
     bound is at most ``dmax``: a superset of the pairs with ``D <= dmax``.
@@ -232,7 +234,7 @@ def close_pairs(
     Works in blocks of at most ``max_block_elems`` pairs (``close_pair_blocks``), so
     memory stays O(n + candidates) whatever the number of frames.
     """
-    blocks = list(close_pair_blocks(feat, rows, cols, dmax, nu, x, norms, max_block_elems))
+    blocks = list(close_pair_blocks(feat, rows, cols, dmax, nu, x, norms, max_block_elems, broad))
     if not blocks:
         empty = np.zeros(0, dtype=np.int64)
         return empty, empty
@@ -248,20 +250,30 @@ def close_pair_blocks(
     x: np.ndarray | None = None,
     norms: np.ndarray | None = None,
     max_block_elems: int = 1 << 24,
+    broad: BroadPhase | None = None,
 ) -> Iterator[tuple[IntArray, IntArray]]:
     """``close_pairs``'s pairs a block of rows at a time (each block compares at most
     ``max_block_elems`` pairs), so that a caller can measure and filter them before
-    the next block is searched."""
+    the next block is searched.
+
+    A group of at least ``BROAD_MIN_PAIRS`` comparisons is searched through a KD-tree of
+    its columns (``BroadPhase``; ``broad``, when given, is that of ``cols``), which finds
+    the same pairs under the bound without comparing every row with every column."""
     if x is None or norms is None:
         x, norms = lower_bound_features(feat, nu)
     rows = np.asarray(rows, dtype=np.int64)
     cols = np.asarray(cols, dtype=np.int64)
     if rows.size == 0 or cols.size == 0:
         return
-    xc = x[cols]
-    nc = norms[cols].astype(np.float32)
     # float32 products: allow for their rounding relative to the magnitudes involved
     slack = 1e-5 * (1.0 + 4.0 * float(norms.max())) + 1e-6
+    if broad is None and wants_broad(rows.size, cols.size):
+        broad = BroadPhase.of(x, cols)
+    if broad is not None:
+        yield from broad.pairs(x, rows, dmax + slack)
+        return
+    xc = x[cols]
+    nc = norms[cols].astype(np.float32)
     limit = np.float32(dmax + slack)
     step = max(1, max_block_elems // cols.size)
     for r0 in range(0, rows.size, step):

@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..jobs import cluster_address, map_jobs
+from ._broad import BroadPhase, wants_broad
 from ._distance import close_pair_blocks, lower_bound_features, pair_distances
 from ._features import FrameFeatures
 from ._prune import contact_groups
@@ -51,6 +52,7 @@ def _search_rows(
     norms: np.ndarray,
     rows: IntArray,
     cols: IntArray,
+    broad: BroadPhase | None = None,
 ) -> tuple[list[_Pairs], int, float]:
     """``rows`` against ``cols``: the lower bound's candidates a block of rows at a time,
     measured (``_measured``) once about ``_MEASURE`` of them are held; the likely pairs
@@ -59,7 +61,7 @@ def _search_rows(
     held: list[tuple[IntArray, IntArray]] = []  # candidates not yet measured
     n_candidates = 0
     t_search = 0.0
-    blocks = close_pair_blocks(feat, rows, cols, dmax, options.nu, x, norms)
+    blocks = close_pair_blocks(feat, rows, cols, dmax, options.nu, x, norms, broad=broad)
     while True:
         t0 = time.perf_counter()
         got = next(blocks, None)
@@ -85,8 +87,8 @@ def _pairs_job(
     likely pairs and its number of candidates."""
     feat, x, norms, options, dmax, groups = shared
     g, r0, r1 = job
-    rows, cols = groups[g]
-    parts, n_candidates, _ = _search_rows(feat, options, dmax, x, norms, rows[r0:r1], cols)
+    rows, cols, broad = groups[g]
+    parts, n_candidates, _ = _search_rows(feat, options, dmax, x, norms, rows[r0:r1], cols, broad)
     return parts, n_candidates
 
 
@@ -118,7 +120,16 @@ def likely_pairs(
             step = max(1, _JOB_ELEMS // max(1, cols.size))
             jobs += [(g, r0, min(rows.size, r0 + step)) for r0 in range(0, rows.size, step)]
         t0 = time.perf_counter()
-        shared = (feat, x, norms, options, dmax, groups)
+        # a large group's KD-tree made once here, and sent with the features
+        with_broad = [
+            (
+                rows,
+                cols,
+                BroadPhase.of(x, cols) if wants_broad(rows.size, cols.size) else None,
+            )
+            for rows, cols in groups
+        ]
+        shared = (feat, x, norms, options, dmax, with_broad)
         for got, n in map_jobs(_pairs_job, jobs, cluster=address, shared=shared):
             parts += got
             n_candidates += n

@@ -6,12 +6,14 @@ import numpy as np
 import pytest
 
 from control.graph import (
+    BroadPhase,
     close_pairs,
     frame_features,
     lower_bound_features,
     pair_distances,
     q_embed,
     rotate_y,
+    squared_gaps,
     weighted_joints,
 )
 from control.motion import Clip, Library, Motion, qconj, qlog, qmul
@@ -218,6 +220,49 @@ def test_blocked_search_finds_every_close_pair(walk_lib: Library, coords: str) -
     truth = {(int(i), int(j)) for i, j, v in zip(a, b, d, strict=True) if v <= dmax and i != j}
     assert truth <= found
     assert len(found) < 0.2 * n * n  # and it actually prunes
+
+
+@pytest.mark.parametrize("coords", ["fixed", "relative", "terrain"])
+def test_the_broad_phase_finds_the_blocked_search_s_pairs(walk_lib: Library, coords: str) -> None:
+    """A KD-tree of the columns' principal directions, queried a few rows at a time,
+    finds exactly the pairs whose full bound is within the limit (so every pair the
+    blocked matrix products find under the threshold); rows and columns need not be the
+    same frames."""
+    feat = frame_features(walk_lib.clips, coords)
+    x, norms = lower_bound_features(feat, NU)
+    rng = np.random.default_rng(7)
+    rows = np.sort(rng.choice(feat.n, feat.n * 2 // 3, replace=False))
+    cols = np.sort(rng.choice(feat.n, feat.n // 2, replace=False))
+    a_all, b_all = np.repeat(rows, cols.size), np.tile(cols, rows.size)
+    gaps = squared_gaps(x, a_all, b_all)
+    broad = BroadPhase.of(x, cols, dims=4)
+    for q in (0.01, 0.05, 0.2):
+        limit = float(np.quantile(gaps, q))
+        got = list(broad.pairs(x, rows, limit, per_block=17))
+        tree = set(
+            zip(
+                np.concatenate([a for a, _ in got]).tolist(),
+                np.concatenate([b for _, b in got]).tolist(),
+                strict=True,
+            )
+        )
+        inside = (gaps <= limit) & (a_all != b_all)
+        assert tree == set(zip(a_all[inside].tolist(), b_all[inside].tolist(), strict=True))
+        assert len(tree) > 20  # and not empty
+        # the blocked search widens its threshold by its float32 products' slack
+        slack = 1e-5 * (1.0 + 4.0 * float(norms.max())) + 1e-6
+        blocked = close_pairs(feat, rows, cols, limit - 3 * slack, NU, x, norms, 1000)
+        assert (
+            blocked[0].size > 10 and set(zip(*map(np.ndarray.tolist, blocked), strict=True)) <= tree
+        )
+
+
+def test_squared_gaps_are_numpy_s(rng: np.random.Generator) -> None:
+    x = rng.normal(size=(40, 9)).astype(np.float32)
+    a = rng.integers(0, 40, 300)
+    b = rng.integers(0, 40, 300)
+    want = np.sum((x[a].astype(np.float64) - x[b]) ** 2, axis=1)
+    np.testing.assert_allclose(squared_gaps(x, a, b), want, rtol=1e-12)
 
 
 @pytest.mark.parametrize("coords", ["fixed", "relative", "terrain"])

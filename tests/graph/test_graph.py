@@ -82,13 +82,49 @@ def test_blocks_and_chunks_give_the_same_graph(
     assert {k: whole.report[k] for k in counts} == {k: parts.report[k] for k in counts}
 
 
+def test_the_kd_tree_broad_phase_gives_the_graph_of_the_blocked_search(
+    medium_lib: Library, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Every contact group searched through a KD-tree of its columns' principal
+    directions (``BroadPhase``, as past 2,048 x 2,048 frames), a few rows at a time,
+    gives the graph of the blocked matrix products, array for array."""
+    from control.graph import _broad
+
+    options = GraphOptions(coords="relative")
+    monkeypatch.setattr(_broad, "BROAD_MIN_PAIRS", 1 << 62)
+    blocked = build_graph(medium_lib.clips, options)
+    made: list[int] = []
+    real = _broad.BroadPhase.of.__func__  # type: ignore[attr-defined]
+
+    def counted(cls: type, x: np.ndarray, cols: np.ndarray, *args: Any) -> Any:
+        made.append(len(cols))
+        return real(cls, x, cols, *args)
+
+    monkeypatch.setattr(_broad.BroadPhase, "of", classmethod(counted))
+    monkeypatch.setattr(_broad, "BROAD_MIN_PAIRS", 1)
+    monkeypatch.setattr(_broad, "_ROWS", 101)
+    tree = build_graph(medium_lib.clips, options)
+    assert len(made) > 1 and max(made) > 500
+    assert blocked.n_edges > 100
+    for name in ("src", "dst", "dist", "align", "in_scc"):
+        assert np.array_equal(getattr(blocked, name), getattr(tree, name)), name
+    # the same lower bound, in float64 instead of float32 products: at most a few
+    # candidates at its rounding's edge differ
+    assert tree.report["likelihood"] == blocked.report["likelihood"]
+    assert abs(tree.report["candidates"] - blocked.report["candidates"]) <= max(
+        10, 1e-4 * blocked.report["candidates"]
+    )
+
+
 def test_a_graph_built_on_a_two_worker_cluster_is_the_local_build(
     medium_lib: Library, monkeypatch: pytest.MonkeyPatch, dask_cluster: str
 ) -> None:
     """The likely pairs searched and measured as jobs on a local Dask cluster of two
-    workers (blocks of rows, the frame features sent once) give the local graph."""
-    from control.graph import _pairs
+    workers (blocks of rows, the frame features and the groups' KD-trees sent once)
+    give the local graph."""
+    from control.graph import _broad, _pairs
 
+    monkeypatch.setattr(_broad, "BROAD_MIN_PAIRS", 1 << 18)  # the larger groups' trees
     options = GraphOptions(coords="relative")
     here = build_graph(medium_lib.clips, options)
     jobs: list[int] = []
