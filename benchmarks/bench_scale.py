@@ -102,6 +102,8 @@ def _graph(root: Path, n: int) -> dict[str, Any]:
         "rss_before_mb": round(before, 1),
         "edges": g.n_edges,
         "likely_pairs": g.report["likelihood"],  # (held until the similarity rule)
+        "candidates": g.report["candidates"],  # (the lower bound's)
+        "parts_seconds": g.report["seconds"],
     }
 
 
