@@ -16,6 +16,7 @@ the runner-up group, so both stay exact.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numba
 import numpy as np
@@ -23,9 +24,24 @@ from numpy.typing import NDArray
 
 from .kernels import read_only
 
-__all__ = ["dtw", "dtw_batch", "dtw_best_window", "dtw_reference", "dtw_windows"]
+__all__ = [
+    "SHAPE_DTYPE",
+    "ShapeTable",
+    "dtw",
+    "dtw_batch",
+    "dtw_best_window",
+    "dtw_reference",
+    "dtw_windows",
+]
 
 FloatArray = NDArray[np.float64]
+
+#: the window tables' shape numbers (``dtw_best_window``, ``dtw_windows``): float32, as
+#: stored beside the bank (half the bytes of float64; they come from the bank's float16
+#: features); the DTW itself sums in float64
+SHAPE_DTYPE = np.float32
+#: a table of shape numbers: float32 as stored, or float64 (cast on the way in)
+ShapeTable = NDArray[np.floating[Any]]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -136,7 +152,7 @@ def _best_window_kernel(
 
 def dtw_best_window(
     query: FloatArray,
-    shape: FloatArray,
+    shape: ShapeTable,
     centre: FloatArray,
     starts: NDArray[np.int64],
     length: int,
@@ -151,7 +167,7 @@ def dtw_best_window(
     exact.
     """
     q = np.ascontiguousarray(query, dtype=np.float64)
-    h = np.ascontiguousarray(shape, dtype=np.float64)
+    h = np.ascontiguousarray(shape, dtype=SHAPE_DTYPE)
     c = np.ascontiguousarray(centre, dtype=np.float64)
     st = np.ascontiguousarray(starts, dtype=np.int64)
     if (
@@ -199,7 +215,7 @@ def _windows_kernel(
 
 def dtw_windows(
     query: FloatArray,
-    shape: FloatArray,
+    shape: ShapeTable,
     centre: FloatArray,
     starts: NDArray[np.int64],
     views: NDArray[np.int64],
@@ -220,7 +236,7 @@ def dtw_windows(
     if vw.size and (vw.min() < 0 or vw.max() >= shape.shape[1]):
         raise ValueError("views must lie in 0..V - 1")
     out = np.empty(st.size)
-    h = np.ascontiguousarray(shape, dtype=np.float64)
+    h = np.ascontiguousarray(shape, dtype=SHAPE_DTYPE)
     c = np.ascontiguousarray(centre, dtype=np.float64)
     _windows_kernel(q, read_only(h), read_only(c), st, vw, int(length), int(window), out)
     return np.sqrt(out)

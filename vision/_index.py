@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from control.artifacts import atomic_write, checksum, read_npz, verify_checksum
-from control.dtw import dtw_windows
+from control.dtw import SHAPE_DTYPE, ShapeTable, dtw_windows
 
 log = logging.getLogger(__name__)
 
@@ -41,7 +41,7 @@ def _bounds(length: int, segments: int) -> IntArray:
 
 
 def _summaries(
-    shape: FloatArray,
+    shape: ShapeTable,
     centre: FloatArray,
     starts: IntArray,
     length: int,
@@ -110,7 +110,7 @@ class WindowIndex:
 
     def __init__(
         self,
-        shape: FloatArray,
+        shape: ShapeTable,
         centre: FloatArray,
         starts: IntArray,
         length: int,
@@ -128,7 +128,7 @@ class WindowIndex:
         starts = np.ascontiguousarray(starts, dtype=np.int64)
         if starts.size and (starts.min() < 0 or starts.max() + length > shape.shape[0]):
             raise ValueError("every window must lie inside the table")
-        self.shape = np.ascontiguousarray(shape, dtype=np.float64)
+        self.shape = np.ascontiguousarray(shape, dtype=SHAPE_DTYPE)
         self.centre = np.ascontiguousarray(centre, dtype=np.float64)
         self.starts = starts
         self.length = int(length)
@@ -236,7 +236,7 @@ INDEX_VERSION = 2  # 2: the inverted lists hold 8-bit summaries
 
 
 def cached_window_index(
-    shape: FloatArray,
+    shape: ShapeTable,
     centre: FloatArray,
     starts: IntArray,
     length: int,

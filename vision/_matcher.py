@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from control.avatar import JUMP, JumpCosts
 from control.clusters import HigherLayer
-from control.dtw import dtw_batch
+from control.dtw import ShapeTable, dtw_batch
 from silhouette_bank import Bank
 
 from ._decision import Decision, MatchSettings
@@ -89,7 +89,7 @@ class Matcher:
             self.plays = np.ones(self.graph.n_frames, dtype=bool)
             self.plays[self.graph.clip_start[1:] - 1] = False
         self._cache: dict[tuple[int, int], tuple[IntArray, IntArray] | None] = {}
-        self._tables: tuple[FloatArray, FloatArray, IntArray] | None = None
+        self._tables: tuple[ShapeTable, FloatArray, IntArray] | None = None
         self._tables_key = ""
         self._index: WindowIndex | None = None
         #: the run of playback each frame belongs to (a run breaks where playing on cannot)
@@ -111,7 +111,7 @@ class Matcher:
                 f"silhouette_features(mask, descriptor={self.descriptor!r})"
             )
 
-    def _global_tables(self) -> tuple[FloatArray, FloatArray, IntArray]:
+    def _global_tables(self) -> tuple[ShapeTable, FloatArray, IntArray]:
         """Every graph frame's standardised shape numbers and accumulated centre (times
         the centre weight) in every view, and the frames a window may start at (in the
         component, with ``n`` frames of playback ahead)."""

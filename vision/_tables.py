@@ -9,7 +9,7 @@ checksum) keeps them there, keyed by that checksum and what else they are made f
     windows-stats.npz           the statistics, with the bank checksum they belong to
     windows-<hash>.json         a table pair's manifest: what it was made from, its
                                 shapes and the SHA-256 of every block of frames
-    windows-<hash>-shape.npy    the mapped shape numbers ``(N, V, d)`` and
+    windows-<hash>-shape.npy    the mapped shape numbers ``(N, V, d)``, float32, and
     windows-<hash>-centre.npy   the accumulated centre ``(N, V, 2)``, float64, opened
                                 memory-mapped (``silhouette_bank.open_mapped``: checked
                                 in full once, then trusted while unchanged)
@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 
 import silhouette_bank
 from control.artifacts import atomic_write, checksum, read_npz, verify_checksum
+from control.dtw import SHAPE_DTYPE, ShapeTable
 from silhouette_bank import Bank, block_hashes, npy_file, open_mapped
 
 from ._windows import shape_stats, window_tables
@@ -55,8 +56,10 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
-#: the stored tables' format
-TABLES_VERSION = 1
+#: the stored tables' format (2: the shape numbers in float32)
+TABLES_VERSION = 2
+#: each stored table's number type
+_DTYPES = {"shape": SHAPE_DTYPE, "centre": np.float64}
 #: table pairs kept in a bank's folder
 KEEP_TABLES = 3
 #: frames of a stored table hashed as one block
@@ -131,7 +134,7 @@ def cached_window_tables(
     mean: FloatArray,
     proj: FloatArray,
     centre_weight: float,
-) -> tuple[FloatArray, FloatArray, str]:
+) -> tuple[ShapeTable, FloatArray, str]:
     """``(*window_tables(...), key)``: stored in (and mapped from) the bank's folder
     when the bank was read from one; ``key`` (a hash of the bank's checksum and the other
     arguments) names them, ``""`` when they are made in memory."""
@@ -200,7 +203,7 @@ WAIT_BYTES = 256 * 2**20
 
 def _open(
     manifest: Path, stem: Path, key: str, shapes: dict[str, tuple[int, ...]]
-) -> tuple[FloatArray, FloatArray]:
+) -> tuple[ShapeTable, FloatArray]:
     try:
         m = json.loads(manifest.read_bytes().decode("utf-8"))
         ok = isinstance(m, dict) and isinstance(m.get("blocks"), dict)
@@ -216,7 +219,7 @@ def _open(
         path = Path(f"{stem}-{name}.npy")
         out.append(
             open_mapped(
-                path, shapes[name], np.float64, m["blocks"].get(name), _ROWS, WindowTablesError
+                path, shapes[name], _DTYPES[name], m["blocks"].get(name), _ROWS, WindowTablesError
             )
         )
     return out[0], out[1]
@@ -231,12 +234,12 @@ def _write(
     centre_weight: float,
     stem: Path,
     key: str,
-) -> tuple[FloatArray, FloatArray]:
+) -> tuple[ShapeTable, FloatArray]:
     n, v = frames.size, bank.features.shape[1]
     blocks: dict[str, Any] = {}
     with (
-        npy_file(Path(f"{stem}-shape.npy"), np.float64, (n, v, proj.shape[1])) as shape,
-        npy_file(Path(f"{stem}-centre.npy"), np.float64, (n, v, 2)) as centre,
+        npy_file(Path(f"{stem}-shape.npy"), _DTYPES["shape"], (n, v, proj.shape[1])) as shape,
+        npy_file(Path(f"{stem}-centre.npy"), _DTYPES["centre"], (n, v, 2)) as centre,
     ):
         window_tables(bank, frames, clip_start, mean, proj, centre_weight, out=(shape, centre))
         blocks["shape"] = block_hashes(shape, _ROWS)

@@ -10,7 +10,7 @@ import itertools
 import numpy as np
 from numpy.typing import NDArray
 
-from control.dtw import dtw_best_window
+from control.dtw import SHAPE_DTYPE, ShapeTable, dtw_best_window
 from silhouette_bank import DEFAULT_DESCRIPTOR, Bank, Descriptor, get_descriptor
 
 __all__ = [
@@ -87,16 +87,18 @@ def window_tables(
     mean: FloatArray,
     proj: FloatArray,
     centre_weight: float,
-    out: tuple[FloatArray, FloatArray] | None = None,
-) -> tuple[FloatArray, FloatArray]:
+    out: tuple[ShapeTable, FloatArray] | None = None,
+) -> tuple[ShapeTable, FloatArray]:
     """What the whole-library window search compares: for rows ``frames`` (bank frames;
     ``clip_start`` splits them into clips), the mapped shape numbers ``(N, V, d)``
     and the centre accumulated along each clip ``(N, V, 2)``, times ``centre_weight``
     (a window's centre is taken relative to its first frame by the DTW kernel); written
-    into ``out`` (two float64 arrays of those shapes: a memory map) when given."""
+    into ``out`` (float32 and float64 arrays of those shapes: memory maps) when given."""
     desc = bank.settings.features
     n, v = frames.size, bank.features.shape[1]
-    shape, centre = out if out is not None else (np.empty((n, v, proj.shape[1])), None)
+    shape, centre = (
+        out if out is not None else (np.empty((n, v, proj.shape[1]), dtype=SHAPE_DTYPE), None)
+    )
     if centre is None:
         centre = np.empty((n, v, 2))
     for a in range(0, n, 2048):  # in blocks: a bank of many views is large in float64
@@ -120,7 +122,7 @@ def per_frame_cost(cost: float, length: int) -> float:
 
 def best_window(
     queries: list[FloatArray],
-    shape: FloatArray,
+    shape: ShapeTable,
     centre: FloatArray,
     starts: IntArray,
     length: int,

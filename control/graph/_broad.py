@@ -43,7 +43,7 @@ BROAD_MIN_PAIRS = 1 << 22
 #: frames whose principal directions are found (an even stride over the columns)
 _SAMPLE = 20000
 #: rows queried against the tree at a time (bounds what one query's pairs hold)
-_ROWS = 4096
+_ROWS = 1024
 
 
 def wants_broad(n_rows: int, n_cols: int) -> bool:

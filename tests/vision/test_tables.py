@@ -49,6 +49,9 @@ def test_stored_tables_are_the_made_ones_and_are_mapped_next_time(
     want = window_tables(bank, frames, cs, mean, proj, w)
     shape, centre, key = cached_window_tables(bank, frames, cs, mean, proj, w)
     assert key and isinstance(shape, np.memmap) and isinstance(centre, np.memmap)
+    # the shape numbers stored at the bank's precision and more (float32: half the disk
+    # of float64), the centre, a running sum along each clip, in float64
+    assert shape.dtype == want[0].dtype == np.float32 and centre.dtype == np.float64
     np.testing.assert_array_equal(shape, want[0])
     np.testing.assert_array_equal(centre, want[1])
 
