@@ -128,8 +128,12 @@ class Performance:
         # computed before the first frame rather than at the first jump
         self.costs = JumpCosts(self.graph, clips, anywhere=jumps)
         if jumps:  # built now, not at the first decision (a camera would stall there)
-            _ = self.costs.features
-            matcher.index()
+            # the features (numpy on every frame: 1.9 s at 500,000 frames) in a thread
+            # while this one opens the search's index (mostly reading: 0.9 s there)
+            with ThreadPoolExecutor(1) as pool:
+                computing = pool.submit(lambda: self.costs.features)
+                matcher.index()
+                computing.result()
         self.avatar = self.new_avatar(start)
         if jumps and bank.features.shape[0] >= matcher.n:
             # one throwaway decision on a window of the library itself, so that the first
