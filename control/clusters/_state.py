@@ -24,6 +24,26 @@ def orientation_distance(qa: FloatArray, qb: FloatArray) -> FloatArray:
     return 0.5 * np.linalg.norm(qlog(qmul(qconj(qa), qb)), axis=-1)
 
 
+#: products ``q_a . q_b`` held at a time (``_nearest_dots``): 512 MB of float64 (at 200,000
+#: frames in fixed coordinates, 63 s against 103 s with 128 MB and about 70 s and 6.4 GB
+#: with all columns at once)
+_ELEMS = 1 << 26
+
+
+def _nearest_dots(rows: FloatArray, q: FloatArray, step: int) -> FloatArray:
+    """``min_b |rows_a . q_b|`` for each row ``a``, ``step`` columns of ``q`` at a time
+    into one buffer (all at once, 2,048 rows against 500,000 frames held 16 GB)."""
+    worst = np.full(rows.shape[0], np.inf)
+    buf = np.empty((rows.shape[0], min(step, q.shape[0])))
+    for c in range(0, q.shape[0], step):
+        cols = q[c : c + step]
+        dots = buf if cols.shape[0] == buf.shape[1] else np.empty((rows.shape[0], cols.shape[0]))
+        np.matmul(rows, cols.T, out=dots)
+        np.abs(dots, out=dots)
+        np.minimum(worst, dots.min(axis=1), out=worst)
+    return worst
+
+
 def reference_orientation(q: FloatArray, block: int = 2048, sample: int = 2048) -> FloatArray:
     """The orientation among ``q`` (N, 4) that minimises the distance to the farthest one
     (the first such, in order).
@@ -49,7 +69,7 @@ def reference_orientation(q: FloatArray, block: int = 2048, sample: int = 2048) 
         idx = order[s : s + block]
         if bound[idx[0]] < best:  # no orientation left can beat (or tie) the best
             break
-        worst = np.min(np.abs(q[idx] @ q.T), axis=1)
+        worst = _nearest_dots(q[idx], q, max(1, _ELEMS // idx.size))
         for w, i in zip(worst, idx, strict=True):
             if w > best or (w == best and i < best_i):
                 best, best_i = float(w), int(i)

@@ -22,7 +22,15 @@ def _random_q(rng: np.random.Generator, n: int, spread: float) -> np.ndarray:
     return qexp(rng.normal(scale=spread, size=(n, 3)))
 
 
-def test_reference_orientation_is_the_minimax_one(rng: np.random.Generator) -> None:
+@pytest.mark.parametrize("elems", [1 << 26, 1000])
+def test_reference_orientation_is_the_minimax_one(
+    rng: np.random.Generator, monkeypatch: pytest.MonkeyPatch, elems: int
+) -> None:
+    """Also with the candidates measured against a few frames at a time (``_ELEMS``
+    1,000: 4 to 58 columns a pass, the last one shorter), as against 500,000 frames."""
+    from control.clusters import _state
+
+    monkeypatch.setattr(_state, "_ELEMS", elems)
     q = _random_q(rng, 200, 1.2)
     q[::3] *= -1.0  # the sign of a quaternion must not matter
     ref = reference_orientation(q, block=17, sample=23)
