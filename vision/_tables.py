@@ -190,14 +190,15 @@ def _check_later(manifest: Path, stem: Path, key: str, shapes: dict[str, tuple[i
     thread = threading.Thread(target=check, name="mimic-check-tables", daemon=True)
     thread.start()
     CHECKING.append(thread)
-    size = sum(8 * int(np.prod(s)) for s in shapes.values())
+    size = sum(np.dtype(_DTYPES[name]).itemsize * int(np.prod(s)) for name, s in shapes.items())
     if size >= WAIT_BYTES:  # worth a short wait at the exit: the next run saves more
         atexit.register(thread.join)
 
 
 #: tables this large are checked before the process that wrote them exits (a wait of
-#: ``RACY_NS`` at most, then the check: about 2 s for a 500k library's 3.6 GB); smaller
-#: ones only if it runs on long enough
+#: ``RACY_NS`` at most, then the check: about 2 s for a 500k library's 3.6 GB of float64
+#: tables, before the shape numbers were float32); smaller ones only if it runs on long
+#: enough
 WAIT_BYTES = 256 * 2**20
 
 

@@ -96,11 +96,9 @@ def window_tables(
     into ``out`` (float32 and float64 arrays of those shapes: memory maps) when given."""
     desc = bank.settings.features
     n, v = frames.size, bank.features.shape[1]
-    shape, centre = (
-        out if out is not None else (np.empty((n, v, proj.shape[1]), dtype=SHAPE_DTYPE), None)
-    )
-    if centre is None:
-        centre = np.empty((n, v, 2))
+    if out is None:
+        out = (np.empty((n, v, proj.shape[1]), dtype=SHAPE_DTYPE), np.empty((n, v, 2)))
+    shape, centre = out
     for a in range(0, n, 2048):  # in blocks: a bank of many views is large in float64
         f = bank.features[frames[a : a + 2048]].astype(np.float64)  # (b, V, F)
         b = a + f.shape[0]

@@ -19,17 +19,18 @@ _KEEP = 4
 _LOCK = threading.Lock()
 
 
+def _arrays(c: Clip) -> tuple[np.ndarray, ...]:
+    """The arrays of a clip that its digest covers."""
+    m = c.motion
+    return (m.root_pos, m.quats, m.skeleton.offsets, c.contacts.states)
+
+
 def _writeable_part(clips: Sequence[Clip]) -> str:
     """A digest of the clips' arrays that are not read-only (the contact states): what
     could change in place under a remembered digest."""
     h = blake2b(digest_size=16)
     for c in clips:
-        for arr in (
-            c.motion.root_pos,
-            c.motion.quats,
-            c.motion.skeleton.offsets,
-            c.contacts.states,
-        ):
+        for arr in _arrays(c):
             if arr.flags.writeable:
                 h.update(np.ascontiguousarray(arr).tobytes())
     return h.hexdigest()
@@ -54,7 +55,7 @@ def clips_digest(clips: Sequence[Clip]) -> str:
     for c in clips:
         m = c.motion
         h.update(f"{c.name}|{m.fps}|{m.n_frames}|{','.join(m.skeleton.names)}".encode())
-        for arr in (m.root_pos, m.quats, m.skeleton.offsets, c.contacts.states):
+        for arr in _arrays(c):
             h.update(np.ascontiguousarray(arr).tobytes())
     digest = h.hexdigest()
     with _LOCK:
