@@ -111,6 +111,15 @@ def test_the_bic_search_on_a_two_worker_cluster_is_the_local_one(
         assert a.log_likelihood == b.log_likelihood and a.bic == b.bic
 
 
+def test_squared_distances_in_passes_equal_the_whole_array(rng: np.random.Generator) -> None:
+    from control.clusters._gmm import _squared_distances
+
+    x, centres = rng.normal(size=(301, 17)), rng.normal(size=(7, 17))
+    whole = ((x[:, None, :] - centres[None]) ** 2).sum(-1)
+    for elems in (1, 7 * 17 * 3, 7 * 17 * 50, 1 << 23):  # 1, 3, 50 and all rows a pass
+        np.testing.assert_array_equal(_squared_distances(x, centres, elems), whole)
+
+
 def test_seeding_is_reproducible_and_from_real_frames(rng: np.random.Generator) -> None:
     x, _ = _blobs(rng)
     s1 = keyframe_seeds(x, 5, seed=3)
