@@ -9,7 +9,8 @@ Two folds on the labelled exercise clips: the performer is a recording of 13_29 
 13_30) made by ``mimic record`` (another body, a camera off the ring, mask noise); the
 library is every other clip (or every other clip of ``--clips``). ``--recordings`` films
 each held-out take more ways (``RECORDINGS``: a side camera, a high one, a thinner body
-with ragged edges), each a run of its own: one recording a fold swings with a setting.
+with ragged edges, other proportions: ``long_legs``, ``short_legs``), each a run of its
+own: one recording a fold swings with a setting.
 For each match
 setting (window, look-ahead) and each lag (the avatar is compared with what the
 performer did ``lag`` seconds earlier):
@@ -267,6 +268,9 @@ RECORDINGS = {
     "side": RecordSettings(azimuth=100.0),
     "high": RecordSettings(camera_height=1.7, azimuth=40.0),
     "thin": RecordSettings(body=BodyShape(width=0.9, height=1.05), azimuth=-30.0, edge_noise=2.0),
+    # another person's proportions (not among the bodies that teach the bank's metric)
+    "long_legs": RecordSettings(body=BodyShape(width=1.05, legs=1.12, arms=0.9), azimuth=25.0),
+    "short_legs": RecordSettings(body=BodyShape(width=1.1, legs=0.88, arms=1.1), azimuth=-15.0),
 }
 
 

@@ -17,6 +17,8 @@ another body, a static camera off the ring, mask noise, a shadow) under variatio
 - ``side``: the camera at 100 deg (a side view);
 - ``high``: the camera 1.7 m high at 40 deg;
 - ``thin``: a thinner, taller body (0.9, 1.05), the camera at -30 deg, 2 px ragged edges.
+- ``long_legs`` / ``short_legs``: another person's proportions, legs 1.12 / 0.88 and arms
+  0.9 / 1.1 times the subject's against the torso, the camera at 25 / -15 deg.
 
 For every 1 s window ending every 0.5 s whose last frame is labelled, the window search
 (every library window inside a take, every view, the performer as seen and mirrored)
@@ -58,6 +60,7 @@ from silhouette_bank import (
     get_descriptor,
     robust_settings,
     silhouette_features,
+    with_proportions,
 )
 from silhouette_bank._pose import joint_points
 from vision import (
@@ -85,6 +88,12 @@ VARIATIONS: dict[str, dict[str, Any]] = {
     "high": {"rs": RecordSettings(camera_height=1.7, azimuth=40.0)},
     "thin": {
         "rs": RecordSettings(body=BodyShape(width=0.9, height=1.05), azimuth=-30.0, edge_noise=2.0)
+    },
+    "long_legs": {
+        "rs": RecordSettings(body=BodyShape(width=1.05, legs=1.12, arms=0.9), azimuth=25.0)
+    },
+    "short_legs": {
+        "rs": RecordSettings(body=BodyShape(width=1.1, legs=0.88, arms=1.1), azimuth=-15.0)
     },
 }
 
@@ -171,7 +180,7 @@ def _pose_points(motion: Motion, rs: RecordSettings, rng: np.random.Generator) -
     desc = get_descriptor("pose")
     assert isinstance(desc, PoseDescriptor)
     ring = rs.ring()
-    pts = joint_points(motion)
+    pts = joint_points(with_proportions(motion, rs.body))  # (another person's limbs)
     pose = ring.poses(motion.root_pos.mean(axis=0))[0]
     px = ring.project(ring.to_camera(pts, np.broadcast_to(pose, (pts.shape[0], 4, 4))))
     torso = np.linalg.norm(px[:, :2].mean(axis=1) - px[:, 6:8].mean(axis=1), axis=-1)

@@ -39,6 +39,12 @@ def add_record_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
     r.add_argument("--size", default=f"{d.width}x{d.height}", help="WIDTHxHEIGHT")
     r.add_argument("--body-width", type=float, default=d.body.width)
     r.add_argument("--body-height", type=float, default=d.body.height)
+    r.add_argument(
+        "--legs", type=float, default=d.body.legs, help="leg bones' length factor (0.5-2)"
+    )
+    r.add_argument(
+        "--arms", type=float, default=d.body.arms, help="arm bones' length factor (0.5-2)"
+    )
     r.add_argument("--azimuth", type=float, default=d.azimuth, help="camera azimuth, degrees")
     r.add_argument("--camera-height", type=float, default=d.camera_height)
     r.add_argument("--distance", type=float, default=d.distance)
@@ -57,7 +63,7 @@ def _record(args: argparse.Namespace) -> int:
     start = round(args.start * args.fps)
     stop = clip.motion.n_frames if args.stop is None else round(args.stop * args.fps)
     settings = RecordSettings(
-        body=BodyShape(args.body_width, args.body_height),
+        body=BodyShape(args.body_width, args.body_height, args.legs, args.arms),
         azimuth=args.azimuth,
         camera_height=args.camera_height,
         distance=args.distance,

@@ -13,7 +13,7 @@ from ._bank import (
     ensure_bank,
     load_bank,
 )
-from ._body import BodyShape, CapsuleBody, capsule_body, capsule_segments
+from ._body import BodyShape, CapsuleBody, capsule_body, capsule_segments, with_proportions
 from ._camera import CameraRing
 from ._descriptor import (
     DEFAULT_DESCRIPTOR,
@@ -110,5 +110,6 @@ __all__ = [
     "run_jobs",
     "shaded_frames",
     "silhouette_features",
+    "with_proportions",
     "write_mp4",
 ]

@@ -8,14 +8,14 @@ torso, head, ...). ``BodyShape`` scales the radii (thinner or heavier) and the s
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from control.motion import ROLE_ALIASES, Motion, Skeleton, find_role, forward_kinematics
 
-__all__ = ["BodyShape", "CapsuleBody", "capsule_body", "capsule_segments"]
+__all__ = ["BodyShape", "CapsuleBody", "capsule_body", "capsule_segments", "with_proportions"]
 
 FloatArray = NDArray[np.float64]
 
@@ -40,17 +40,29 @@ _DEFAULT = 0.03  # hands, fingers, anything else
 
 @dataclass(frozen=True)
 class BodyShape:
-    """``width`` scales every radius, ``height`` the skeleton (about the floor below the root)."""
+    """``width`` scales every radius, ``height`` the skeleton (about the floor below the
+    root); ``legs`` and ``arms`` scale the bones below the hips and below the shoulders
+    against the torso (another person's proportions)."""
 
     width: float = 1.0
     height: float = 1.0
+    legs: float = 1.0
+    arms: float = 1.0
 
     def __post_init__(self) -> None:
         if not (0.2 <= self.width <= 5.0 and 0.2 <= self.height <= 5.0):
             raise ValueError(f"body width and height must lie in 0.2..5, got {self}")
+        if not (0.5 <= self.legs <= 2.0 and 0.5 <= self.arms <= 2.0):
+            raise ValueError(f"body legs and arms must lie in 0.5..2, got {self}")
 
     def to_dict(self) -> dict[str, float]:
-        return asdict(self)
+        """Its fields; ``legs`` and ``arms`` only where they are not 1 (so the settings of
+        a body without them, and the artifacts keyed by them, stay as they were)."""
+        d = asdict(self)
+        for k in ("legs", "arms"):
+            if d[k] == 1.0:
+                del d[k]
+        return d
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,12 +74,15 @@ class CapsuleBody:
     start, end : (B,) point indices of each bone's ends.
     radius : (B,) metres (``BodyShape.width`` applied).
     height : the ``BodyShape.height`` factor to apply to positions.
+    scale : ``None``, or ``(J + E,)`` factors of each joint's and end site's rest offset
+        (``BodyShape.legs`` and ``arms``).
     """
 
     start: NDArray[np.int64]
     end: NDArray[np.int64]
     radius: FloatArray
     height: float
+    scale: FloatArray | None = None
 
 
 def _roles(skeleton: Skeleton) -> dict[int, str]:
@@ -106,13 +121,66 @@ def capsule_body(skeleton: Skeleton, shape: BodyShape | None = None) -> CapsuleB
         np.array(end, dtype=np.int64),
         np.array(radius) * shape.width,
         shape.height,
+        _limb_scale(skeleton, shape),
     )
 
 
-def capsule_segments(motion: Motion, body: CapsuleBody) -> FloatArray:
-    """World-space bone segments ``(F, B, 2, 3)`` of every frame of ``motion``."""
+def _limb_scale(skeleton: Skeleton, shape: BodyShape) -> FloatArray | None:
+    """Factors ``(J + E,)`` of the rest offsets: ``legs`` for every joint and end site
+    below a hip joint, ``arms`` below a shoulder; ``None`` when both are 1."""
+    if shape.legs == 1.0 and shape.arms == 1.0:
+        return None
+    n_j = skeleton.n_joints
+    scale = np.ones(n_j + skeleton.end_parents.size)
+    for part, factor in (("hip", shape.legs), ("shoulder", shape.arms)):
+        for side in ("left", "right"):
+            top = find_role(skeleton, f"{side}_{part}")
+            if top is None:
+                raise ValueError(f"skeleton has no {side} {part} joint to scale the {part}s from")
+            below = np.zeros(n_j, dtype=bool)
+            for j in range(top + 1, n_j):  # parents come first
+                below[j] = below[skeleton.parents[j]] or skeleton.parents[j] == top
+            scale[:n_j][below] = factor
+            scale[n_j:][below[skeleton.end_parents] | (skeleton.end_parents == top)] = factor
+    return scale
+
+
+def _points(motion: Motion) -> FloatArray:
     pose = forward_kinematics(motion)
-    pts = np.concatenate((pose.positions, pose.end_positions), axis=1)
+    return np.concatenate((pose.positions, pose.end_positions), axis=1)
+
+
+def _rescaled(motion: Motion, scale: FloatArray) -> Motion:
+    """``motion`` on its skeleton with each rest offset times ``scale`` ``(J + E,)``,
+    each frame raised or lowered so that its lowest point stays at the height it had
+    (the feet on the floor, not through it)."""
+    sk = motion.skeleton
+    n_j = sk.n_joints
+    sk = replace(
+        sk,
+        offsets=sk.offsets * scale[:n_j, None],
+        end_offsets=sk.end_offsets * scale[n_j:, None],
+    )
+    low = _points(motion)[:, :, 1].min(axis=1)
+    out = replace(motion, skeleton=sk)
+    root = motion.root_pos.copy()
+    root[:, 1] += low - _points(out)[:, :, 1].min(axis=1)
+    return replace(out, root_pos=root)
+
+
+def with_proportions(motion: Motion, shape: BodyShape) -> Motion:
+    """``motion`` with ``shape``'s legs and arms (``BodyShape.legs``, ``arms``), its
+    lowest point kept at each frame's height; ``motion`` itself when both are 1."""
+    scale = _limb_scale(motion.skeleton, shape)
+    return motion if scale is None else _rescaled(motion, scale)
+
+
+def capsule_segments(motion: Motion, body: CapsuleBody) -> FloatArray:
+    """World-space bone segments ``(F, B, 2, 3)`` of every frame of ``motion``, with
+    ``body``'s limbs (``with_proportions``) and height."""
+    if body.scale is not None:
+        motion = _rescaled(motion, body.scale)
+    pts = _points(motion)
     if body.height != 1.0:
         base = motion.root_pos.copy()
         base[:, 1] = 0.0

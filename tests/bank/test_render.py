@@ -15,6 +15,7 @@ from silhouette_bank import (
     motion_features,
     motion_features_both,
     motion_silhouettes,
+    with_proportions,
 )
 
 
@@ -51,6 +52,35 @@ def test_body_covers_the_skeleton(exercise) -> None:
     assert tall[..., 1].max() == pytest.approx(base[..., 1].max() * 1.1, rel=1e-6)
     with pytest.raises(ValueError, match="width and height"):
         BodyShape(width=0.0)
+
+
+def test_other_proportions_scale_the_limbs_and_keep_the_feet_down(exercise) -> None:
+    from control.motion import find_role
+
+    sk = exercise.skeleton
+    base = capsule_segments(exercise, capsule_body(sk))
+    shape = BodyShape(legs=1.2, arms=0.85)
+    other = capsule_segments(exercise, capsule_body(sk, shape))
+    length = lambda seg: np.linalg.norm(seg[0, :, 1] - seg[0, :, 0], axis=-1)  # noqa: E731
+    ratio = length(other) / np.where(length(base) > 0, length(base), 1.0)
+    body = capsule_body(sk)
+    for role, want in (("knee", 1.2), ("ankle", 1.2), ("elbow", 0.85), ("wrist", 0.85)):
+        for side in ("left", "right"):  # the bone that ends at that joint
+            (b,) = np.flatnonzero(body.end == find_role(sk, f"{side}_{role}"))
+            assert ratio[b] == pytest.approx(want)
+    for role in ("chest", "neck", "head"):  # the torso as it was
+        (b,) = np.flatnonzero(body.end == find_role(sk, role))
+        assert ratio[b] == pytest.approx(1.0)
+    # each frame's lowest point where it was: longer legs do not go through the floor
+    np.testing.assert_allclose(other[..., 1].min(axis=(1, 2)), base[..., 1].min(axis=(1, 2)))
+    assert other[..., 1].max() > base[..., 1].max() + 0.05  # the head is higher
+    assert shape.to_dict() == {"width": 1.0, "height": 1.0, "legs": 1.2, "arms": 0.85}
+    assert BodyShape().to_dict() == {"width": 1.0, "height": 1.0}  # old keys unchanged
+    moved = with_proportions(exercise, shape)  # the same body as a motion (pose landmarks)
+    np.testing.assert_allclose(capsule_segments(moved, body), other, atol=1e-9)
+    assert with_proportions(exercise, BodyShape(width=2.0)) is exercise
+    with pytest.raises(ValueError, match="legs and arms"):
+        BodyShape(legs=3.0)
 
 
 def test_same_pose_farther_away_gives_the_same_features(exercise) -> None:
