@@ -42,8 +42,13 @@ BROAD_DIMS = 10
 BROAD_MIN_PAIRS = 1 << 22
 #: frames whose principal directions are found (an even stride over the columns)
 _SAMPLE = 20000
-#: rows queried against the tree at a time (bounds what one query's pairs hold)
+#: rows queried against the tree at a time
 _ROWS = 1024
+#: pairs one query may hold, about (its rows are split where their estimate passes it):
+#: a query's pairs and their sorting cost some 70 bytes each, and two run at once
+_MAX_PAIRS = 1 << 22
+#: one row in this many is counted to estimate a block's pairs
+_STRIDE = 8
 
 
 def wants_broad(n_rows: int, n_cols: int) -> bool:
@@ -110,13 +115,27 @@ class BroadPhase:
         keep = a != b
         return a[keep], b[keep]
 
+    def _split(self, x: np.ndarray, rb: IntArray, radius: float) -> list[IntArray]:
+        """``rb`` cut into runs of rows whose pairs number about ``_MAX_PAIRS`` at most,
+        by counting one row in ``_STRIDE`` (a dense block of near-duplicate frames can
+        have tens of millions)."""
+        sample = self._project(x, rb[::_STRIDE], self.mean, self.basis)
+        counts = np.asarray(self.tree.query_ball_point(sample, radius, return_length=True))
+        est = np.cumsum(np.repeat(counts, _STRIDE)[: rb.size])
+        if est[-1] <= _MAX_PAIRS:
+            return [rb]
+        cuts = np.searchsorted(est, np.arange(_MAX_PAIRS, est[-1], _MAX_PAIRS), side="right")
+        inner = np.unique(np.clip(cuts, 1, rb.size - 1)) if rb.size > 1 else cuts[:0]
+        return np.split(rb, inner)
+
     def pairs(
         self, x: np.ndarray, rows: IntArray, limit: float, per_block: int | None = None
     ) -> Iterator[tuple[IntArray, IntArray]]:
         """Pairs ``(a, b)``, ``a`` in ``rows``, ``b`` in the columns, ``a != b``, with
-        ``|x[a] - x[b]|^2 <= limit``, a block of ``per_block`` rows at a time (row-major
-        within a block). The tree's queries run on a thread per core (scipy lets go of
-        the GIL there), a few blocks at a time, and the full bound in numba."""
+        ``|x[a] - x[b]|^2 <= limit``, a run of rows at a time (row-major within it; at most
+        ``per_block`` rows, fewer where they have many pairs: ``_split``). The tree's
+        queries run on a thread per core (scipy lets go of the GIL there), a few runs at a
+        time, and the full bound in numba."""
         rows = np.asarray(rows, dtype=np.int64)
         # a projection shortens every gap: the tree's radius is the bound's, widened by
         # far more than the rounding of the projection
@@ -126,7 +145,15 @@ class BroadPhase:
         workers = max(1, min(len(blocks), len(os.sched_getaffinity(0))))
         with ThreadPoolExecutor(workers) as pool:
             for w0 in range(0, len(blocks), workers):
-                wave = blocks[w0 : w0 + workers]
-                for a, b in pool.map(lambda rb: self._near(x, rb, radius), wave):
-                    keep = squared_gaps(x, a, b) <= limit
-                    yield a[keep], b[keep]
+                runs = [
+                    r
+                    for parts in pool.map(
+                        lambda rb: self._split(x, rb, radius), blocks[w0 : w0 + workers]
+                    )
+                    for r in parts
+                ]
+                for r0 in range(0, len(runs), workers):
+                    wave = runs[r0 : r0 + workers]
+                    for a, b in pool.map(lambda rb: self._near(x, rb, radius), wave):
+                        keep = squared_gaps(x, a, b) <= limit
+                        yield a[keep], b[keep]

@@ -106,3 +106,18 @@ def test_the_library_folder_is_given_the_same_way_everywhere(tmp_path: Path) -> 
     assert library_dir(parse(["graph", "build", str(tmp_path)])) == str(tmp_path)
     with pytest.raises(ValueError, match="two library folders"):
         library_dir(parse(["graph", "build", str(tmp_path), "--library", "/elsewhere"]))
+
+
+def test_record_films_a_performer_of_other_proportions(
+    mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "r.mkv"
+    base = ["record", "13_29", str(mocap), "--to", "0.4", "--fps", "15", "--size", "80x60"]
+    assert main([*base, "--legs", "1.1", "--arms", "0.9", "--out", str(out)]) == 0
+    side = json.loads(Path(f"{out}.json").read_text())
+    body = side["settings"]["body"]
+    assert (body["legs"], body["arms"]) == (1.1, 0.9) and len(side["frames"]) == 6
+    assert "wrote" in capsys.readouterr().out
+    assert main([*base, "--legs", "3", "--out", str(tmp_path / "bad.mkv")]) == 2
+    assert "legs and arms must lie in 0.5..2" in capsys.readouterr().err
+    assert not (tmp_path / "bad.mkv").exists()

@@ -114,6 +114,25 @@ def test_the_kd_tree_broad_phase_gives_the_graph_of_the_blocked_search(
     assert abs(tree.report["candidates"] - blocked.report["candidates"]) <= max(
         10, 1e-4 * blocked.report["candidates"]
     )
+    # dense blocks cut into runs of at most about 3,000 pairs, by counting one row in 3
+    monkeypatch.setattr(_broad, "_ROWS", 1024)
+    monkeypatch.setattr(_broad, "_MAX_PAIRS", 3000)
+    monkeypatch.setattr(_broad, "_STRIDE", 3)
+    runs: list[int] = []
+    real_split = _broad.BroadPhase._split
+
+    def split(self: Any, x: np.ndarray, rb: np.ndarray, radius: float) -> Any:
+        got = real_split(self, x, rb, radius)
+        assert np.array_equal(np.concatenate(got), rb) and min(r.size for r in got) > 0
+        runs.append(len(got))
+        return got
+
+    monkeypatch.setattr(_broad.BroadPhase, "_split", split)
+    cut = build_graph(medium_lib.clips, options)
+    assert max(runs) > 3
+    for name in ("src", "dst", "dist", "align", "in_scc"):
+        assert np.array_equal(getattr(blocked, name), getattr(cut, name)), name
+    assert cut.report["candidates"] == tree.report["candidates"]
 
 
 def test_a_graph_built_on_a_two_worker_cluster_is_the_local_build(
