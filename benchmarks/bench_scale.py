@@ -25,7 +25,9 @@ memory, which includes the library's):
   shape statistics, window tables and index, and the first search, cold and warm
   (``benchmarks/_scale_open.py``);
 
-and a plot of each against frames (``benchmarks/results/scale.png``). A step that passes
+and a plot of each against frames (beside ``--out``: ``benchmarks/results/scale.png``).
+The library is ``../shared/mocap`` when it is beside the checkout (else the embedded one,
+said on stderr; name it when running from a copy elsewhere). A step that passes
 ``--timeout`` seconds or fails (memory) is recorded as such, and a step that passed the
 time limit is not run on the larger sizes.
 """
@@ -47,7 +49,14 @@ from typing import Any
 import numpy as np
 
 from benchmarks._report import machine, save
-from control.motion import Clip, Contacts, cut, default_library_path, load_library
+from control.motion import (
+    EMBEDDED_LIBRARY,
+    Clip,
+    Contacts,
+    cut,
+    default_library_path,
+    load_library,
+)
 
 HERE = Path(__file__).resolve().parent
 RECORDING = HERE.parent / "recordings" / "13_29_first12s_160x120.mkv"
@@ -280,7 +289,9 @@ def main() -> None:
     ap.add_argument("--timeout", type=float, default=900.0)
     ap.add_argument("--out", default="benchmarks/results/scale.json")
     ap.add_argument(
-        "--merge", action="store_true", help="keep the other steps' results already in --out"
+        "--merge",
+        action="store_true",
+        help="keep the results already in --out of the other steps and sizes",
     )
     ap.add_argument("--one", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -289,14 +300,26 @@ def main() -> None:
         step, n = args.one.split(":")
         print(json.dumps(STEPS[step](root, int(n))))
         return
+    sizes = [int(v) for v in args.sizes.split(",")]
     result: dict[str, Any] = {"machine": machine(), "date": time.strftime("%Y-%m-%d")}
     result["steps"] = {}
     if args.merge and Path(args.out).is_file():  # (each step says its own date)
         result["steps"] = json.loads(Path(args.out).read_text())["steps"]
+    if root.resolve() == EMBEDDED_LIBRARY.resolve():
+        print(
+            f"note: measuring synthetic copies of the embedded library ({root}), not of "
+            "../shared/mocap (not found beside this checkout): name the library to compare "
+            "with the README's figures",
+            file=sys.stderr,
+        )
+    result["library"] = str(root)
     for step in args.steps.split(","):
-        result["steps"][step] = []
+        # --merge: the sizes not run now keep their earlier results
+        result["steps"][step] = [
+            e for e in result["steps"].get(step, []) if e.get("frames") not in sizes
+        ]
         too_long = False
-        for n in (int(s) for s in args.sizes.split(",")):
+        for n in sizes:
             if too_long:  # a smaller library already passed the time limit
                 got = {
                     "frames": n,
@@ -306,10 +329,11 @@ def main() -> None:
                 got = _run(root, step, n, args.timeout)
                 got["date"] = time.strftime("%Y-%m-%d %H:%M")
                 too_long = str(got.get("failed", "")).startswith("did not finish")
-            result["steps"].setdefault(step, []).append(got)
+            result["steps"][step].append(got)
+            result["steps"][step].sort(key=lambda e: int(e.get("frames", 0)))
             print(step, json.dumps(got), flush=True)
             save(result, args.out)  # (so far, should a later step be stopped)
-    _plot(result, HERE / "results" / "scale.png")
+    _plot(result, Path(args.out).with_suffix(".png"))
     save(result, args.out)
 
 
