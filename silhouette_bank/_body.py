@@ -150,10 +150,10 @@ def _points(motion: Motion) -> FloatArray:
     return np.concatenate((pose.positions, pose.end_positions), axis=1)
 
 
-def _rescaled(motion: Motion, scale: FloatArray) -> Motion:
+def _rescaled(motion: Motion, scale: FloatArray) -> tuple[Motion, FloatArray]:
     """``motion`` on its skeleton with each rest offset times ``scale`` ``(J + E,)``,
     each frame raised or lowered so that its lowest point stays at the height it had
-    (the feet on the floor, not through it)."""
+    (the feet on the floor, not through it), and its points ``(F, J + E, 3)``."""
     sk = motion.skeleton
     n_j = sk.n_joints
     sk = replace(
@@ -163,24 +163,28 @@ def _rescaled(motion: Motion, scale: FloatArray) -> Motion:
     )
     low = _points(motion)[:, :, 1].min(axis=1)
     out = replace(motion, skeleton=sk)
+    pts = _points(out)
+    rise = low - pts[:, :, 1].min(axis=1)
+    pts[:, :, 1] += rise[:, None]  # (the root raised as well: every point moves with it)
     root = motion.root_pos.copy()
-    root[:, 1] += low - _points(out)[:, :, 1].min(axis=1)
-    return replace(out, root_pos=root)
+    root[:, 1] += rise
+    return replace(out, root_pos=root), pts
 
 
 def with_proportions(motion: Motion, shape: BodyShape) -> Motion:
     """``motion`` with ``shape``'s legs and arms (``BodyShape.legs``, ``arms``), its
     lowest point kept at each frame's height; ``motion`` itself when both are 1."""
     scale = _limb_scale(motion.skeleton, shape)
-    return motion if scale is None else _rescaled(motion, scale)
+    return motion if scale is None else _rescaled(motion, scale)[0]
 
 
 def capsule_segments(motion: Motion, body: CapsuleBody) -> FloatArray:
     """World-space bone segments ``(F, B, 2, 3)`` of every frame of ``motion``, with
     ``body``'s limbs (``with_proportions``) and height."""
     if body.scale is not None:
-        motion = _rescaled(motion, body.scale)
-    pts = _points(motion)
+        motion, pts = _rescaled(motion, body.scale)
+    else:
+        pts = _points(motion)
     if body.height != 1.0:
         base = motion.root_pos.copy()
         base[:, 1] = 0.0

@@ -49,8 +49,7 @@ FloatArray = NDArray[np.float64]
 
 #: at most this many library frames (spread evenly) teach the metric
 METRIC_FRAMES = 400
-#: the learning set's bodies: (width, legs, arms) factors of the bank's body
-_BODIES = ((1.0, 1.0, 1.0), (0.9, 1.0, 1.0), (1.1, 1.0, 1.0), (1.25, 1.0, 1.0))
+_WIDTHS = (1.0, 0.9, 1.1, 1.25)
 
 
 def metric_rings(ring: CameraRing) -> list[CameraRing]:
@@ -97,8 +96,8 @@ def metric_jobs(
     for i, clip in enumerate(clips):
         frames = np.arange(0, clip.motion.n_frames, every)
         if frames.size:
-            for w, legs, arms in _BODIES:
-                shape = BodyShape(body.width * w, body.height, body.legs * legs, body.arms * arms)
+            for w in _WIDTHS:
+                shape = BodyShape(body.width * w, body.height, body.legs, body.arms)
                 jobs.append(MetricJob(i, clip.motion, frames, shape, rings, desc.name))
     return jobs
 
