@@ -90,6 +90,12 @@ def add_run_args(p: argparse.ArgumentParser) -> None:
         help="only the paper's cluster paths (and a relocation through the graph once a "
         "second), no direct blended jumps into the best-matching windows",
     )
+    p.add_argument(
+        "--vote",
+        type=int,
+        default=MatchSettings.vote,
+        help="keep to the action the best windows of the last N decisions voted for (0: off)",
+    )
     p.add_argument("--seconds", type=float, help="stop after this much media time")
     p.add_argument("--window", type=float, default=1.0, help="seconds of performer matched")
     p.add_argument("--lookahead", type=float, default=1.5, help="candidate actions within, s")
@@ -177,6 +183,10 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
     """The library (the clips on the floor unless ``--off-floor``), its graph, higher
     layer and bank for ``source`` with the defaults of the vision interface, saying on
     stderr what was chosen and what was left out."""
+    # settings first: a bad one is said before minutes of building
+    match = MatchSettings(
+        window=args.window, lookahead=args.lookahead, jumps=not args.no_jumps, vote=args.vote
+    )
     clips = _clips(args)
     t0 = time.perf_counter()
     with step("motion graph"):
@@ -196,16 +206,33 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
         file=sys.stderr,
     )
     descriptor, bank, built = _bank(args, clips, source)
+    _say_vote(clips, match)
     settings = PerformSettings(
         segmentation=args.segmentation,
         learn_frames=args.learn_frames,
-        match=MatchSettings(window=args.window, lookahead=args.lookahead, jumps=not args.no_jumps),
+        match=match,
         seconds=args.seconds,
         blend=blend_seconds(args),
     )
     return Prepared(
         descriptor, clips, graph, layer, bank, built, settings, start_frame(graph, args.start)
     )
+
+
+def _say_vote(clips: list[Any], match: MatchSettings) -> None:
+    """Say on stderr whether the avatar keeps to a voted action, and among which."""
+    names = sorted({c.label_names[k] for c in clips for k in set(c.labels[c.labels >= 0])})
+    if not (match.jumps and match.vote > 0):
+        print("actions: no vote (the avatar jumps to the best windows alone)", file=sys.stderr)
+    elif not names:
+        print("actions: the library has no action labels: no vote", file=sys.stderr)
+    else:
+        print(
+            f"actions: {len(names)} labelled ({', '.join(names)}); the avatar keeps to the "
+            f"one the best windows of the last {match.vote} decisions voted for (--vote 0: "
+            "off)",
+            file=sys.stderr,
+        )
 
 
 def _clips(args: argparse.Namespace) -> list[Any]:

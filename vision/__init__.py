@@ -27,6 +27,7 @@ from ._library import (
     FLOOR_ABOVE,
     FLOOR_SECONDS,
     VISION_COORDS,
+    action_keys,
     floor_level,
     on_the_floor,
 )
@@ -143,6 +144,7 @@ __all__ = [
     "VideoSource",
     "WindowIndex",
     "WindowTablesError",
+    "action_keys",
     "action_runs",
     "add_mask_noise",
     "agreement",

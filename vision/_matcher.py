@@ -33,6 +33,7 @@ from silhouette_bank import Bank
 from ._decision import Decision, MatchSettings
 from ._index import WindowIndex, cached_window_index
 from ._tables import cached_shape_stats, cached_window_tables
+from ._vote import ActionVote
 from ._windows import best_window, per_frame_cost, performer_queries
 
 __all__ = ["EARLY_WINDOWS", "Matcher"]
@@ -102,6 +103,7 @@ class Matcher:
         self.last_own = float("inf")
         d_max = layer.graph.report.get("max_distance") if layer.graph.report else None
         self.d_max = float(d_max) if d_max else 1.0
+        self.vote = ActionVote(self.settings.vote, self.n // 2)  # (actions: the caller's)
 
     def _check(self, performer: FloatArray) -> None:
         if performer.ndim != 2 or performer.shape[1] != self.n_features:
@@ -366,27 +368,32 @@ class Matcher:
         starts = np.array([g[0] for g in got], dtype=np.int64)
         target = starts + self.n  # where the performer is now
         n = self.graph.n_frames
+        voted = self.vote.cast(target)
         ok = target < n
         ok[ok] &= costs.landing[target[ok]] & self.plays[target[ok] - 1]
         # a jump to where the avatar is about to be anyway is no jump
         there = (target >= frame - 2) & (target <= frame + self.n) & self._same_run(frame, target)
         ok &= ~there
+        # the avatar leaves an action the performer is not voted to do for one that is
+        leave = False
+        if voted is not None and (ok & voted).any():
+            ok &= voted
+            leave = self.vote.leaves(frame, int(self._playback(frame)[: self.n // 2 + 1][-1]))
         if there.any():  # the avatar does one of the best windows: its cost is its own
             self.last_own = min(g[2] for g, t in zip(got, there, strict=True) if t)
         if not ok.any():
             return None
         idx = np.flatnonzero(ok)
         match = np.array([got[i][2] for i in idx])
-        # at its clip's end the avatar must go somewhere: the best jump, whatever it costs
-        own = (
-            self.own_cost(queries, self.own_frames(frame, recent))
-            if self.plays[frame]
-            else float("inf")
-        )
+        own = float("inf")  # at its clip's end the avatar must go somewhere: the best jump
+        if self.plays[frame]:
+            own = self.own_cost(queries, self.own_frames(frame, recent))
         self.last_own = own
         m = self.hold_frames
         lead = self._lead_in(recent)
         settled = lead.size < m or bool(np.all(np.diff(lead[-m:]) == 1))
+        if leave:  # any window of the voted action beats staying, at once
+            own, settled = float("inf"), True
         # the blend only adds to a match's cost: when even the best match cannot win,
         # the (slower) distances are not needed
         if (not settled or not match.min() < st.jump_ratio * own) and np.isfinite(own):

@@ -33,6 +33,7 @@ from silhouette_bank import Bank, silhouette_features
 
 from ._decision import Decision, MatchSettings
 from ._landmarks import PoseReader
+from ._library import action_keys
 from ._matcher import Matcher
 from ._person import make_segmenter, resolve_segmentation
 from ._segment import clean_mask
@@ -143,6 +144,10 @@ class Performance:
             avatar = self.avatar
             matcher.decide(avatar.frame, probe, avatar.recent(matcher.recent_frames), self.costs)
             matcher.why, matcher.last_own = "", float("inf")
+        # the library's actions, for the vote (after the probe: it votes for nothing)
+        actions = action_keys(clips)
+        if actions is not None and actions.size == self.graph.n_frames:
+            matcher.vote.actions = actions
         self.segmenter: Any = None
         self.landmarks = matcher.desc.kind == "pose"
         self.reader = PoseReader() if self.landmarks else None

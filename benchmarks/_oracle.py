@@ -1,0 +1,96 @@
+"""The ceiling of following by pose (issue 17): what the avatar's action would be if the
+matcher knew the performer's true 3D pose.
+
+At every decision (every 0.1 s from 1 s on), the library window of 1 s nearest the
+performer's last second by DTW (band 4, as the matcher's) over the weighted joints'
+squared half-angles (the graph's pose distance), and the action of its last frame,
+against the performer's action ``lag`` seconds earlier; best over lags <= 1 s. Also with
+the matcher's vote (``MatchSettings.vote``) over those windows: the action most voted for
+over the last ``vote`` decisions, which changes only when another has more votes.
+"""
+
+from __future__ import annotations
+
+from collections import Counter, deque
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+LAGS = (0.0, 0.25, 0.5, 0.75, 1.0)
+
+
+def _window_costs(d: np.ndarray, n: int, band: int) -> np.ndarray:
+    """DTW cost of the performer's ``n`` frames (rows of ``d``, ``(n, L)`` pose distances
+    to every library frame) against every library window of ``n`` frames."""
+    w = d.shape[1] - n + 1
+    acc = np.full((n + 1, n + 1, w), np.inf)
+    acc[0, 0] = 0.0
+    for i in range(1, n + 1):
+        for j in range(max(1, i - band), min(n, i + band) + 1):
+            best = np.minimum(np.minimum(acc[i - 1, j], acc[i, j - 1]), acc[i - 1, j - 1])
+            acc[i, j] = d[i - 1, j - 1 : j - 1 + w] + best
+    return acc[n, n]
+
+
+def _voted(keys: Sequence[str], vote: int) -> list[str]:
+    """The matcher's vote over a sequence of best windows' actions."""
+    votes: deque[str] = deque(maxlen=vote)
+    out: list[str] = []
+    voted = ""
+    for k in keys:
+        votes.append(k)
+        counts = Counter(votes)
+        top = max(counts.values())
+        if counts.get(voted, 0) < top:
+            voted = next(v for v in reversed(votes) if counts[v] == top)
+        out.append(voted)
+    return out
+
+
+def pose_oracle(
+    lib_q: np.ndarray,
+    lib_actions: np.ndarray,
+    clip_start: np.ndarray,
+    truth_q: np.ndarray,
+    truth_labels: Sequence[str | None],
+    fps: float,
+    pose_dist: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    vote: int = 15,
+    band: int = 4,
+) -> dict[str, Any]:
+    """Label agreement (best at lags <= 1 s) of the true-pose nearest window, alone and
+    voted. ``lib_q``, ``truth_q``: weighted joints' rotations ``(F, K, 4)`` at ``fps``;
+    ``lib_actions`` each library frame's action (its label, else its clip's name, as
+    ``vision.action_keys`` tells them apart), ``truth_labels`` the performer's."""
+    n = max(2, round(fps))
+    d = np.stack([pose_dist(lib_q, q[None].repeat(lib_q.shape[0], 0)) for q in truth_q])
+    w = lib_q.shape[0] - n + 1
+    ok = np.ones(w, dtype=bool)
+    for s in clip_start[1:-1]:  # a window inside one clip
+        ok[max(0, s - n + 1) : min(s, w)] = False
+    times = np.arange(1.0, truth_q.shape[0] / fps, 0.1)
+    best: list[str] = []
+    for t in times:
+        e = round(t * fps)
+        costs = _window_costs(d[e - n : e], n, band)
+        costs[~ok] = np.inf
+        best.append(str(lib_actions[int(np.argmin(costs)) + n - 1]))
+
+    def agreement(keys: Sequence[str]) -> float:
+        scores = []
+        for lag in LAGS:
+            k = np.round((times - lag) * fps).astype(int)
+            pairs = [
+                (g, truth_labels[i])
+                for g, i in zip(keys, k, strict=True)
+                if 0 <= i < len(truth_labels) and truth_labels[i] is not None
+            ]
+            scores.append(float(np.mean([g == t for g, t in pairs])) if pairs else 0.0)
+        return round(max(scores), 3)
+
+    return {
+        "decisions": int(times.size),
+        "best_at_lag_le_1s": agreement(best),
+        f"voted_{vote}_best_at_lag_le_1s": agreement(_voted(best, vote)),
+    }

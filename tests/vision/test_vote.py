@@ -1,0 +1,115 @@
+"""The action vote (issue 17): the best windows of the last decisions vote for the
+performer's action, and the avatar keeps to it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from control.avatar import JumpCosts
+from control.motion import load_library
+from mimic.cli import main
+from tests.vision.conftest import RECORDING
+from vision import Matcher, MatchSettings, action_keys
+from vision._vote import ActionVote
+
+
+def test_action_keys_share_labels_across_clips(mocap: Path) -> None:
+    lib = load_library(mocap, clips=["13_29", "02_01", "13_30"])
+    keys = action_keys(lib.clips)
+    assert keys is not None and keys.size == lib.n_frames
+    start = np.cumsum([0] + [c.motion.n_frames for c in lib.clips])
+    by_label: dict[str, set[int]] = {}
+    for i, c in enumerate(lib.clips):
+        for f in range(c.motion.n_frames):
+            name = c.label_at(f) or f"clip {c.name}"
+            by_label.setdefault(name, set()).add(int(keys[start[i] + f]))
+    # one number per action, the same in both takes; each clip's unlabelled frames their own
+    assert all(len(v) == 1 for v in by_label.values())
+    assert len({next(iter(v)) for v in by_label.values()}) == len(by_label)
+    assert "Squat" in by_label and "clip 02_01" in by_label
+    assert action_keys(load_library(mocap, clips=["02_01", "01_01"]).clips) is None
+
+
+def test_the_vote_is_a_majority_and_a_tie_keeps_the_action(setup) -> None:
+    lib, layer, bank = setup
+    m = Matcher(layer, bank, MatchSettings(vote=3))
+    keys = action_keys(lib.clips)
+    assert keys is not None
+    m.vote.actions = keys
+    frame_of = {int(k): int(np.flatnonzero(keys == k)[0]) for k in np.unique(keys)}
+    a, b = sorted(frame_of)[:2]
+    fa, fb = frame_of[a], frame_of[b]
+    targets = np.array([fb, fa, fb])
+    got = [m.vote.cast(np.array([f, fa, fb])) for f in (fa, fb, fb)]
+    assert m.vote.voted == b  # a, b, b
+    # which of the last decision's windows show the voted action
+    assert got[-1] is not None and list(got[-1]) == [True, False, True]
+    for _ in range(2):
+        m.vote.cast(np.array([fa]))
+    assert m.vote.voted == a  # the last three: b, a, a
+    tie = Matcher(layer, bank, MatchSettings(vote=2))
+    tie.vote.actions = keys
+    tie.vote.cast(np.array([fa]))
+    tie.vote.cast(np.array([fb]))
+    assert tie.vote.voted == a  # a tie keeps the action voted for
+    tie.vote.cast(np.array([fb]))
+    assert tie.vote.voted == b
+    # no labels, or no vote: nothing is voted
+    assert Matcher(layer, bank, MatchSettings(vote=3)).vote.cast(targets) is None
+    off = Matcher(layer, bank, MatchSettings(vote=0))
+    off.vote.actions = keys
+    assert off.vote.cast(targets) is None
+
+
+def test_windows_and_the_avatar_about_to_leave_the_action_do_not_count() -> None:
+    """Ten frames of action 0, then ten of action 1; a window counts for its action when
+    it still shows it 3 frames on, and an avatar about to play on out of the voted action
+    leaves it now."""
+    vote = ActionVote(5, 3)
+    vote.actions = np.array([0] * 10 + [1] * 10, dtype=np.int64)
+    assert list(vote.cast(np.array([2, 8, 5]))) == [True, False, True]  # type: ignore[arg-type]
+    assert vote.voted == 0
+    assert not vote.leaves(5, 8)
+    assert vote.leaves(8, 11)  # about to play on into action 1
+    assert vote.leaves(12, 15)
+    assert ActionVote(0, 3).cast(np.array([2])) is None
+
+
+def test_the_avatar_leaves_an_action_the_performer_is_not_doing(setup) -> None:
+    """The performer squats; the avatar jogs, and its jog window fits them nearly as well
+    as the best (a ``jump_ratio`` so low that no jump would win): with the vote it leaves
+    for a squat all the same, once it has played ``hold`` on."""
+    lib, layer, bank = setup
+    clip = lib.clips[0]
+    labels = [clip.label_at(f) for f in range(clip.motion.n_frames)]
+    squat = [f for f in range(40, len(labels)) if labels[f - 20 : f + 1] == ["Squat"] * 21]
+    jog = [f for f in range(40, len(labels)) if labels[f - 20 : f + 1] == ["Jog"] * 21]
+    assert squat and jog
+    costs = JumpCosts(layer.graph, lib.clips, anywhere=True)
+    keys = action_keys(lib.clips)
+    assert keys is not None
+
+    def decide(vote: int) -> int | None:
+        m = Matcher(layer, bank, MatchSettings(vote=vote, jump_ratio=0.01))
+        m.vote.actions = keys
+        s = squat[len(squat) // 2]
+        performer = bank.features[m.to_bank[np.arange(s - m.n + 1, s + 1)], 0]
+        j = jog[len(jog) // 2]
+        shown = np.arange(j - m.recent_frames + 1, j + 1)  # played on: settled
+        d = m.decide(j, performer.astype(np.float64), shown, costs)
+        return None if d is None or "jump" not in d.extra else int(d.extra["jump"])
+
+    assert decide(0) is None
+    landed = decide(1)
+    assert landed is not None and labels[landed] == "Squat"
+
+
+def test_a_negative_vote_is_refused(mocap: Path, capsys) -> None:
+    with pytest.raises(ValueError, match="vote must be a number of decisions >= 0"):
+        MatchSettings(vote=-1)
+    argv = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "13_30", "--vote", "-2"]
+    assert main(argv) != 0
+    assert "vote must be a number of decisions >= 0 (0: off), got -2" in capsys.readouterr().err
