@@ -11,11 +11,12 @@ over the last ``vote`` decisions, which changes only when another has more votes
 
 from __future__ import annotations
 
-from collections import Counter, deque
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
+
+from vision import ActionVote
 
 LAGS = (0.0, 0.25, 0.5, 0.75, 1.0)
 
@@ -34,17 +35,14 @@ def _window_costs(d: np.ndarray, n: int, band: int) -> np.ndarray:
 
 
 def _voted(keys: Sequence[str], vote: int) -> list[str]:
-    """The matcher's vote over a sequence of best windows' actions."""
-    votes: deque[str] = deque(maxlen=vote)
-    out: list[str] = []
-    voted = ""
-    for k in keys:
-        votes.append(k)
-        counts = Counter(votes)
-        top = max(counts.values())
-        if counts.get(voted, 0) < top:
-            voted = next(v for v in reversed(votes) if counts[v] == top)
-        out.append(voted)
+    """The matcher's vote (``ActionVote``) over a sequence of best windows' actions."""
+    names = sorted(set(keys))
+    ballot = ActionVote(vote, 0)
+    ballot.actions = np.array([names.index(k) for k in keys], dtype=np.int64)
+    out = []
+    for i in range(len(keys)):
+        ballot.cast(np.array([i], dtype=np.int64))
+        out.append(names[ballot.voted])
     return out
 
 

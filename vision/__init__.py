@@ -97,6 +97,7 @@ from ._video import (
     MaskTape,
     write_video,
 )
+from ._vote import ActionVote
 from ._windows import (
     best_window,
     per_frame_cost,
@@ -121,6 +122,7 @@ __all__ = [
     "PERSON_METHODS",
     "TABLES_VERSION",
     "VISION_COORDS",
+    "ActionVote",
     "CameraSource",
     "Decision",
     "Frame",

@@ -12,8 +12,7 @@ from control.avatar import JumpCosts
 from control.motion import load_library
 from mimic.cli import main
 from tests.vision.conftest import RECORDING
-from vision import Matcher, MatchSettings, action_keys
-from vision._vote import ActionVote
+from vision import ActionVote, Matcher, MatchSettings, action_keys
 
 
 def test_action_keys_share_labels_across_clips(mocap: Path) -> None:
