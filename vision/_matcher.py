@@ -385,15 +385,15 @@ class Matcher:
             return None
         idx = np.flatnonzero(ok)
         match = np.array([got[i][2] for i in idx])
-        own = float("inf")  # at its clip's end the avatar must go somewhere: the best jump
-        if self.plays[frame]:
+        # at its clip's end the avatar must go somewhere: the best jump, whatever it costs;
+        # and leaving for the voted action, any window of it beats staying, at once
+        own = float("inf")
+        if self.plays[frame] and not leave:
             own = self.own_cost(queries, self.own_frames(frame, recent))
         self.last_own = own
         m = self.hold_frames
         lead = self._lead_in(recent)
-        settled = lead.size < m or bool(np.all(np.diff(lead[-m:]) == 1))
-        if leave:  # any window of the voted action beats staying, at once
-            own, settled = float("inf"), True
+        settled = leave or lead.size < m or bool(np.all(np.diff(lead[-m:]) == 1))
         # the blend only adds to a match's cost: when even the best match cannot win,
         # the (slower) distances are not needed
         if (not settled or not match.min() < st.jump_ratio * own) and np.isfinite(own):
