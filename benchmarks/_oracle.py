@@ -60,7 +60,9 @@ def pose_oracle(
     """Label agreement (best at lags <= 1 s) of the true-pose nearest window, alone and
     voted. ``lib_q``, ``truth_q``: weighted joints' rotations ``(F, K, 4)`` at ``fps``;
     ``lib_actions`` each library frame's action (its label, else its clip's name, as
-    ``vision.action_keys`` tells them apart), ``truth_labels`` the performer's."""
+    ``vision.action_keys`` tells them apart), ``truth_labels`` the performer's. Also
+    ``pose_error``: the mean pose distance of each best window's last frame to the
+    performer's frame at the decision (what an avatar showing it at once would score)."""
     n = max(2, round(fps))
     d = np.stack([pose_dist(lib_q, q[None].repeat(lib_q.shape[0], 0)) for q in truth_q])
     w = lib_q.shape[0] - n + 1
@@ -69,11 +71,14 @@ def pose_oracle(
         ok[max(0, s - n + 1) : min(s, w)] = False
     times = np.arange(1.0, truth_q.shape[0] / fps, 0.1)
     best: list[str] = []
+    err: list[float] = []
     for t in times:
         e = round(t * fps)
         costs = _window_costs(d[e - n : e], n, band)
         costs[~ok] = np.inf
-        best.append(str(lib_actions[int(np.argmin(costs)) + n - 1]))
+        end = int(np.argmin(costs)) + n - 1
+        best.append(str(lib_actions[end]))
+        err.append(float(d[e - 1, end]))  # its last frame against the performer's now
 
     def agreement(keys: Sequence[str]) -> float:
         scores = []
@@ -89,6 +94,7 @@ def pose_oracle(
 
     return {
         "decisions": int(times.size),
+        "pose_error": float(np.mean(err)),
         "best_at_lag_le_1s": agreement(best),
         f"voted_{vote}_best_at_lag_le_1s": agreement(_voted(best, vote)),
     }

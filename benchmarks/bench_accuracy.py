@@ -368,6 +368,13 @@ def fold(
         _pose_dist,
         (match or {}).get("vote", MatchSettings.vote) or 15,
     )
+    # its windows' last frames shown at once, as a pose score (the avatar's ceiling)
+    out["pose_oracle"]["pose_score"] = round(
+        float(
+            (random_err - out["pose_oracle"]["pose_error"]) / max(random_err - nearest.mean(), 1e-9)
+        ),
+        3,
+    )
     print(f"{test}: following by the true pose {out['pose_oracle']}", flush=True)
     out["recordings"] = {}
     for rec in recordings:

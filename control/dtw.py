@@ -44,7 +44,10 @@ SHAPE_DTYPE = np.float32
 ShapeTable = NDArray[np.floating[Any]]
 
 
-@numba.njit(cache=True, nogil=True)
+#: the distance's sum may be reordered (vectorised): 2x faster, the same costs to within
+#: 4e-16 relative (``tests/test_dtw.py`` checks them against dtaidistance); the
+#: band's infinities and the early abandon's comparisons keep IEEE semantics
+@numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
 def _dtw_sq(
     a: np.ndarray, b: np.ndarray, window: int, limit: float, row: np.ndarray, prev: np.ndarray
 ) -> float:

@@ -34,7 +34,7 @@ from ._decision import Decision, MatchSettings
 from ._index import WindowIndex, cached_window_index
 from ._tables import cached_shape_stats, cached_window_tables
 from ._vote import ActionVote
-from ._windows import best_window, per_frame_cost, performer_queries
+from ._windows import best_window, per_frame_cost, performer_queries, window_cost
 
 __all__ = ["EARLY_WINDOWS", "Matcher"]
 
@@ -187,12 +187,10 @@ class Matcher:
     def find_window(
         self, performer: FloatArray, exact: bool = False
     ) -> tuple[int, int, float] | None:
-        """``(frame, view, cost)``: the library window (any frame of the component, any
-        view and variant, the performer as seen or mirrored) that looks most like the
-        performer's last features; ``frame`` is where the window starts, ``view`` the
-        ring's view. By the fast index (``index``), or with ``exact`` by brute force.
-        ``None`` without enough silhouette, or when even the best window costs more than
-        ``reject`` (``why`` says which)."""
+        """``(frame, view, cost)``: the library window (any frame of the component, view
+        and variant, the performer as seen or mirrored) most like the performer's last
+        features, ``frame`` its start, ``view`` the ring's; by the index, or ``exact``ly.
+        ``None`` without enough silhouette, or when even the best costs over ``reject``."""
         got = self.search(performer, 1, exact)
         if not got:
             return None
@@ -309,14 +307,16 @@ class Matcher:
         return out
 
     def own_cost(self, queries: list[FloatArray], recent: IntArray) -> float:
-        """DTW cost of the avatar's own last frames ``recent`` (graph frames shown, best
-        view) against the performer: how well the avatar follows now. Before it has
-        shown a whole window (it has just started), the library frames that lead to its
-        first one stand in for the rest; ``inf`` where its clip has none."""
-        recent = self._lead_in(recent)
-        if recent.size < self.n:
+        """DTW cost of the avatar's last frames ``recent`` (best view) against the
+        performer: how well it follows now. The frames that lead into a window's first
+        stand in for those not yet shown; ``inf`` where its clip has none."""
+        w = self._lead_in(recent)[-self.n :]
+        if w.size < self.n:
             return float("inf")
-        refs = self._bank_sequences(recent[-self.n :])
+        if np.all(np.diff(w) == 1) and self._same_run(int(w[0]), w[-1:])[0]:
+            shape, centre, _ = self._global_tables()  # a library window: as the search costs it
+            return window_cost(queries, shape, centre, int(w[0]), self.n, self.settings.band)
+        refs = self._bank_sequences(w)
         return float(min(dtw_batch(q, refs, window=self.settings.band).min() for q in queries))
 
     def own_frames(self, frame: int, recent: IntArray) -> IntArray:

@@ -10,7 +10,7 @@ import itertools
 import numpy as np
 from numpy.typing import NDArray
 
-from control.dtw import SHAPE_DTYPE, ShapeTable, dtw_best_window
+from control.dtw import SHAPE_DTYPE, ShapeTable, dtw_best_window, dtw_windows
 from silhouette_bank import DEFAULT_DESCRIPTOR, Bank, Descriptor, get_descriptor
 
 __all__ = [
@@ -19,6 +19,7 @@ __all__ = [
     "performer_queries",
     "performer_sequence",
     "shape_stats",
+    "window_cost",
     "window_tables",
 ]
 
@@ -110,6 +111,21 @@ def window_tables(
     centre *= centre_weight
     np.nan_to_num(centre, copy=False, nan=0.0)
     return shape, centre
+
+
+def window_cost(
+    queries: list[FloatArray],
+    shape: ShapeTable,
+    centre: FloatArray,
+    start: int,
+    length: int,
+    band: int,
+) -> float:
+    """DTW cost of the window of the tables at ``start`` nearest any of ``queries``, over
+    every view."""
+    views = np.arange(shape.shape[1], dtype=np.int64)
+    at = np.full(views.size, start, dtype=np.int64)
+    return float(min(dtw_windows(q, shape, centre, at, views, length, band).min() for q in queries))
 
 
 def per_frame_cost(cost: float, length: int) -> float:

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from control.dtw import dtw_batch
 from control.graph import off_floor_seconds
 from control.motion import load_library, read_bvh
 from mimic.cli import main
@@ -125,6 +126,14 @@ def test_right_after_a_jump_the_own_cost_is_the_window_played_into(setup) -> Non
     assert queries is not None
     own, shown_cost = m.own_cost(queries, m.own_frames(j, shown)), m.own_cost(queries, shown)
     assert own < 0.25 * shown_cost
+    # a library window is costed from the search's tables (float32 shape numbers), the
+    # frames shown from the bank: the same cost to float32's precision
+    for q in queries:
+        q += 0.05 * np.random.default_rng(1).normal(size=q.shape)  # not the window itself
+    by_bank = min(
+        dtw_batch(q, m._bank_sequences(window), window=m.settings.band).min() for q in queries
+    )
+    assert m.own_cost(queries, window) == pytest.approx(by_bank, rel=1e-5)
     # the frames shown, as before 2026-12-02; and at a clip's first frames, which have no
     # window of their own, those too
     before = Matcher(layer, bank, MatchSettings(own_from_library=False))
