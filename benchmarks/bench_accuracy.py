@@ -19,7 +19,9 @@ performer did ``lag`` seconds earlier):
 - pose score: joint-angle error (weighted joints, squared half-angles as in the graph's
   distance) between the avatar's frame and the performer's true frame, normalised so
   that a random walk on the same graph scores 0 and the nearest library pose of every
-  performer frame scores 1;
+  performer frame scores 1; beside it, ``score_either_side``: each avatar frame or its
+  mirror image, whichever is nearer (a silhouette cannot tell a pose seen from the front
+  from its mirror image seen from behind);
 - label agreement: the fraction of decisions at which the avatar's frame carries the
   performer's action label (frames of unlabelled clips count as disagreement);
 - recognition: the matcher's global window search alone (no avatar), the fraction of
@@ -55,7 +57,7 @@ from control.graph import (
     random_walk,
     weighted_joints,
 )
-from control.motion import default_library_path, load_library, qconj, qlog, qmul
+from control.motion import default_library_path, load_library, mirror, qconj, qlog, qmul
 from silhouette_bank import (
     DEFAULT_DESCRIPTOR,
     DESCRIPTORS,
@@ -178,8 +180,12 @@ def _run_figures(
     nearest: float,
     walk_frames: np.ndarray,
     train: list[Any],
+    lib_q_mirror: np.ndarray | None = None,
 ) -> dict[str, Any]:
-    """Agreement, pose score, coherence, latency and physical checks of one perform run."""
+    """Agreement, pose score, coherence, latency and physical checks of one perform run.
+    With ``lib_q_mirror`` (the library's rotations, each clip mirrored), also the pose
+    score were each avatar frame counted on whichever side is nearer the performer's: what
+    a silhouette cannot tell (seen from the front, a pose; from behind, its mirror image)."""
     frames = np.array([d["frame"] for d in r.decisions])
     times = np.array([d["t"] for d in r.decisions])
     made = [d for d in r.decisions if d["decision"] is not None]
@@ -187,8 +193,13 @@ def _run_figures(
     for lag in LAGS:
         k = np.round((times - lag) * fps).astype(int)
         ok = (k >= 0) & (k < truth_q.shape[0])
-        err = _pose_dist(lib_q[frames[ok]], truth_q[k[ok]]).mean()
+        each = _pose_dist(lib_q[frames[ok]], truth_q[k[ok]])
+        err = each.mean()
         score = (random_err - err) / max(random_err - nearest, 1e-9)
+        either = None
+        if lib_q_mirror is not None:
+            other = _pose_dist(lib_q_mirror[frames[ok]], truth_q[k[ok]])
+            either = (random_err - np.minimum(each, other).mean()) / max(random_err - nearest, 1e-9)
         lab = [perf_labels[i] for i in k[ok]]
         got = [str(lib_labels[f]) for f in frames[ok]]
         pairs = [(g, t) for g, t in zip(got, lab, strict=True) if t is not None]
@@ -206,6 +217,7 @@ def _run_figures(
                 "lag": lag,
                 "pose_error": float(err),
                 "score": float(score),
+                "score_either_side": None if either is None else float(either),
                 "label_agreement": float(np.mean([g == t for g, t in pairs])) if pairs else None,
                 "label_agreement_known_actions": float(np.mean(kn)) if kn else None,
                 "random_walk_agreement_known_actions": float(
@@ -320,6 +332,7 @@ def fold(
         )
     joints = weighted_joints(train[0].motion.skeleton)
     lib_q = np.concatenate([c.motion.quats for c in train])[:, joints]
+    lib_qm = np.concatenate([mirror(c.motion).quats for c in train])[:, joints]
     lib_labels = np.concatenate(
         [np.array([c.label_at(i) or "" for i in range(c.motion.n_frames)]) for c in train]
     )
@@ -378,7 +391,7 @@ def fold(
     print(f"{test}: following by the true pose {out['pose_oracle']}", flush=True)
     out["recordings"] = {}
     for rec in recordings:
-        ctx = (perf_clip, layer, bank, train, lib_labels, lib_q, truth_q, walk_frames)
+        ctx = (perf_clip, layer, bank, train, lib_labels, lib_q, truth_q, walk_frames, lib_qm)
         recognition, ceiling, runs = _recorded_runs(
             rec, ctx, settings, stay, match, random_err, float(nearest.mean())
         )
@@ -400,7 +413,7 @@ def _recorded_runs(
 ) -> tuple[dict[str, Any], float, list[dict[str, Any]]]:
     """The held-out take filmed as recording ``rec`` (``RECORDINGS``): recognition alone,
     the label ceiling, and a run of ``perform`` per match setting."""
-    perf_clip, layer, bank, train, lib_labels, lib_q, truth_q, walk_frames = ctx
+    perf_clip, layer, bank, train, lib_labels, lib_q, truth_q, walk_frames, lib_qm = ctx
     runs = []
     with tempfile.TemporaryDirectory() as tmp:
         video = Path(tmp) / f"{perf_clip.name}_{rec}.mkv"
@@ -434,6 +447,7 @@ def _recorded_runs(
                 nearest,
                 walk_frames,
                 train,
+                lib_qm,
             )
             fig["recording"] = rec
             fig["evaluate"] = {
