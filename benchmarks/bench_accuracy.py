@@ -10,9 +10,9 @@ Two folds on the labelled exercise clips: the performer is a recording of 13_29 
 library is every other clip (or every other clip of ``--clips``). ``--recordings`` films
 each held-out take more ways (``RECORDINGS``: a side camera, a high one, a thinner body
 with ragged edges, other proportions: ``long_legs``, ``short_legs``; cameras behind,
-left, low and far, a wider body: ``az140``, ``az-60``, ``low_far``, ``wide``), each a run
-of its own: one recording a fold swings with a setting.
-For each match
+left, low and far, a wider body: ``az140``, ``az-60``, ``low_far``, ``wide``; the take
+mirrored, a performer using the other arm and leg: ``mirrored``), each a run of its own:
+one recording a fold swings with a setting. For each match
 setting (window, look-ahead) and each lag (the avatar is compared with what the
 performer did ``lag`` seconds earlier):
 
@@ -290,7 +290,11 @@ RECORDINGS = {
     "az-60": RecordSettings(azimuth=-60.0, seed=3),
     "low_far": RecordSettings(camera_height=0.6, distance=5.0, azimuth=-20.0, seed=4),
     "wide": RecordSettings(body=BodyShape(width=1.3, height=0.95), azimuth=-100.0, seed=5),
+    # the take mirrored: a performer who uses the other arm and leg (``MIRRORED``)
+    "mirrored": RecordSettings(seed=6),
 }
+#: recordings of the held-out take mirrored left for right (the library is not)
+MIRRORED = frozenset({"mirrored"})
 
 
 def fold(
@@ -390,8 +394,16 @@ def fold(
     )
     print(f"{test}: following by the true pose {out['pose_oracle']}", flush=True)
     out["recordings"] = {}
+    other_side = None  # the take mirrored, for the recordings that film it
+    if MIRRORED & set(recordings):
+        both = load_library(root, fps=30, clips=[test], mirror=True)
+        other_side = next(c for c in both.clips if c.mirrored)
     for rec in recordings:
         ctx = (perf_clip, layer, bank, train, lib_labels, lib_q, truth_q, walk_frames, lib_qm)
+        if rec in MIRRORED:
+            assert other_side is not None
+            q = other_side.motion.quats[:, joints]
+            ctx = (other_side, layer, bank, train, lib_labels, lib_q, q, walk_frames, lib_qm)
         recognition, ceiling, runs = _recorded_runs(
             rec, ctx, settings, stay, match, random_err, float(nearest.mean())
         )
