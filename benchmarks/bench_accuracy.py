@@ -400,7 +400,7 @@ def fold(
         other_side = next(c for c in both.clips if c.mirrored)
     for rec in recordings:
         ctx = (perf_clip, layer, bank, train, lib_labels, lib_q, truth_q, walk_frames, lib_qm)
-        if rec in MIRRORED:
+        if rec in MIRRORED:  # (its pose score keeps the take's scale: random walk, nearest)
             assert other_side is not None
             q = other_side.motion.quats[:, joints]
             ctx = (other_side, layer, bank, train, lib_labels, lib_q, q, walk_frames, lib_qm)

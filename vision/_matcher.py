@@ -189,8 +189,8 @@ class Matcher:
     ) -> tuple[int, int, float] | None:
         """``(frame, view, cost)``: the library window (any frame of the component, view
         and variant, the performer as seen or mirrored) most like the performer's last
-        features, ``frame`` its start, ``view`` the ring's; by the index, or ``exact``ly.
-        ``None`` without enough silhouette, or when even the best costs over ``reject``."""
+        features, ``frame`` its start, ``view`` the ring's; by the index, or with ``exact``
+        by brute force. ``None`` without enough silhouette, or when the best is rejected."""
         got = self.search(performer, 1, exact)
         if not got:
             return None
