@@ -341,7 +341,10 @@ def fold(
         [np.array([c.label_at(i) or "" for i in range(c.motion.n_frames)]) for c in train]
     )
     assert g.clip_names == tuple(c.name for c in train)  # the graph's frames are train's
-    perf_clip = load_library(root, fps=30, clips=[test]).clip(test)
+    # the take, and mirrored for the recordings that film it so (``MIRRORED``)
+    takes = load_library(root, fps=30, clips=[test], mirror=bool(MIRRORED & set(recordings)))
+    perf_clip = takes.clip(test)
+    other_side = next((c for c in takes.clips if c.mirrored), None)
     truth_q = perf_clip.motion.quats[:, joints]
     # nearest library pose of every performer frame (the best any avatar could do)
     nearest = np.array(
@@ -394,10 +397,6 @@ def fold(
     )
     print(f"{test}: following by the true pose {out['pose_oracle']}", flush=True)
     out["recordings"] = {}
-    other_side = None  # the take mirrored, for the recordings that film it
-    if MIRRORED & set(recordings):
-        both = load_library(root, fps=30, clips=[test], mirror=True)
-        other_side = next(c for c in both.clips if c.mirrored)
     for rec in recordings:
         ctx = (perf_clip, layer, bank, train, lib_labels, lib_q, truth_q, walk_frames, lib_qm)
         if rec in MIRRORED:  # (its pose score keeps the take's scale: random walk, nearest)
