@@ -69,10 +69,11 @@ class MatchSettings:
     #: unlabelled clip counts as an action of its own): the best window of each of the
     #: last ``vote`` decisions votes for its action, and the avatar jumps only into
     #: windows of the action most voted for (which changes only when another has more
-    #: votes), at once when it shows another or will have played on into another within
-    #: half a window (0: no vote). 15 (1.5 s of decisions; 2026-12-03): label agreement
-    #: 0.853 against 0.790 over 3 held-out takes x 4 recordings (10: 0.838, 20: 0.844 in
-    #: an earlier form), and 0.826 against 0.764 on 18 recordings not used to choose it
+    #: votes; when none of the best windows shows it, the best that do are searched for),
+    #: at once when it shows another or will have played on into another within half a
+    #: window (0: no vote). 15 (1.5 s of decisions; 2026-12-03): label agreement 0.853
+    #: against 0.790 over 3 held-out takes x 4 recordings (10: 0.838, 20: 0.844 in an
+    #: earlier form), and 0.826 against 0.764 on 18 recordings not used to choose it
     vote: int = 15
 
     def __post_init__(self) -> None:

@@ -138,6 +138,7 @@ class WindowIndex:
         self._ok = np.zeros(shape.shape[0], dtype=bool)
         self._ok[starts] = True
         faiss.omp_set_num_threads(1)  # one core, and the same index on every run
+        self._selected: dict[bytes, tuple[Any, Any, NDArray[np.uint8]]] = {}
         self.index: Any
         if built is not None:  # (mean, basis, faiss index, nprobe) of the same build
             self.mean, self.basis, self.index, self.nprobe = built
@@ -199,10 +200,35 @@ class WindowIndex:
         x = np.concatenate(parts).astype(np.float32)
         return np.ascontiguousarray(((x - self.mean) @ self.basis)[None], dtype=np.float32)
 
-    def shortlisted(self, query: FloatArray) -> tuple[IntArray, IntArray]:
+    def _params(self, only: NDArray[np.bool_]) -> Any:
+        """faiss's search parameters for windows starting only where ``only`` (one flag a
+        table frame) is set: a bitmap of the index's rows, and four times the inverted
+        lists scanned (the nearest lists may hold few such windows). Kept for the last
+        few masks asked for."""
+        import faiss
+
+        key = hashlib.blake2b(np.packbits(only).tobytes(), digest_size=16).digest()
+        if key not in self._selected:
+            rows = np.repeat(only[self.starts], self.n_views)
+            bitmap = np.packbits(rows, bitorder="little")
+            sel = faiss.IDSelectorBitmap(rows.size, faiss.swig_ptr(bitmap))
+            params: Any = faiss.SearchParametersIVF() if self.nprobe else faiss.SearchParameters()
+            params.sel = sel
+            if self.nprobe:
+                params.nprobe = min(int(self.index.nlist), 4 * self.nprobe)
+            if len(self._selected) >= 8:
+                self._selected.pop(next(iter(self._selected)))
+            self._selected[key] = (params, sel, bitmap)  # (faiss keeps no reference)
+        return self._selected[key][0]
+
+    def shortlisted(
+        self, query: FloatArray, only: NDArray[np.bool_] | None = None
+    ) -> tuple[IntArray, IntArray]:
         """``(starts, views)`` of the broad phase's windows for ``query``, each with its
-        neighbours one frame earlier and later (where those may start a window)."""
-        _, ids = self.index.search(self.summary(query), self.shortlist)
+        neighbours one frame earlier and later (where those may start a window; with
+        ``only``, only where it is set)."""
+        params = None if only is None else self._params(only)
+        _, ids = self.index.search(self.summary(query), self.shortlist, params=params)
         ids = ids[0][ids[0] >= 0]
         s = self.starts[ids // self.n_views]
         v = ids % self.n_views
@@ -210,20 +236,27 @@ class WindowIndex:
         v = np.concatenate((v, v, v))
         keep = (s >= 0) & (s < self._ok.size)
         s, v = s[keep], v[keep]
-        keep = self._ok[s]
+        keep = self._ok[s] if only is None else self._ok[s] & only[s]
         key = np.unique(s[keep] * self.n_views + v[keep])
         return (key // self.n_views).astype(np.int64), (key % self.n_views).astype(np.int64)
 
     def search(
-        self, queries: list[FloatArray], band: int, top: int = 1
+        self,
+        queries: list[FloatArray],
+        band: int,
+        top: int = 1,
+        only: NDArray[np.bool_] | None = None,
     ) -> list[tuple[int, int, float]]:
         """The ``top`` windows ``(start, view, cost)`` nearest any of ``queries`` by
         exact DTW (band ``band``) among the broad phase's short lists, cheapest first,
-        at most one per start."""
+        at most one per start; with ``only`` (a flag for each table frame), only windows
+        that start where it is set."""
+        if only is not None and only.shape != self._ok.shape:
+            raise ValueError(f"only must flag each of the {self._ok.size} table frames")
         best: dict[int, tuple[int, int, float]] = {}
         for q in queries:
             q = np.ascontiguousarray(q, dtype=np.float64)
-            s, v = self.shortlisted(q)
+            s, v = self.shortlisted(q, only)
             if s.size == 0:
                 continue
             cost = dtw_windows(q, self.shape, self.centre, s, v, self.length, band)

@@ -34,7 +34,7 @@ from ._decision import Decision, MatchSettings
 from ._index import WindowIndex, cached_window_index
 from ._tables import cached_shape_stats, cached_window_tables
 from ._vote import ActionVote
-from ._windows import best_window, per_frame_cost, performer_queries, window_cost
+from ._windows import bank_sequences, best_window, per_frame_cost, performer_queries, window_cost
 
 __all__ = ["EARLY_WINDOWS", "Matcher"]
 
@@ -45,6 +45,7 @@ EARLY_WINDOWS = 150_000
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
+Gate = tuple[IntArray, NDArray[np.bool_], NDArray[np.bool_]]
 
 
 class Matcher:
@@ -268,16 +269,8 @@ class Matcher:
 
     def _bank_sequences(self, frames: IntArray) -> FloatArray:
         """DTW features ``(V, n, F)`` of graph ``frames`` in every view."""
-        b = self.to_bank[frames]
-        f = self.bank.features[b].astype(np.float64)  # (n, V, F)
-        move = self.bank.root_motion[b].astype(np.float64)  # (n, V, 2)
-        k = self.proj.shape[1]
-        out = np.empty((*f.shape[:2], k + 2))
-        out[..., :k] = (self.desc.shape(f) - self.mean) @ self.proj
-        path = np.cumsum(move, axis=0) - move[0]
-        centre = path + self.desc.centre(f)
-        out[..., k:] = (centre - centre[0]) * self.settings.centre_weight
-        return np.nan_to_num(out.transpose(1, 0, 2), nan=0.0)
+        w = self.settings.centre_weight
+        return bank_sequences(self.bank, self.to_bank[frames], self.mean, self.proj, w)
 
     def candidates(self, frame: int) -> list[tuple[int, IntArray, IntArray]]:
         """``(node, frames, edges)`` of the candidate paths from ``frame``: nodes reached
@@ -365,22 +358,21 @@ class Matcher:
         if not got or self._rejected(got[0][2], queries[0]):
             return None  # (why says so when the best was rejected)
         self.why = ""
-        starts = np.array([g[0] for g in got], dtype=np.int64)
-        target = starts + self.n  # where the performer is now
-        n = self.graph.n_frames
+        target, ok, there = self._targets(frame, got, costs)
         voted = self.vote.cast(target)
-        ok = target < n
-        ok[ok] &= costs.landing[target[ok]] & self.plays[target[ok] - 1]
-        # a jump to where the avatar is about to be anyway is no jump
-        there = (target >= frame - 2) & (target <= frame + self.n) & self._same_run(frame, target)
-        ok &= ~there
-        # the avatar leaves an action the performer is not voted to do for one that is
-        leave = False
-        if voted is not None and (ok & voted).any():
-            ok &= voted
-            leave = self.vote.leaves(frame, int(self._playback(frame)[: self.n // 2 + 1][-1]))
         if there.any():  # the avatar does one of the best windows: its cost is its own
             self.last_own = min(g[2] for g, t in zip(got, there, strict=True) if t)
+        if voted is not None and not (ok & voted).any():
+            # none of the best windows shows the voted action: the best that do (the avatar
+            # never jumps into an action the performer is not voted to do)
+            got = self.index().search(queries, st.band, st.top, self.vote.starts(self.n))
+            target, ok, _ = self._targets(frame, got, costs)
+            voted = self.vote.gate(target)
+        # the avatar leaves an action the performer is not voted to do for one that is
+        leave = False
+        if voted is not None:
+            ok &= voted
+            leave = self.vote.leaves(frame, int(self._playback(frame)[: self.n // 2 + 1][-1]))
         if not ok.any():
             return None
         idx = np.flatnonzero(ok)
@@ -394,8 +386,7 @@ class Matcher:
         m = self.hold_frames
         lead = self._lead_in(recent)
         settled = leave or lead.size < m or bool(np.all(np.diff(lead[-m:]) == 1))
-        # the blend only adds to a match's cost: when even the best match cannot win,
-        # the (slower) distances are not needed
+        # the blend only adds to a match's cost: no (slower) distances when the best cannot win
         if (not settled or not match.min() < st.jump_ratio * own) and np.isfinite(own):
             return None
         dist, _ = costs(frame, target[idx])
@@ -418,6 +409,15 @@ class Matcher:
             latency_ms=(time.perf_counter() - t0) * 1e3,
             extra={"jump": j, "own": own, "blend": float(dist[b])},
         )
+
+    def _targets(self, frame: int, got: list[tuple[int, int, float]], costs: JumpCosts) -> Gate:
+        """The frames after windows ``got`` (where the performer is now), which a jump from
+        ``frame`` may land on, and which the avatar is about to be at anyway (no jump)."""
+        target = np.array([g[0] for g in got], dtype=np.int64) + self.n
+        ok = target < self.graph.n_frames
+        ok[ok] &= costs.landing[target[ok]] & self.plays[target[ok] - 1]
+        there = (target >= frame - 2) & (target <= frame + self.n) & self._same_run(frame, target)
+        return target, ok & ~there, there
 
     def _playback(self, frame: int) -> IntArray:
         """``frame`` and up to a window of frames playing on from it."""

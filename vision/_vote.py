@@ -5,12 +5,20 @@ One decision's best window can be wrong (another action that looks alike for a m
 the performer's action lasts seconds. So on a library whose clips are labelled, the
 action of each decision's best window (its label; an unlabelled clip counts as an action
 of its own) is a vote, and the avatar jumps only into windows of the action most voted
-for over the last ``MatchSettings.vote`` decisions, and leaves at once a motion that is
-not that action, or will have played on out of it within half a window.
+for over the last ``MatchSettings.vote`` decisions (or voted for by the last third of
+them, all alike: a new action is taken up in 0.5 s, not when it has outvoted the old
+one), and leaves at once a motion that is not that action, or will have played on out
+of it within half a window. When none of a decision's best windows shows the voted
+action, the matcher searches the windows that do (``starts``): the avatar never jumps
+into an action the performer is not voted to do (until 2026-12-03 it jumped into the
+best window then, whatever its action). A source slower than the decisions has decision
+points skipped (``missed``); each vote then stands for them too, so that the vote spans
+the same time at any frame rate.
 """
 
 from __future__ import annotations
 
+import itertools
 from collections import Counter, deque
 
 import numpy as np
@@ -33,23 +41,57 @@ class ActionVote:
         self._votes: deque[int] = deque(maxlen=max(1, size))
         #: the action most voted for (-1: none yet)
         self.voted = -1
+        #: this many votes in a row for one action make it the voted one at once, before
+        #: it has the most votes (a third of the vote: 0.5 s of 1.5 s); the older votes
+        #: stay, so one vote more for the old action, while it still has the most, takes
+        #: it back
+        self.quick = max(2, size // 3)
+        #: decision points skipped since the last vote (a source slower than the
+        #: decisions; ``Performance`` says so): the next vote counts for them too, so that
+        #: the vote spans ``size`` decision points of time whatever the frame rate
+        self.missed = 0
+        self._starts: tuple[tuple[int, int, int], NDArray[np.bool_]] | None = None
 
     def cast(self, target: IntArray) -> NDArray[np.bool_] | None:
         """The best window's vote (``target``: the frames after the best windows, best
         first), and which of them show the action most voted for and still show it
-        ``span`` frames on (``None`` without a vote). The voted action changes only when
-        another has more votes (to the one of them voted for last)."""
+        ``span`` frames on (``None`` without a vote). The voted action changes when
+        another has more votes (to the one of them voted for last), or when the last
+        ``quick`` votes are all for another."""
         if self.actions is None or self.size <= 0:
             return None
         last = self.actions.size - 1
         keys = self.actions[np.clip(target, 0, last)]
-        self._votes.append(int(keys[0]))
+        for _ in range(1 + self.missed):  # (a decision stands for those skipped before it)
+            self._votes.append(int(keys[0]))
+        self.missed = 0
         counts = Counter(self._votes)
         top = max(counts.values())
         if counts.get(self.voted, 0) < top:
             self.voted = next(k for k in reversed(self._votes) if counts[k] == top)
+        q = self.quick
+        if len(self._votes) >= q and len(set(itertools.islice(reversed(self._votes), q))) == 1:
+            self.voted = self._votes[-1]  # the last ``quick`` votes agree: at once
+        return self.gate(target)
+
+    def gate(self, target: IntArray) -> NDArray[np.bool_]:
+        """Which of ``target`` show the action voted for and still show it ``span``
+        frames on (clipped to the library's last frame)."""
+        assert self.actions is not None
+        last = self.actions.size - 1
+        keys = self.actions[np.clip(target, 0, last)]
         ahead = self.actions[np.clip(target + self.span, 0, last)]
         return np.asarray((keys == self.voted) & (ahead == self.voted))
+
+    def starts(self, length: int) -> NDArray[np.bool_]:
+        """The frames a window of ``length`` frames may start at for the frame after it to
+        pass ``gate`` (a flag for each library frame; the last mask is kept)."""
+        assert self.actions is not None
+        key = (self.voted, length, id(self.actions))
+        if self._starts is None or self._starts[0] != key:
+            target = np.arange(self.actions.size, dtype=np.int64) + length
+            self._starts = (key, self.gate(target))
+        return self._starts[1]
 
     def leaves(self, frame: int, ahead: int) -> bool:
         """Whether an avatar at ``frame``, which plays on to ``ahead`` (``span`` frames on,

@@ -14,6 +14,7 @@ from control.dtw import SHAPE_DTYPE, ShapeTable, dtw_best_window, dtw_windows
 from silhouette_bank import DEFAULT_DESCRIPTOR, Bank, Descriptor, get_descriptor
 
 __all__ = [
+    "bank_sequences",
     "best_window",
     "per_frame_cost",
     "performer_queries",
@@ -79,6 +80,24 @@ def performer_queries(
         performer_sequence(np.asarray(v, dtype=np.float64), mean, proj, centre_weight, desc)
         for v in desc.variants(performer, mirror)
     ]
+
+
+def bank_sequences(
+    bank: Bank, rows: IntArray, mean: FloatArray, proj: FloatArray, centre_weight: float
+) -> FloatArray:
+    """DTW features ``(V, n, F)`` of the bank's frames ``rows`` in every view: as
+    ``performer_sequence`` makes them, the centre from the root's image motion
+    accumulated plus the centre relative to the root."""
+    desc = bank.settings.features
+    f = bank.features[rows].astype(np.float64)  # (n, V, F)
+    move = bank.root_motion[rows].astype(np.float64)  # (n, V, 2)
+    k = proj.shape[1]
+    out = np.empty((*f.shape[:2], k + 2))
+    out[..., :k] = (desc.shape(f) - mean) @ proj
+    path = np.cumsum(move, axis=0) - move[0]
+    centre = path + desc.centre(f)
+    out[..., k:] = (centre - centre[0]) * centre_weight
+    return np.nan_to_num(out.transpose(1, 0, 2), nan=0.0)
 
 
 def window_tables(

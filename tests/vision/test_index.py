@@ -11,10 +11,12 @@ from control.dtw import dtw, dtw_windows
 from silhouette_bank import silhouette_features
 from tests.vision.conftest import RECORDING
 from vision import (
+    ActionVote,
     Matcher,
     MatchSettings,
     VideoSource,
     WindowIndex,
+    action_keys,
     best_window,
     cached_window_index,
 )
@@ -137,3 +139,36 @@ def test_the_principal_axes_are_the_svds(rng) -> None:
     top = np.abs(axes).argmax(axis=0)
     assert np.all(axes[top, np.arange(8)] > 0)
     np.testing.assert_array_equal(_principal_axes(-x, 8), axes)
+
+
+@pytest.mark.parametrize("flat_below", [100_000, 0])  # a flat scan; an inverted file
+def test_a_search_within_flagged_starts_finds_their_brute_force_best(setup, flat_below) -> None:
+    """``only``: the windows after which the library shows one action (the vote's gate),
+    against brute force over just those."""
+    lib, layer, bank = setup
+    m = Matcher(layer, bank, MatchSettings())
+    shape, centre, starts = m._global_tables()
+    index = WindowIndex(shape, centre, starts, m.n, flat_below=flat_below)
+    keys = action_keys(lib.clips)
+    assert keys is not None
+    clip = lib.clips[0]
+    squat = next(f for f in range(clip.motion.n_frames) if clip.label_at(f) == "Squat")
+    vote = ActionVote(1, m.n // 2)
+    vote.actions = keys
+    vote.cast(np.array([squat + m.n]))
+    only = vote.starts(m.n)
+    allowed = starts[only[starts]]
+    assert 0 < allowed.size < starts.size / 3
+    hits = total = 0
+    perf = _performer(bank)
+    for end in range(m.n, perf.shape[0] + 1, 4):
+        queries = m.queries(perf[end - m.n : end])
+        assert queries is not None
+        got = index.search(queries, m.settings.band, top=4, only=only)
+        assert got and all(only[g[0]] for g in got)
+        b = best_window(queries, shape, centre, allowed, m.n, m.settings.band)
+        total += 1
+        hits += got[0][2] <= b[2] + 1e-9
+    assert total >= 40 and hits >= 0.95 * total, (hits, total)
+    with pytest.raises(ValueError, match="each of the"):
+        index.search(queries, m.settings.band, only=only[:-1])

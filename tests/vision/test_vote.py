@@ -74,7 +74,40 @@ def test_windows_and_the_avatar_about_to_leave_the_action_do_not_count() -> None
     assert not vote.leaves(5, 8)
     assert vote.leaves(8, 11)  # about to play on into action 1
     assert vote.leaves(12, 15)
+    # the windows of 4 frames that pass the gate: those followed by 3 more frames of 0
+    assert list(np.flatnonzero(vote.starts(4))) == [0, 1, 2]
     assert ActionVote(0, 3).cast(np.array([2])) is None
+
+
+def test_a_run_of_votes_takes_up_a_new_action_at_once() -> None:
+    """Ten votes for action 0, then action 1 in a row: voted for at the fifth (a third of
+    15), long before it has the most votes."""
+    vote = ActionVote(15, 0)
+    vote.actions = np.array([0] * 10 + [1] * 10, dtype=np.int64)
+    assert vote.quick == 5
+    for _ in range(10):
+        vote.cast(np.array([2]))
+    got = []
+    for _ in range(5):
+        vote.cast(np.array([12]))
+        got.append(vote.voted)
+    assert got == [0, 0, 0, 0, 1]
+    # the older votes stay: one more for action 0, which still has the most, takes it back
+    vote.cast(np.array([2]))
+    assert vote.voted == 0
+
+
+def test_a_decision_after_skipped_ones_votes_for_them_too() -> None:
+    """A source slower than the decisions (a 5 frames/s video: every other decision point
+    skipped): each vote stands for the points skipped before it, so the vote spans the
+    same time at any frame rate."""
+    vote = ActionVote(4, 0)
+    vote.actions = np.array([0] * 10 + [1] * 10, dtype=np.int64)
+    vote.cast(np.array([2]))
+    vote.cast(np.array([2]))
+    vote.missed = 2
+    vote.cast(np.array([12]))  # the last four points: 0, 1, 1, 1
+    assert vote.voted == 1 and vote.missed == 0
 
 
 def test_the_avatar_leaves_an_action_the_performer_is_not_doing(setup) -> None:
@@ -104,6 +137,37 @@ def test_the_avatar_leaves_an_action_the_performer_is_not_doing(setup) -> None:
     assert decide(0) is None
     landed = decide(1)
     assert landed is not None and labels[landed] == "Squat"
+
+
+def test_the_avatar_jumps_only_into_the_voted_action(setup) -> None:
+    """The performer jogs, but the vote is still for a squat (one jog window among many
+    squat votes): none of the best windows is a squat, so the avatar, jogging, looks
+    for the best squat windows and jumps into one of them, never into a jog (it used to
+    stay, or jump to the best jog window)."""
+    lib, layer, bank = setup
+    clip = lib.clips[0]
+    labels = [clip.label_at(f) for f in range(clip.motion.n_frames)]
+    squat = [f for f in range(40, len(labels)) if labels[f - 20 : f + 1] == ["Squat"] * 21]
+    jog = [f for f in range(40, len(labels)) if labels[f - 20 : f + 1] == ["Jog"] * 21]
+    keys = action_keys(lib.clips)
+    assert keys is not None and squat and jog
+    costs = JumpCosts(layer.graph, lib.clips, anywhere=True)
+    m = Matcher(layer, bank, MatchSettings(vote=15))
+    m.vote.actions = keys
+    for _ in range(10):
+        m.vote.cast(np.array([squat[len(squat) // 2]]))
+    j = jog[len(jog) // 3]
+    performer = bank.features[m.to_bank[np.arange(j - m.n + 1, j + 1)], 0].astype(np.float64)
+    queries = m.queries(performer)
+    assert queries is not None
+    best = m.index().search(queries, m.settings.band, m.settings.top)
+    assert all(labels[s + m.n] != "Squat" for s, _, _ in best)  # the best windows jog
+    a = jog[2 * len(jog) // 3]
+    shown = np.arange(a - m.recent_frames + 1, a + 1)  # played on: settled
+    d = m.decide(a, performer, shown, costs)
+    assert d is not None and "jump" in d.extra
+    assert labels[int(d.extra["jump"])] == "Squat"
+    assert m.vote.voted == keys[squat[0]]
 
 
 def test_a_negative_vote_is_refused(mocap: Path, capsys) -> None:
