@@ -312,7 +312,7 @@ class Performance:
         # same frame
         missed = int((t + 1e-9 - self.next_decision) // settings.decide_every)
         self.next_decision += (missed + 1) * settings.decide_every
-        matcher.vote.missed += missed
+        matcher.vote.missed = missed  # (the next vote stands for those points too)
         clip, f = self.graph.locate(avatar.frame)
         entry: dict[str, Any] = {
             "t": round(t, 3),

@@ -46,9 +46,9 @@ class ActionVote:
         #: stay, so one vote more for the old action, while it still has the most, takes
         #: it back
         self.quick = max(2, size // 3)
-        #: decision points skipped since the last vote (a source slower than the
-        #: decisions; ``Performance`` says so): the next vote counts for them too, so that
-        #: the vote spans ``size`` decision points of time whatever the frame rate
+        #: decision points skipped just before the decision being made (a source slower
+        #: than the decisions; ``Performance`` sets it): its vote counts for them too, so
+        #: that the vote spans ``size`` decision points of time whatever the frame rate
         self.missed = 0
         self._starts: tuple[tuple[int, int, int], NDArray[np.bool_]] | None = None
 
