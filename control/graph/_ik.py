@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..motion import FloatArray, Skeleton, find_role, qconj, qmul, qrot
+from ..motion import FloatArray, Skeleton, find_role, qconj, qmul, qrot, slerp
 
-__all__ = ["SOFT_REACH", "knee_hinge", "leg_chain", "solve_leg", "two_bone_ik"]
+__all__ = ["SOFT_REACH", "SWING_LIMIT", "knee_hinge", "leg_chain", "solve_leg", "two_bone_ik"]
 
 
 def _unit(v: FloatArray) -> FloatArray:
@@ -33,6 +33,14 @@ def _arc_q(v1: FloatArray, v2: FloatArray) -> FloatArray:
 
 #: the share of a leg's length up to which ``two_bone_ik`` reaches a target exactly
 SOFT_REACH = 0.97
+
+#: degrees: ``solve_leg`` applies its correction in full where the hip must swing the leg
+#: by at most the first, none from the second, in proportion between. A folded leg
+#: (a deep squat) can need a swing near a half turn to reach a target a few centimetres
+#: away, and there the swing's axis flips from one frame to the next: a jump blended
+#: into a squat turned a thigh 170 degrees in one frame (2026-12-03); the foot slides
+#: there instead.
+SWING_LIMIT = (40.0, 80.0)
 
 
 def two_bone_ik(
@@ -137,6 +145,13 @@ def solve_leg(
     d_knee, d_hip = two_bone_ik(
         positions[:, hip], positions[:, knee], positions[:, ankle], target, axis
     )
+    swing = np.degrees(2.0 * np.arccos(np.clip(np.abs(d_hip[:, 0]), 0.0, 1.0)))
+    lo, hi = SWING_LIMIT
+    weight = np.clip((hi - swing) / (hi - lo), 0.0, 1.0)
+    if (weight < 1.0).any():  # (see ``SWING_LIMIT``)
+        ident = np.broadcast_to(np.array([1.0, 0.0, 0.0, 0.0]), d_hip.shape)
+        d_hip = slerp(ident, d_hip, weight)
+        d_knee = slerp(ident, d_knee, weight)
     parent = skeleton.parents[hip]
     q_parent = orientations[:, parent]
     hip_w = qmul(d_hip, orientations[:, hip])
