@@ -138,7 +138,8 @@ def solve_leg(
 
     ``positions`` / ``orientations`` are the frames' FK (``(F, J, 3)``, ``(F, J, 4)``).
     ``hinge`` is the knee's axis in the thigh's frame (``knee_hinge``). The ankle keeps its
-    world orientation.
+    world orientation. A frame whose correction needs the hip to swing the leg by more
+    than ``SWING_LIMIT``'s first angle gets only part of it (none past the second).
     """
     hip, knee, ankle = chain
     axis = qrot(orientations[:, hip], np.broadcast_to(hinge, (target.shape[0], 3)))
