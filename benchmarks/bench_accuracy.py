@@ -184,7 +184,7 @@ def _run_figures(
 ) -> dict[str, Any]:
     """Agreement, pose score, coherence, latency and physical checks of one perform run.
     With ``lib_q_mirror`` (the library's rotations, each clip mirrored), also the pose
-    score were each avatar frame counted on whichever side is nearer the performer's: what
+    score with each avatar frame counted on whichever side is nearer the performer's: what
     a silhouette cannot tell (seen from the front, a pose; from behind, its mirror image)."""
     frames = np.array([d["frame"] for d in r.decisions])
     times = np.array([d["t"] for d in r.decisions])

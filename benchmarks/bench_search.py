@@ -41,7 +41,7 @@ def _within_one_action(m: Matcher, clips: Any, perf: np.ndarray) -> dict[str, An
     """The search the vote makes when none of the best windows shows the voted action:
     the recording (jumping jacks) against the library's squat windows only."""
     keys = action_keys(clips)
-    start = np.cumsum([0] + [c.motion.n_frames for c in clips])
+    start = m.graph.clip_start  # (``clips`` are the graph's)
     squat = next(
         (int(start[i]) + f)
         for i, c in enumerate(clips)

@@ -204,8 +204,7 @@ class WindowIndex:
         """faiss's search parameters for windows starting only where ``only`` (one flag a
         table frame) is set: a bitmap of the index's rows, and four times the inverted
         lists scanned (the nearest lists may hold few such windows; ``shortlisted`` takes
-        half as many of them). Kept for the last
-        few masks asked for."""
+        half as many of them). Kept for the last few masks asked for."""
         import faiss
 
         key = hashlib.blake2b(np.packbits(only).tobytes(), digest_size=16).digest()

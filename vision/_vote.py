@@ -60,10 +60,9 @@ class ActionVote:
         ``quick`` votes are all for another."""
         if self.actions is None or self.size <= 0:
             return None
-        last = self.actions.size - 1
-        keys = self.actions[np.clip(target, 0, last)]
+        best = int(self.actions[min(max(int(target[0]), 0), self.actions.size - 1)])
         for _ in range(1 + self.missed):  # (a decision stands for those skipped before it)
-            self._votes.append(int(keys[0]))
+            self._votes.append(best)
         self.missed = 0
         counts = Counter(self._votes)
         top = max(counts.values())
