@@ -29,7 +29,7 @@ from control.dtw import SHAPE_DTYPE, ShapeTable, dtw_windows
 
 log = logging.getLogger(__name__)
 
-__all__ = ["INDEX_VERSION", "IndexFileError", "WindowIndex", "cached_window_index"]
+__all__ = ["INDEX_VERSION", "IndexFileError", "WindowIndex", "best_of", "cached_window_index"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -249,25 +249,45 @@ class WindowIndex:
         band: int,
         top: int = 1,
         only: NDArray[np.bool_] | None = None,
+        ranked: list[tuple[IntArray, IntArray, FloatArray]] | None = None,
     ) -> list[tuple[int, int, float]]:
         """The ``top`` windows ``(start, view, cost)`` nearest any of ``queries`` by
         exact DTW (band ``band``) among the broad phase's short lists, cheapest first,
         at most one per start; with ``only`` (a flag for each table frame), only windows
-        that start where it is set."""
+        that start where it is set. ``ranked`` (a list) gets each query's short list and
+        its costs, ``(starts, views, costs)``, for ``best_of``."""
         if only is not None and only.shape != self._ok.shape:
             raise ValueError(f"only must flag each of the {self._ok.size} table frames")
-        best: dict[int, tuple[int, int, float]] = {}
+        lists = []
         for q in queries:
             q = np.ascontiguousarray(q, dtype=np.float64)
             s, v = self.shortlisted(q, only)
-            if s.size == 0:
-                continue
-            cost = dtw_windows(q, self.shape, self.centre, s, v, self.length, band)
-            for i in np.argsort(cost, kind="stable")[: max(top * 4, top)]:
-                si = int(s[i])
-                if si not in best or cost[i] < best[si][2]:
-                    best[si] = (si, int(v[i]), float(cost[i]))
-        return sorted(best.values(), key=lambda r: (r[2], r[0]))[:top]
+            if s.size:
+                cost = dtw_windows(q, self.shape, self.centre, s, v, self.length, band)
+                lists.append((s, v, cost))
+        if ranked is not None:
+            ranked.extend(lists)
+        return best_of(lists, top)
+
+
+def best_of(
+    lists: list[tuple[IntArray, IntArray, FloatArray]],
+    top: int,
+    only: NDArray[np.bool_] | None = None,
+) -> list[tuple[int, int, float]]:
+    """The ``top`` cheapest windows ``(start, view, cost)`` of ranked short lists
+    (``WindowIndex.search``'s ``ranked``), at most one per start; with ``only``, only
+    those whose start it flags."""
+    best: dict[int, tuple[int, int, float]] = {}
+    for s, v, cost in lists:
+        pick = np.argsort(cost, kind="stable")
+        if only is not None:
+            pick = pick[only[s[pick]]]
+        for i in pick[: max(top * 4, top)]:
+            si = int(s[i])
+            if si not in best or cost[i] < best[si][2]:
+                best[si] = (si, int(v[i]), float(cost[i]))
+    return sorted(best.values(), key=lambda r: (r[2], r[0]))[:top]
 
 
 #: the stored index's format (``cached_window_index``)

@@ -31,7 +31,7 @@ from control.dtw import ShapeTable, dtw_batch
 from silhouette_bank import Bank
 
 from ._decision import Decision, MatchSettings
-from ._index import WindowIndex, cached_window_index
+from ._index import WindowIndex, best_of, cached_window_index
 from ._tables import cached_shape_stats, cached_window_tables
 from ._vote import ActionVote
 from ._windows import bank_sequences, best_window, per_frame_cost, performer_queries, window_cost
@@ -193,10 +193,7 @@ class Matcher:
         features, ``frame`` its start, ``view`` the ring's; by the index, or with ``exact``
         by brute force. ``None`` without enough silhouette, or when the best is rejected."""
         got = self.search(performer, 1, exact)
-        if not got:
-            return None
-        s, v, c = got[0]
-        return s, v % self.ring_views, c
+        return (got[0][0], got[0][1] % self.ring_views, got[0][2]) if got else None
 
     def search(
         self, performer: FloatArray, top: int = 1, exact: bool = False
@@ -256,15 +253,9 @@ class Matcher:
 
     def _window_frames(self, frames: IntArray) -> IntArray:
         """The first ``n`` frames of a path, played on past its end when it is short."""
-        if frames.size >= self.n:
-            return frames[: self.n]
-        out = list(frames)
-        f = int(frames[-1])
-        while len(out) < self.n and self.plays[f]:
-            f += 1
-            out.append(f)
-        while len(out) < self.n:
-            out.append(f)
+        out = [int(f) for f in frames[: self.n]]
+        while len(out) < self.n:  # played on while it can, then held
+            out.append(out[-1] + 1 if self.plays[out[-1]] else out[-1])
         return np.array(out, dtype=np.int64)
 
     def _bank_sequences(self, frames: IntArray) -> FloatArray:
@@ -353,7 +344,8 @@ class Matcher:
             queries = self.queries(performer)
             if queries is None:
                 return None
-        got = self.index().search(queries, st.band, st.top)
+        ranked: list[tuple[IntArray, IntArray, FloatArray]] = []
+        got = self.index().search(queries, st.band, st.top, ranked=ranked)
         self.last_own = float("inf")
         if not got or self._rejected(got[0][2], queries[0]):
             return None  # (why says so when the best was rejected)
@@ -364,10 +356,16 @@ class Matcher:
             self.last_own = min(g[2] for g, t in zip(got, there, strict=True) if t)
         if voted is not None and not (ok & voted).any():
             # none of the best windows shows the voted action: the best that do (the avatar
-            # never jumps into an action the performer is not voted to do)
-            got = self.index().search(queries, st.band, st.top, self.vote.starts(self.n))
+            # never jumps into an action the performer is not voted to do), from the same
+            # short lists when they hold any, else by a search among those windows alone
+            only = self.vote.starts(self.n)
+            got = best_of(ranked, st.top, only)
             target, ok, _ = self._targets(frame, got, costs)
             voted = self.vote.gate(target)
+            if not (ok & voted).any():
+                got = self.index().search(queries, st.band, st.top, only)
+                target, ok, _ = self._targets(frame, got, costs)
+                voted = self.vote.gate(target)
         # the avatar leaves an action the performer is not voted to do for one that is
         leave = False
         if voted is not None:

@@ -20,6 +20,7 @@ from vision import (
     best_window,
     cached_window_index,
 )
+from vision._index import best_of
 
 
 def _performer(bank) -> np.ndarray:
@@ -172,3 +173,33 @@ def test_a_search_within_flagged_starts_finds_their_brute_force_best(setup, flat
     assert total >= 40 and hits >= 0.95 * total, (hits, total)
     with pytest.raises(ValueError, match="each of the"):
         index.search(queries, m.settings.band, only=only[:-1])
+
+
+def test_the_best_flagged_windows_of_a_search_s_short_lists(setup) -> None:
+    """``ranked`` keeps every short-listed window's exact DTW cost; ``best_of`` ranks them
+    again, all (the search's own answer) or only the flagged ones (what the vote looks for
+    before searching its action's windows alone): the cheapest flagged windows there,
+    one per start, cheapest first."""
+    lib, layer, bank = setup
+    m = Matcher(layer, bank, MatchSettings())
+    shape, centre, starts = m._global_tables()
+    index = WindowIndex(shape, centre, starts, m.n, flat_below=0)
+    keys = action_keys(lib.clips)
+    assert keys is not None
+    perf = _performer(bank)
+    queries = m.queries(perf[: m.n])
+    assert queries is not None
+    ranked: list = []
+    got = index.search(queries, m.settings.band, top=8, ranked=ranked)
+    assert len(ranked) == len(queries) and best_of(ranked, 8) == got
+    only = np.zeros(keys.size, dtype=bool)
+    only[np.unique(np.concatenate([s for s, _, _ in ranked]))[1::3]] = True  # a third
+    flagged = best_of(ranked, 5, only)
+    assert len(flagged) == 5 and all(only[s] for s, _, _ in flagged)
+    assert len({s for s, _, _ in flagged}) == 5
+    want = sorted(
+        min((float(c[k]), int(s[k])) for s, _, c in ranked for k in np.flatnonzero(s == st))
+        for st in np.flatnonzero(only)
+    )[:5]
+    assert [(c, s) for s, _, c in flagged] == [(c, s) for c, s in want]
+    assert best_of(ranked, 5, np.zeros_like(only)) == []
