@@ -381,8 +381,7 @@ class Matcher:
         if self.plays[frame] and not leave:
             own = self.own_cost(queries, self.own_frames(frame, recent))
         self.last_own = own
-        m = self.hold_frames
-        lead = self._lead_in(recent)
+        m, lead = self.hold_frames, self._lead_in(recent)
         settled = leave or lead.size < m or bool(np.all(np.diff(lead[-m:]) == 1))
         # the blend only adds to a match's cost: no (slower) distances when the best cannot win
         if (not settled or not match.min() < st.jump_ratio * own) and np.isfinite(own):
@@ -393,8 +392,7 @@ class Matcher:
         b = int(np.argmin(score))
         if not score[b] < st.jump_ratio * own:
             return None
-        i = int(idx[b])
-        j = int(target[i])
+        i, j = int(idx[b]), int(target[idx[b]])
         frames = np.concatenate(([frame], self._playback(j)))
         return Decision(
             frames=frames,
