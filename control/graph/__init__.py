@@ -24,7 +24,7 @@ from ._graph import (
     graph_sigma,
     select_clips,
 )
-from ._ik import SOFT_REACH, knee_hinge, leg_chain, solve_leg, two_bone_ik
+from ._ik import SOFT_REACH, TURN_RATE, knee_hinge, leg_chain, limit_turns, solve_leg, two_bone_ik
 from ._prune import CONTACT_RULES, case4, contact_groups, largest_scc, local_maxima
 from ._quality import (
     foot_slide,
@@ -45,6 +45,7 @@ __all__ = [
     "COORDS",
     "GRAPH_VERSION",
     "SOFT_REACH",
+    "TURN_RATE",
     "BroadPhase",
     "CapturedTerrain",
     "FootTrack",
@@ -74,6 +75,7 @@ __all__ = [
     "knee_hinge",
     "largest_scc",
     "leg_chain",
+    "limit_turns",
     "load_graph",
     "local_maxima",
     "longest_off_floor",

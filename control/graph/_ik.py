@@ -7,11 +7,24 @@ that a planted foot does not tilt.
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
 from ..motion import FloatArray, Skeleton, find_role, qconj, qmul, qrot, slerp
+from ..motion._types import IntArray
 
-__all__ = ["SOFT_REACH", "SWING_LIMIT", "knee_hinge", "leg_chain", "solve_leg", "two_bone_ik"]
+__all__ = [
+    "SOFT_REACH",
+    "SWING_LIMIT",
+    "TURN_RATE",
+    "knee_hinge",
+    "leg_chain",
+    "limit_turns",
+    "solve_leg",
+    "two_bone_ik",
+]
 
 
 def _unit(v: FloatArray) -> FloatArray:
@@ -41,6 +54,55 @@ SOFT_REACH = 0.97
 #: into a squat turned a thigh 170 degrees in one frame (2026-12-03); the foot slides
 #: there instead.
 SWING_LIMIT = (40.0, 80.0)
+
+#: degrees a second: how fast ``solve_leg``'s correction of the hip and of the knee may
+#: turn from one frame to the next (with its frames given). A nearly straight knee must
+#: bend tens of degrees to bring the ankle a few centimetres nearer the hip, so a blend
+#: that carried the pelvis 5 cm a frame away from a planted foot bent the knee 50-88
+#: degrees in one frame (junctions of 13_29 side, 2026-12-03; the library's 99th
+#: percentile is 31); the foot slides there instead.
+TURN_RATE = 300.0
+
+
+@numba.njit(cache=True)
+def _limit_turns(q: FloatArray, frames: IntArray, step: float) -> FloatArray:  # pragma: no cover
+    out = q.copy()
+    n = out.shape[0]
+    for k in range(2 * n):  # forwards, then backwards
+        i = k if k < n else 2 * n - 1 - k
+        near = i - 1 if k < n else i + 1  # the frame before (after) it
+        if near < 0 or near >= n or abs(frames[near] - frames[i]) != 1:
+            pw, px, py, pz = 1.0, 0.0, 0.0, 0.0  # a run of frames starts (ends) uncorrected
+        else:
+            pw, px, py, pz = out[near, 0], out[near, 1], out[near, 2], out[near, 3]
+        w, x, y, z = out[i, 0], out[i, 1], out[i, 2], out[i, 3]
+        dot = pw * w + px * x + py * y + pz * z
+        if dot < 0.0:
+            w, x, y, z, dot = -w, -x, -y, -z, -dot
+        theta = math.acos(min(dot, 1.0))  # half the turn
+        if 2.0 * theta > step:
+            t = step / (2.0 * theta)
+            a = math.sin((1.0 - t) * theta) / math.sin(theta)
+            b = math.sin(t * theta) / math.sin(theta)
+            w, x, y, z = a * pw + b * w, a * px + b * x, a * py + b * y, a * pz + b * z
+            size = math.sqrt(w * w + x * x + y * y + z * z)
+            w, x, y, z = w / size, x / size, y / size, z / size
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = w, x, y, z
+    return out
+
+
+def limit_turns(q: FloatArray, frames: IntArray, step: float) -> FloatArray:
+    """Rotations ``q`` ``(N, 4)`` of ``frames`` ``(N,)`` (increasing), each turned from
+    the one of the frame before, and from the one of the frame after, by at most ``step``
+    degrees: where it would turn more, it goes ``step`` of the way (along the shorter arc;
+    a pass forwards, then one backwards). A frame missing from ``frames`` has the
+    identity (no correction there): a run of frames starts and ends within ``step`` of
+    it."""
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    frames = np.ascontiguousarray(frames, dtype=np.int64)
+    if q.ndim != 2 or q.shape[1] != 4 or frames.shape != q.shape[:1]:
+        raise ValueError(f"q must be (N, 4) with frames (N,), not {q.shape} and {frames.shape}")
+    return _limit_turns(q, frames, math.radians(step))
 
 
 def two_bone_ik(
@@ -133,13 +195,17 @@ def solve_leg(
     chain: tuple[int, int, int],
     target: FloatArray,
     hinge: FloatArray,
+    frames: IntArray | None = None,
+    step: float = 0.0,
 ) -> FloatArray:
     """New local rotations ``(F, 3, 4)`` of ``chain`` so the ankle reaches ``target``.
 
     ``positions`` / ``orientations`` are the frames' FK (``(F, J, 3)``, ``(F, J, 4)``).
     ``hinge`` is the knee's axis in the thigh's frame (``knee_hinge``). The ankle keeps its
     world orientation. A frame whose correction needs the hip to swing the leg by more
-    than ``SWING_LIMIT``'s first angle gets only part of it (none past the second).
+    than ``SWING_LIMIT``'s first angle gets only part of it (none past the second). With
+    the rows' ``frames`` and a ``step`` (degrees), the hip's and the knee's corrections
+    turn by at most ``step`` a frame (``limit_turns``; see ``TURN_RATE``).
     """
     hip, knee, ankle = chain
     axis = qrot(orientations[:, hip], np.broadcast_to(hinge, (target.shape[0], 3)))
@@ -153,6 +219,8 @@ def solve_leg(
         ident = np.broadcast_to(np.array([1.0, 0.0, 0.0, 0.0]), d_hip.shape)
         d_hip = slerp(ident, d_hip, weight)
         d_knee = slerp(ident, d_knee, weight)
+    if frames is not None and step > 0:
+        d_hip, d_knee = limit_turns(d_hip, frames, step), limit_turns(d_knee, frames, step)
     parent = skeleton.parents[hip]
     q_parent = orientations[:, parent]
     hip_w = qmul(d_hip, orientations[:, hip])

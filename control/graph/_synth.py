@@ -39,7 +39,7 @@ from ..motion import (
 )
 from ._features import root_scales, rotate_y, yaw_q
 from ._graph import MotionGraph
-from ._ik import knee_hinge, leg_chain, solve_leg
+from ._ik import TURN_RATE, knee_hinge, leg_chain, solve_leg
 from ._quality import lowest_foot
 
 __all__ = ["FrameData", "Synthesis", "compose", "synthesize"]
@@ -412,6 +412,8 @@ def _plant_feet(
             chain,
             target[todo],
             hinge,
+            todo,
+            TURN_RATE / fps,
         )
         out_q[todo[:, None], np.array(chain)[None, :]] = new
         hip = pose.positions[todo, chain[0]]

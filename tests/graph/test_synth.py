@@ -15,6 +15,7 @@ from control.graph import (
     foot_slide,
     knee_hinge,
     leg_chain,
+    limit_turns,
     random_walk,
     sole_speed,
     solve_leg,
@@ -187,6 +188,61 @@ def test_a_target_near_the_far_side_of_the_hip_does_not_flip_the_thigh(
         2.0 * np.arccos(np.clip(np.abs(np.sum(thigh[1:] * thigh[:-1], axis=1)), 0, 1))
     )
     assert turn[10:].max() < 5.0, turn.max()
+
+
+def _turns(q: np.ndarray) -> np.ndarray:
+    """Degrees each rotation of ``q`` ``(N, 4)`` turns from the one before."""
+    return np.degrees(2.0 * np.arccos(np.clip(np.abs(np.sum(q[1:] * q[:-1], axis=1)), 0, 1)))
+
+
+def test_the_leg_correction_turns_at_most_a_step_a_frame(medium_lib: Library) -> None:
+    """A nearly straight leg whose planted ankle the blend carries 5 cm a frame towards
+    the hip (a pelvis dragged away from its foot): solved frame by frame the knee must
+    fold tens of degrees in one frame; with the frames given, the hip's and the knee's
+    corrections turn at most ``step`` a frame, and a run of frames starts and ends
+    within ``step`` of no correction (the foot slides instead). Frames outside the run
+    are not corrected."""
+    m = medium_lib.clips[0].motion
+    pose = forward_kinematics(m)
+    chain = leg_chain(m.skeleton, "left")
+    hip, _, ankle = chain
+    n = 12
+    p = np.repeat(pose.positions[:1], n, axis=0)
+    o = np.repeat(pose.orientations[:1], n, axis=0)
+    up = p[0, hip] - p[0, ankle]
+    up /= np.linalg.norm(up)
+    target = p[:, ankle] + np.minimum(np.arange(n), 6)[:, None] * 0.05 * up
+    hinge = knee_hinge(pose.positions, pose.orientations, chain)
+    frames = np.concatenate((np.arange(10, 16), np.arange(30, 36)))  # two runs
+    free = solve_leg(m.skeleton, p, o, chain, target, hinge)
+    held = solve_leg(m.skeleton, p, o, chain, target, hinge, frames, 10.0)
+    rest = np.repeat(m.quats[:1, list(chain)], n, axis=0)
+
+    def corrections(new: np.ndarray, j: int) -> np.ndarray:
+        # the correction's change in the joint's local rotation, identity for none
+        return qmul(new[:, j], qconj(rest[:, j]))
+
+    knee_free = _turns(corrections(free, 1))
+    assert knee_free[:5].max() > 20.0  # frame by frame, the knee folds 22 degrees at once
+    for j in (0, 1):
+        c = corrections(held, j)
+        ident = np.array([1.0, 0.0, 0.0, 0.0])
+        for run in (c[:6], c[6:]):
+            steps = _turns(np.concatenate((ident[None], run, ident[None])))
+            assert steps.max() <= 10.0 + 1e-6, (j, steps)
+    # where no turn is limited, the correction is the full one
+    calm = target.copy()
+    calm[:] = p[:, ankle] + 0.004 * up
+    a = solve_leg(m.skeleton, p, o, chain, calm, hinge)
+    b = solve_leg(m.skeleton, p, o, chain, calm, hinge, frames, 10.0)
+    np.testing.assert_allclose(a, b, atol=1e-9)
+
+
+def test_limit_turns_checks_its_shapes() -> None:
+    with pytest.raises(ValueError, match="q must be"):
+        limit_turns(np.zeros((3, 3)), np.arange(3), 10.0)
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (3, 1))
+    np.testing.assert_array_equal(limit_turns(q, np.arange(3), 10.0), q)
 
 
 def test_two_bone_ik_reaches_and_keeps_the_foot(
