@@ -11,9 +11,11 @@ import math
 
 import numba
 import numpy as np
+from numpy.typing import NDArray
 
 from ..motion import FloatArray, Skeleton, find_role, qconj, qmul, qrot, slerp
-from ..motion._types import IntArray
+
+IntArray = NDArray[np.int64]
 
 __all__ = [
     "SOFT_REACH",
