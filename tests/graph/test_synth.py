@@ -153,6 +153,16 @@ def test_the_knee_bends_smoothly_as_a_target_passes_out_of_reach() -> None:
     assert angle[-1] > 170.0 and angle[0] < 155.0
 
 
+def _held_leg(lib: Library, n: int) -> tuple:
+    """The first clip's motion, its FK, its left leg's chain, and its first frame's joint
+    positions and orientations held for ``n`` frames."""
+    m = lib.clips[0].motion
+    pose = forward_kinematics(m)
+    p = np.repeat(pose.positions[:1], n, axis=0)
+    o = np.repeat(pose.orientations[:1], n, axis=0)
+    return m, pose, leg_chain(m.skeleton, "left"), p, o
+
+
 def test_a_target_near_the_far_side_of_the_hip_does_not_flip_the_thigh(
     medium_lib: Library,
 ) -> None:
@@ -161,13 +171,9 @@ def test_a_target_near_the_far_side_of_the_hip_does_not_flip_the_thigh(
     frames (a jump blended into a deep squat turned a thigh 170 degrees in one frame).
     The correction fades out beyond ``SWING_LIMIT``: the thigh never turns more than a
     few degrees a frame; a small correction still reaches its target."""
-    m = medium_lib.clips[0].motion
-    pose = forward_kinematics(m)
-    chain = leg_chain(m.skeleton, "left")
+    m, pose, chain, p, o = _held_leg(medium_lib, 101)
     hip, _, ankle = chain
     n = 101
-    p = np.repeat(pose.positions[:1], n, axis=0)
-    o = np.repeat(pose.orientations[:1], n, axis=0)
     d = p[0, ankle] - p[0, hip]
     e1 = np.cross(d, [0.0, 0.0, 1.0])
     e1 /= np.linalg.norm(e1)
@@ -202,13 +208,9 @@ def test_the_leg_correction_turns_at_most_a_step_a_frame(medium_lib: Library) ->
     corrections turn at most ``step`` a frame, and a run of frames starts and ends
     within ``step`` of no correction (the foot slides instead). Frames outside the run
     are not corrected."""
-    m = medium_lib.clips[0].motion
-    pose = forward_kinematics(m)
-    chain = leg_chain(m.skeleton, "left")
+    m, pose, chain, p, o = _held_leg(medium_lib, 12)
     hip, _, ankle = chain
     n = 12
-    p = np.repeat(pose.positions[:1], n, axis=0)
-    o = np.repeat(pose.orientations[:1], n, axis=0)
     up = p[0, hip] - p[0, ankle]
     up /= np.linalg.norm(up)
     target = p[:, ankle] + np.minimum(np.arange(n), 6)[:, None] * 0.05 * up
