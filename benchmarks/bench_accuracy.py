@@ -52,6 +52,7 @@ from control.dtw import dtw_best_window
 from control.graph import (
     GraphOptions,
     build_graph,
+    foot_slide,
     joint_jumps,
     lowest_foot,
     random_walk,
@@ -239,7 +240,11 @@ def _run_figures(
     lib_low = np.concatenate([lowest_foot(c.motion) for c in train])
     lib_root = np.concatenate([c.motion.root_pos[:, 1] for c in train])
     syn_jumps = joint_jumps(motion)
-    _, jumps_at, _ = r.avatar.history()
+    shown, jumps_at, _ = r.avatar.history()
+    # sole speed where a foot is planted: the avatar's (its frames' contacts) and the library's
+    states = np.concatenate([c.contacts.states for c in train])
+    slide = foot_slide(motion, states[shown[: motion.n_frames]])
+    lib_slide = np.concatenate([foot_slide(c.motion, c.contacts.states) for c in train])
     lib_jj = np.concatenate([joint_jumps(c.motion) for c in train])
     at = jumps_at[(jumps_at >= 1) & (jumps_at <= syn_jumps.size)] - 1
     return {
@@ -265,6 +270,8 @@ def _run_figures(
             "pelvis_max_m": float(motion.root_pos[:, 1].max()),
             "library_lowest_foot_max_m": float(lib_low.max()),
             "library_pelvis_max_m": float(lib_root.max()),
+            "foot_slide_m_per_s": float(slide.mean()) if slide.size else None,
+            "library_foot_slide_m_per_s": float(lib_slide.mean()),
         },
         "junctions": {
             "count": int(at.size),
