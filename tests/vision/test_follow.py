@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from control.avatar import JUMP, JumpCosts
 from control.dtw import dtw_batch
 from control.graph import off_floor_seconds
 from control.motion import load_library, read_bvh
@@ -139,6 +140,48 @@ def test_right_after_a_jump_the_own_cost_is_the_window_played_into(setup) -> Non
     before = Matcher(layer, bank, MatchSettings(own_from_library=False))
     assert np.array_equal(before.own_frames(j, shown), shown)
     assert np.array_equal(m.own_frames(3, shown), shown)
+
+
+def test_a_jump_is_scored_by_its_match_and_with_a_blend_weight_by_its_blend_too(setup) -> None:
+    """By default a jump goes to the frame after the best window that the avatar may land
+    on (the blend plays no part); with ``blend_weight`` ``w`` each candidate's cost is
+    times ``1 + w D / (D + D_max)``, so a far blend must match better to win."""
+    lib, layer, bank = setup
+    real = JumpCosts(layer.graph, lib.clips, anywhere=True)
+
+    class Near:
+        """The blend from the avatar's frame is short only into ``near``."""
+
+        landing = real.landing
+        near = -1
+
+        def __call__(self, frame: int, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            _, align = real(frame, targets)
+            return np.where(
+                targets == self.near, 0.0, 100.0 * layer.graph.report["max_distance"]
+            ), align
+
+    costs = Near()
+    frame, j = 40, 200  # the performer does the window that ends at frame j, seen from view 3
+    recent = np.arange(frame - 30, frame + 1, dtype=np.int64)
+    for w in (0.0, 1.0):
+        m = Matcher(layer, bank, MatchSettings(blend_weight=w, hold=0.0))
+        window = np.arange(j - m.n + 1, j + 1)
+        performer = bank.features[m.to_bank[window], 3].astype(np.float64)
+        performer += 0.02 * np.random.default_rng(0).normal(size=performer.shape)
+        queries = m.queries(performer)
+        assert queries is not None
+        got = m.index().search(queries, m.settings.band, m.settings.top)
+        target, ok, _ = m._targets(frame, got, costs)
+        assert ok.sum() >= 3
+        costs.near = int(target[ok][2])  # the third best match
+        d = m.jump(frame, performer, recent, costs, queries)
+        assert d is not None and d.frames[0] == frame and d.edges[0] == JUMP
+        best = int(target[ok][0]) if w == 0 else costs.near
+        assert d.extra["jump"] == best and d.cost == pytest.approx(
+            got[np.flatnonzero(ok)[0 if w == 0 else 2]][2]
+        )
+        assert d.extra["blend"] == (0.0 if w else 100.0 * layer.graph.report["max_distance"])
 
 
 @pytest.mark.parametrize("bad", [{"top": 0}, {"jump_ratio": 0.0}, {"blend_weight": -1.0}])
