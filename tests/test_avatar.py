@@ -12,6 +12,7 @@ from control.graph import (
     GraphOptions,
     MotionGraph,
     build_graph,
+    foot_slide,
     joint_jumps,
     lowest_foot,
     pair_distances,
@@ -56,8 +57,16 @@ def test_a_jump_is_blended_like_a_transition(graph: MotionGraph, medium_lib: Lib
     lib_jumps = np.concatenate([joint_jumps(c.motion) for c in medium_lib.clips])
     assert joint_jumps(syn.motion)[k - 1] <= np.percentile(lib_jumps, 99.9)
     # the same motion as synthesize given the jump as an extra edge
-    again = synthesize(graph, medium_lib.clips, frames, jumps, edges, extra=a.jumps())
+    again = synthesize(
+        graph, medium_lib.clips, frames, jumps, edges, extra=a.jumps(), max_offset=a.max_offset
+    )
     assert np.allclose(again.motion.quats, syn.motion.quats)
+    # its planted feet are held up to 0.4 m from where the blend puts them (a graph
+    # walk's 0.2): they slide less
+    states = np.concatenate([c.contacts.states for c in medium_lib.clips])[frames]
+    tight = synthesize(graph, medium_lib.clips, frames, jumps, edges, extra=a.jumps())
+    held, loose = foot_slide(syn.motion, states), foot_slide(tight.motion, states)
+    assert a.max_offset == 0.4 and held.mean() < loose.mean()
     # the feet stay where the library's feet are
     assert lowest_foot(syn.motion).max() <= max(
         lowest_foot(c.motion).max() for c in medium_lib.clips
