@@ -116,6 +116,8 @@ class Avatar:
         jump_costs: JumpCosts | None = None,
         max_offset: float = 0.4,
     ) -> None:
+        if not max_offset >= 0:
+            raise ValueError(f"max_offset must be metres >= 0, got {max_offset}")
         self.graph = graph
         self.max_offset = max_offset
         self.clips = list(clips)

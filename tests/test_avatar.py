@@ -67,6 +67,8 @@ def test_a_jump_is_blended_like_a_transition(graph: MotionGraph, medium_lib: Lib
     tight = synthesize(graph, medium_lib.clips, frames, jumps, edges, extra=a.jumps())
     held, loose = foot_slide(syn.motion, states), foot_slide(tight.motion, states)
     assert a.max_offset == 0.4 and held.mean() < loose.mean()
+    with pytest.raises(ValueError, match="max_offset"):
+        Avatar(graph, medium_lib.clips, start=int(scc[10]), max_offset=-0.1)
     # the feet stay where the library's feet are
     assert lowest_foot(syn.motion).max() <= max(
         lowest_foot(c.motion).max() for c in medium_lib.clips
