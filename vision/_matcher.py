@@ -386,15 +386,15 @@ class Matcher:
         # the blend only adds to a match's cost: no (slower) distances when the best cannot win
         if (not settled or not match.min() < st.jump_ratio * own) and np.isfinite(own):
             return None
-        score = match  # the blend's share saturates: a far jump costs at most blend_weight more
-        if st.blend_weight > 0:  # (none: no distances)
-            dist = costs(frame, target[idx])[0]
-            score = match * (1.0 + st.blend_weight * dist / (dist + self.d_max))
+        w = st.blend_weight  # the blend's share saturates: a far jump costs at most w more
+        dist = costs(frame, target[idx])[0] if w > 0 else None  # (else the chosen one's only)
+        score = match if dist is None else match * (1.0 + w * dist / (dist + self.d_max))
         b = int(np.argmin(score))
         if not score[b] < st.jump_ratio * own:
             return None
         i, j = int(idx[b]), int(target[idx[b]])
         frames = np.concatenate(([frame], self._playback(j)))
+        blend = dist[b] if dist is not None else costs(frame, frames[1:2])[0][0]
         return Decision(
             frames=frames,
             edges=np.array([JUMP] + [-1] * (frames.size - 2), dtype=np.int64),
@@ -404,7 +404,7 @@ class Matcher:
             view=int(got[i][1]) % self.ring_views,
             candidates=int(idx.size),
             latency_ms=(time.perf_counter() - t0) * 1e3,
-            extra={"jump": j, "own": own, "blend": float(costs(frame, frames[1:2])[0][0])},
+            extra={"jump": j, "own": own, "blend": float(blend)},
         )
 
     def _targets(self, frame: int, got: list[tuple[int, int, float]], costs: JumpCosts) -> Gate:
