@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks._landmarks import LandmarkSource, landmark_points
 from benchmarks._oracle import pose_oracle
 from benchmarks._report import machine, save
 from control.clusters import cached_higher_layer
@@ -65,7 +66,9 @@ from silhouette_bank import (
     BankSettings,
     BodyShape,
     CameraRing,
+    PoseDescriptor,
     ensure_bank,
+    get_descriptor,
     robust_settings,
     silhouette_features,
 )
@@ -93,20 +96,10 @@ def _pose_dist(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
     return np.sum((np.linalg.norm(qlog(qmul(qconj(qb), qa)), axis=-1) / 2.0) ** 2, axis=-1)
 
 
-def _recognition(
-    layer: Any,
-    bank: Any,
-    video: Path,
-    perf_labels: list[str | None],
-    lib_labels: np.ndarray,
-    known: set[str],
-) -> dict[str, Any]:
-    """The matcher's global search alone (no graph, no avatar): for windows of 1, 2 and
-    3 s ending every 0.5 s, the label of the library window most like the performer's
-    (every window of the component, every view) against the performer's label at the
-    window's end; over all labelled windows and over those whose action the library
-    has."""
-    fps = layer.graph.fps
+def _silhouette_rows(
+    video: Path, descriptor: str, perf_labels: list[str | None], fps: float
+) -> tuple[np.ndarray, list[str | None]]:
+    """The recording's silhouette features and labels at the library's rate ``fps``."""
     src = VideoSource(video, silhouette=True)
     feats: list[np.ndarray] = []
     labels: list[str | None] = []
@@ -116,14 +109,43 @@ def _recognition(
         if i == round(len(feats) * step):
             mask = clean_mask(frame.mask) if frame.mask is not None else None
             feats.append(
-                silhouette_features(mask, descriptor=bank.settings.descriptor)
+                silhouette_features(mask, descriptor=descriptor)
                 if mask is not None
-                else np.full(bank.features.shape[-1], np.nan)
+                else np.full(get_descriptor(descriptor).size, np.nan)
             )
             labels.append(perf_labels[i] if i < len(perf_labels) else None)
         i += 1
     src.close()
-    x = np.array(feats)
+    return np.array(feats), labels
+
+
+def _landmark_rows(
+    points: np.ndarray, perf_labels: list[str | None], rate: float, fps: float
+) -> tuple[np.ndarray, list[str | None]]:
+    """Pose vectors and labels at the library's rate ``fps`` of landmarks at ``rate``."""
+    keep = np.round(np.arange(0, points.shape[0], rate / fps)).astype(int)
+    keep = keep[keep < points.shape[0]]
+    desc = get_descriptor("pose")
+    assert isinstance(desc, PoseDescriptor)
+    labels = [perf_labels[i] if i < len(perf_labels) else None for i in keep]
+    return desc.from_points(points[keep]), labels
+
+
+def _recognition(
+    layer: Any,
+    bank: Any,
+    x: np.ndarray,
+    labels: list[str | None],
+    lib_labels: np.ndarray,
+    known: set[str],
+) -> dict[str, Any]:
+    """The matcher's global search alone (no graph, no avatar): for windows of 1, 2 and
+    3 s ending every 0.5 s, the label of the library window most like the performer's
+    (every window of the component, every view) against the performer's label at the
+    window's end; over all labelled windows and over those whose action the library
+    has. ``x`` ``(F, features)`` and ``labels`` are the performer's at the library's
+    rate."""
+    fps = layer.graph.fps
     g = layer.graph
     clip_of = np.searchsorted(g.clip_start, np.arange(g.n_frames), side="right")
     out: dict[str, Any] = {}
@@ -441,12 +463,28 @@ def _recorded_runs(
         labelled = [lab_i for lab_i in perf_labels if lab_i is not None]
         # actions the library lacks can never agree: the best any avatar could do
         ceiling = float(np.mean([lab_i in known for lab_i in labelled]))
-        recognition = _recognition(layer, bank, video, perf_labels, lib_labels, known)
+        fps = layer.graph.fps
+        if get_descriptor(bank.settings.descriptor).kind == "pose":
+            # the performer's landmarks, as a pose model would give them (the video
+            # serves for its truth sidecar only)
+            rng = np.random.default_rng(RECORDINGS[rec].seed)
+            points = landmark_points(perf_clip.motion, RECORDINGS[rec], rng)
+            rate = perf_clip.motion.fps
+            rows = _landmark_rows(points, perf_labels, rate, fps)
+
+            def source() -> Any:
+                return LandmarkSource(points, rate, name=f"{video.stem} landmarks")
+
+        else:
+            rows = _silhouette_rows(video, bank.settings.descriptor, perf_labels, fps)
+
+            def source() -> Any:
+                return VideoSource(video, silhouette=True)
+
+        recognition = _recognition(layer, bank, *rows, lib_labels, known)
         for window, lookahead in settings:
             ms = MatchSettings(window=window, lookahead=lookahead, stay=stay, **(match or {}))
-            r = perform(
-                VideoSource(video, silhouette=True), layer, bank, train, PerformSettings(match=ms)
-            )
+            r = perform(source(), layer, bank, train, PerformSettings(match=ms))
             # mimic evaluate's figures of the same run (the confusion matrix among them)
             truth = truth_for(video)
             assert truth is not None  # the recording's sidecar
@@ -515,8 +553,10 @@ def main() -> None:
     ap.add_argument(
         "--descriptor",
         default=DEFAULT_DESCRIPTOR,
-        choices=[d for d in DESCRIPTORS if d != "pose"],  # it replays silhouettes
-        help="silhouette shape features",
+        choices=list(DESCRIPTORS),
+        help="the performer's features: silhouette shape, or pose (the performer's "
+        "landmarks as a pose model gives them: joints seen by the recording's camera, 3%% "
+        "noise)",
     )
     ap.add_argument("--stay", type=float, default=0.0, help="temporal prior (MatchSettings.stay)")
     ap.add_argument("--views", type=int, default=18, help="cameras on the bank's ring")

@@ -49,6 +49,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from benchmarks._landmarks import landmark_points
 from benchmarks._report import machine, save
 from benchmarks.bench_real_video import read_labels
 from control.motion import Clip, Motion, default_library_path, load_library, mirror, resample
@@ -60,9 +61,7 @@ from silhouette_bank import (
     get_descriptor,
     robust_settings,
     silhouette_features,
-    with_proportions,
 )
-from silhouette_bank._pose import joint_points
 from vision import (
     PersonSegmenter,
     PoseReader,
@@ -179,13 +178,7 @@ def _pose_points(motion: Motion, rs: RecordSettings, rng: np.random.Generator) -
     landmark noise of 3% of the torso length."""
     desc = get_descriptor("pose")
     assert isinstance(desc, PoseDescriptor)
-    ring = rs.ring()
-    pts = joint_points(with_proportions(motion, rs.body))  # (another person's limbs)
-    pose = ring.poses(motion.root_pos.mean(axis=0))[0]
-    px = ring.project(ring.to_camera(pts, np.broadcast_to(pose, (pts.shape[0], 4, 4))))
-    torso = np.linalg.norm(px[:, :2].mean(axis=1) - px[:, 6:8].mean(axis=1), axis=-1)
-    px = px + rng.normal(0.0, 0.03, px.shape) * torso[:, None, None]
-    return desc.from_points(px)
+    return desc.from_points(landmark_points(motion, rs, rng))
 
 
 def _garbage(masks: np.ndarray, rng: np.random.Generator) -> dict[str, np.ndarray]:

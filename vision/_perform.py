@@ -199,6 +199,15 @@ class Performance:
         """The performer's features of ``frame`` into ``latest`` (NaN, and ``why_blank``
         says why, when there are none); returns its cleaned mask."""
         mask: NDArray[np.bool_] | None
+        if frame.landmarks is not None:  # a source that gives landmarks, not pictures
+            if self.reader is None:
+                raise ValueError(
+                    f"{self.source.name}: this source gives body landmarks, and only the "
+                    "pose descriptor reads them (use --descriptor pose)"
+                )
+            self.latest = self.reader.read(frame.landmarks, (1, 1))
+            self.why_blank, self.latest_mask = self.reader.why, None
+            return None
         if frame.mask is not None:
             if self.landmarks:
                 raise ValueError(
@@ -406,7 +415,7 @@ class Performance:
                 if self.settings.seconds is not None and t > self.settings.seconds:
                     break
                 mask = self.features(frame)
-                if frame.image is not None or frame.mask is not None:
+                if frame.image is not None or frame.mask is not None or frame.landmarks is not None:
                     n_media += 1
                 if on_frame is not None:
                     on_frame(t, mask, self.avatar)

@@ -42,15 +42,17 @@ class SourceError(OSError):
 @dataclass(frozen=True)
 class Frame:
     """One frame: ``t`` seconds of media time; ``image`` (H, W, 3) BGR, or ``mask``
-    (H, W) bool for sources that are already silhouettes; neither when the source has
-    nothing right now (a camera reconnecting), and then ``problem`` may say why (an
-    unreadable mask file)."""
+    (H, W) bool for sources that are already silhouettes, or ``landmarks`` (33, 3) for
+    sources that already give body landmarks (MediaPipe Pose's 33 points: x, y in
+    pixels, visibility in [0, 1]); none when the source has nothing right now (a camera
+    reconnecting), and then ``problem`` may say why (an unreadable mask file)."""
 
     t: float
     index: int
     image: NDArray[np.uint8] | None = None
     mask: NDArray[np.bool_] | None = None
     problem: str = ""
+    landmarks: NDArray[np.float64] | None = None
 
 
 class Source(Protocol):

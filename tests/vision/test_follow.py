@@ -17,6 +17,8 @@ from mimic.cli import main
 from tests.vision.conftest import RECORDING
 from vision import (
     FLOOR_ABOVE,
+    MEDIAPIPE_INDEX,
+    Frame,
     Matcher,
     MatchSettings,
     PerformSettings,
@@ -90,6 +92,56 @@ def test_the_defaults_follow_a_recording_of_a_library_clip(
     assert "direct jumps" in said.out
     # the take's five actions are voted among
     assert "actions: 5 labelled (Jog, JumpJack, KneeRaise, Squat, Twist)" in said.err
+
+
+class _Landmarks:
+    """Frames that carry MediaPipe-style landmarks (33, 3), as an outside pose tracker
+    would give them."""
+
+    def __init__(self, points: np.ndarray, fps: float) -> None:
+        self.points, self.fps, self.i, self.name = points, fps, 0, "tracker"
+
+    def read(self) -> Frame | None:
+        if self.i >= len(self.points):
+            return None
+        lm = np.zeros((33, 3))
+        lm[list(MEDIAPIPE_INDEX), :2], lm[list(MEDIAPIPE_INDEX), 2] = self.points[self.i], 1.0
+        self.i += 1
+        return Frame(t=(self.i - 1) / self.fps, index=self.i - 1, landmarks=lm)
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_source_of_landmarks_is_followed_by_the_pose_descriptor(setup, mocap: Path, tmp_path):
+    """A performer's landmarks (13_30's joints on another body, seen by another camera,
+    with 3% noise) straight from the source: the pose descriptor follows them; a
+    silhouette descriptor refuses them, naming the source."""
+    from silhouette_bank import BankSettings, build_bank, with_proportions
+    from silhouette_bank._pose import joint_points
+
+    lib, layer, silhouettes = setup
+    clip = load_library(mocap, fps=30, clips=["13_30"]).clip("13_30")
+    rs = RecordSettings()
+    frames = np.arange(0, 360)  # 12 s
+    ring = rs.ring()
+    pts = joint_points(with_proportions(clip.motion, rs.body), frames)
+    pose = ring.poses(clip.motion.root_pos[frames].mean(axis=0))[0]
+    px = ring.project(ring.to_camera(pts, np.broadcast_to(pose, (frames.size, 4, 4))))
+    torso = np.linalg.norm(px[:, :2].mean(axis=1) - px[:, 6:8].mean(axis=1), axis=-1)
+    px = px + np.random.default_rng(3).normal(0.0, 0.03, px.shape) * torso[:, None, None]
+    bank = build_bank(lib.clips, BankSettings(descriptor="pose"), tmp_path / "pose", workers=1)
+    r = perform(_Landmarks(px, 30.0), layer, bank, lib.clips, PerformSettings())
+    made = [d for d in r.decisions if d["decision"] is not None]
+    assert len(made) >= 100 and r.frames_with_media == 360
+    side = {"fps": 30.0, "labels": [clip.label_at(f) for f in frames]}
+    label = lib.clip("13_30").label_at
+    assert (
+        max(_agreement(r.decisions, side, lambda _n, f: label(f), lag) for lag in (0, 0.5, 1))
+        >= 0.85
+    )
+    with pytest.raises(ValueError, match="tracker: this source gives body landmarks"):
+        perform(_Landmarks(px, 30.0), layer, silhouettes, lib.clips, PerformSettings())
 
 
 def test_jumps_keep_feet_on_the_floor(setup) -> None:

@@ -85,6 +85,41 @@ def test_index_finds_the_brute_force_best(setup) -> None:
     assert total >= 80 and min(hits) >= 0.99 * total, hits
 
 
+def test_the_pose_descriptors_four_readings_find_the_brute_force_best(
+    setup, mocap, tmp_path
+) -> None:
+    """Landmarks read four ways (as seen, left and right swapped, both mirrored) share the
+    short list two readings get: still the exact best window in >= 99% of searches
+    (13_29's joints on another body, another camera, 3% noise; the library 13_30)."""
+    from control.motion import load_library
+    from silhouette_bank import BankSettings, build_bank, with_proportions
+    from silhouette_bank._pose import joint_points
+    from vision import RecordSettings
+
+    lib, layer, _ = setup
+    bank = build_bank(lib.clips, BankSettings(descriptor="pose"), tmp_path / "pose", workers=1)
+    m = Matcher(layer, bank, MatchSettings())
+    shape, centre, starts = m._global_tables()
+    index = WindowIndex(shape, centre, starts, m.n, flat_below=0)
+    clip = load_library(mocap, fps=layer.graph.fps, clips=["13_29"]).clip("13_29")
+    rs, frames = RecordSettings(), np.arange(0, 300)  # 20 s
+    ring = rs.ring()
+    pts = joint_points(with_proportions(clip.motion, rs.body), frames)
+    pose = ring.poses(clip.motion.root_pos[frames].mean(axis=0))[0]
+    px = ring.project(ring.to_camera(pts, np.broadcast_to(pose, (frames.size, 4, 4))))
+    torso = np.linalg.norm(px[:, :2].mean(axis=1) - px[:, 6:8].mean(axis=1), axis=-1)
+    px = px + np.random.default_rng(2).normal(0.0, 0.03, px.shape) * torso[:, None, None]
+    perf = m.desc.from_points(px)
+    hits = total = 0
+    for end in range(m.n, perf.shape[0] + 1, 2):
+        queries = m.queries(perf[end - m.n : end])
+        assert queries is not None and len(queries) == 4
+        b = best_window(queries, shape, centre, starts, m.n, m.settings.band)
+        total += 1
+        hits += index.search(queries, m.settings.band)[0][2] <= b[2] + 1e-9
+    assert total >= 100 and hits >= 0.99 * total, (hits, total)
+
+
 def test_index_top_windows_are_distinct_and_sorted(setup) -> None:
     _, layer, bank = setup
     m = Matcher(layer, bank)
