@@ -12,7 +12,10 @@ each held-out take more ways (``RECORDINGS``: a side camera, a high one, a thinn
 with ragged edges, other proportions: ``long_legs``, ``short_legs``; cameras behind,
 left, low and far, a wider body: ``az140``, ``az-60``, ``low_far``, ``wide``; the take
 mirrored, a performer using the other arm and leg: ``mirrored``), each a run of its own:
-one recording a fold swings with a setting. For each match
+one recording a fold swings with a setting. With ``--descriptor pose`` the performer is
+not the recording's silhouettes but the landmarks a pose model would give of the same
+performer and camera (``benchmarks._landmarks``: the take's joints on the recording's
+body, 3% noise), what a camera with MediaPipe feeds the matcher. For each match
 setting (window, look-ahead) and each lag (the avatar is compared with what the
 performer did ``lag`` seconds earlier):
 
