@@ -102,6 +102,8 @@ class Avatar:
         carries the body further than a graph transition's; on 12 perform runs planted
         feet slid 0.137 m/s against 0.168 at 0.2 (0.142 at 0.3, 0.151 at 0.6), junctions'
         p99 26-43 degrees against 25-40, every decision the same.
+    feet : ``synthesize``'s: ``"held"`` (default), or ``"floor"`` (planted feet at the
+        source's height; the vision interface's avatar, whose blends never end).
     """
 
     def __init__(
@@ -115,11 +117,14 @@ class Avatar:
         anywhere: bool = False,
         jump_costs: JumpCosts | None = None,
         max_offset: float = 0.4,
+        feet: str = "held",
     ) -> None:
         if not max_offset >= 0:
             raise ValueError(f"max_offset must be metres >= 0, got {max_offset}")
+        if feet not in ("held", "floor"):
+            raise ValueError(f"feet must be 'held' or 'floor', not {feet!r}")
         self.graph = graph
-        self.max_offset = max_offset
+        self.max_offset, self.feet = max_offset, feet
         self.clips = list(clips)
         self.blend = blend
         self.ik = ik
@@ -311,4 +316,5 @@ class Avatar:
             ik=self.ik,
             max_offset=self.max_offset,
             extra=self.jumps() if self._jump_src else None,
+            feet=self.feet,
         )

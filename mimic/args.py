@@ -110,8 +110,8 @@ def add_graph_args(p: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         help=f"blend interval b, seconds, of the avatar's transitions and jumps (default "
-        f"{d.blend:g}; sketch on block terrain 0.3); with --case4 prune also the interval "
-        "the pruning assumes",
+        f"{d.blend:g}; perform 0.5; sketch on block terrain 0.3); with --case4 prune also "
+        "the interval the pruning assumes",
     )
     p.add_argument("--rebuild", action="store_true", help="ignore a cached graph")
 

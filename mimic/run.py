@@ -212,7 +212,7 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
         learn_frames=args.learn_frames,
         match=match,
         seconds=args.seconds,
-        blend=blend_seconds(args),
+        blend=blend_seconds(args, PerformSettings.blend),
     )
     return Prepared(
         descriptor, clips, graph, layer, bank, built, settings, start_frame(graph, args.start)

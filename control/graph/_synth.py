@@ -9,8 +9,10 @@ blended motion: that is the overlap buffer.
 
 Feet: over a blend the root's height is set so that the lowest foot point is as high as
 in the source frame (a blend between a squat and a stance keeps its feet on the floor).
-A foot in contact is kept where it touched down (or where it was at the jump) and
-then follows only the source clip's own foot motion; when it lifts, the correction fades
+A foot in contact is kept where it touched down (or where it was at the jump; with
+``feet="floor"`` at the height the source frame gives it, the root's height set before
+the leg IK, so that it stays down however a blend carries the body) and then follows
+only the source clip's own foot motion; when it lifts, the correction fades
 over the swing. This covers the four cases of the paper: a contact that runs into a blend
 keeps the trajectory before the transition (case 1), one that starts inside a blend is
 fixed where it lands (cases 2 and 3: the start side), and one that spans the whole blend
@@ -135,6 +137,7 @@ def synthesize(
     max_offset: float = 0.2,
     anchor: str = "output",
     extra: tuple[IntArray, IntArray, FloatArray] | None = None,
+    feet: str = "held",
 ) -> Synthesis:
     """Turn a path through the graph into motion.
 
@@ -155,6 +158,9 @@ def synthesize(
     extra : ``(src, dst, align)`` of direct jumps that are not graph transitions (the
         vision interface's blended jumps, ``control.Avatar.jump``): edge ``e >=
         graph.n_edges`` is jump ``e - graph.n_edges``, blended like any transition.
+    feet : ``"held"`` (default): a planted foot held where it touched down; ``"floor"``:
+        at the source frame's height (the vision avatar, whose blends never end; on
+        terrain, or walks of the graph, ``"held"`` slides less).
     """
     data = FrameData(graph, clips)
     frames = np.asarray(frames, dtype=np.int64)
@@ -166,6 +172,8 @@ def synthesize(
         raise ValueError("blend must be positive, fade and max_offset not negative")
     if anchor not in ("output", "source"):
         raise ValueError(f"anchor must be 'output' or 'source', not {anchor!r}")
+    if feet not in ("held", "floor"):
+        raise ValueError(f"feet must be 'held' or 'floor', not {feet!r}")
     b = max(1, round(blend * graph.fps))
 
     src_p, src_q, out_p, out_q, blended, v1 = _place_and_blend(
@@ -173,6 +181,10 @@ def synthesize(
     )
     states = data.states[frames]
     unreachable = 0
+    # the root's height over blends: before the leg IK with feet="floor", else after it
+    lift = ik and blended.any()
+    if lift and feet == "floor":
+        out_p = _lifted(data.skeleton, graph.fps, src_p, src_q, out_p, out_q, blended)
     if ik and jumps.size:
         out_q, unreachable = _plant_feet(
             data.skeleton,
@@ -187,15 +199,10 @@ def synthesize(
             round(fade * graph.fps),
             max_offset,
             anchor == "source",
+            feet == "floor",
         )
-    if ik and blended.any():
-        # feet at the source's height: blending the root's height between a squat and a
-        # stance would otherwise lift both feet off the floor for the whole blend (after
-        # the leg IK, so that planted feet only move up or down with the body)
-        out_p = out_p.copy()
-        out_p[blended, 1] += _sole_lift(
-            data.skeleton, graph.fps, src_p, src_q, out_p, out_q, blended
-        )
+    if lift and feet == "held":  # (planted feet move up or down with the body)
+        out_p = _lifted(data.skeleton, graph.fps, src_p, src_q, out_p, out_q, blended)
     motion = Motion(data.skeleton, out_p, out_q, graph.fps, name="walk", source="graph")
     return Synthesis(motion, frames, jumps, edges, states, blended, unreachable)
 
@@ -281,7 +288,7 @@ def _edge_tables(
     )
 
 
-def _sole_lift(
+def _lifted(
     skeleton: Skeleton,
     fps: float,
     src_p: FloatArray,
@@ -290,11 +297,15 @@ def _sole_lift(
     out_q: FloatArray,
     rows: NDArray[np.bool_],
 ) -> FloatArray:
-    """Per frame of ``rows``, how far to raise the output's root so that its lowest foot
-    point is as high as the source frame's."""
+    """The output's root positions with, at the frames of ``rows``, its height set so
+    that its lowest foot point is as high as the source frame's: blending the root's
+    height between a squat and a stance would otherwise lift both feet off the floor for
+    the whole blend."""
     src = lowest_foot(Motion(skeleton, src_p[rows], src_q[rows], fps))
     out = lowest_foot(Motion(skeleton, out_p[rows], out_q[rows], fps))
-    return src - out
+    lifted = out_p.copy()
+    lifted[rows, 1] += src - out
+    return lifted
 
 
 def _check_path(
@@ -339,13 +350,14 @@ def _foot_targets(
     fade: int,
     max_offset: float,
     from_source: bool = False,
+    floor: bool = False,
 ) -> FloatArray:
     """Where each frame's ankle should be ((T, 3)): planted during contact, fading after.
 
     A contact run is anchored where the foot touched down in the output, or with
-    ``from_source`` where the source put it. The correction is at most ``max_offset``
-    metres: beyond that the foot slides along with the body rather than stretch or fold
-    the leg.
+    ``from_source`` where the source put it; with ``floor`` at the source's height. The
+    correction is at most ``max_offset`` metres: beyond that the foot slides along with
+    the body rather than stretch or fold the leg.
     """
     n = out_pts.shape[0]
     target = out_pts.copy()
@@ -358,7 +370,10 @@ def _foot_targets(
     ends = np.flatnonzero(edges == -1)  # exclusive
     for s, e in zip(starts, ends, strict=True):
         anchor = src_pts[s] if from_source else out_pts[s]
-        r = anchor + csum[s:e] - csum[s] - out_pts[s:e]
+        held = anchor + csum[s:e] - csum[s]
+        if floor:  # at the source's height: on the floor, however a blend moves the body
+            held[:, 1] = src_pts[s:e, 1]
+        r = held - out_pts[s:e]
         size = np.linalg.norm(r, axis=1, keepdims=True)
         r *= np.minimum(1.0, max_offset / np.maximum(size, 1e-12))
         target[s:e] = out_pts[s:e] + r
@@ -385,6 +400,7 @@ def _plant_feet(
     fade: int,
     max_offset: float,
     from_source: bool = False,
+    floor: bool = False,
 ) -> tuple[FloatArray, int]:
     pose = forward_kinematics(Motion(skeleton, out_p, out_q, fps))
     src_pose = forward_kinematics(Motion(skeleton, src_p, src_q, fps))
@@ -399,7 +415,7 @@ def _plant_feet(
         pred[jumps] = v_pose.positions[:, ankle]
         out_pts = pose.positions[:, ankle]
         target = _foot_targets(
-            out_pts, src_pts, pred, states[:, foot], fade, max_offset, from_source
+            out_pts, src_pts, pred, states[:, foot], fade, max_offset, from_source, floor
         )
         todo = np.flatnonzero(np.linalg.norm(target - out_pts, axis=1) > 1e-5)
         if todo.size == 0:
