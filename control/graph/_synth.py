@@ -199,7 +199,7 @@ def synthesize(
             round(fade * graph.fps),
             max_offset,
             anchor == "source",
-            feet == "floor",
+            b if feet == "floor" else 0,
         )
     if lift and feet == "held":  # (planted feet move up or down with the body)
         out_p = _lifted(data.skeleton, graph.fps, src_p, src_q, out_p, out_q, blended)
@@ -350,12 +350,14 @@ def _foot_targets(
     fade: int,
     max_offset: float,
     from_source: bool = False,
-    floor: bool = False,
+    floor: int = 0,
 ) -> FloatArray:
     """Where each frame's ankle should be ((T, 3)): planted during contact, fading after.
 
     A contact run is anchored where the foot touched down in the output, or with
-    ``from_source`` where the source put it; with ``floor`` at the source's height. The
+    ``from_source`` where the source put it; with ``floor`` > 0 its height goes to the
+    source's over that many frames (a foot the blend still holds in the air comes down:
+    at once, the leg would jerk at the junction). The
     correction is at most ``max_offset`` metres: beyond that the foot slides along with
     the body rather than stretch or fold the leg.
     """
@@ -370,10 +372,10 @@ def _foot_targets(
     ends = np.flatnonzero(edges == -1)  # exclusive
     for s, e in zip(starts, ends, strict=True):
         anchor = src_pts[s] if from_source else out_pts[s]
-        held = anchor + csum[s:e] - csum[s]
-        if floor:  # at the source's height: on the floor, however a blend moves the body
-            held[:, 1] = src_pts[s:e, 1]
-        r = held - out_pts[s:e]
+        r = anchor + csum[s:e] - csum[s] - out_pts[s:e]
+        if floor:  # to the source's height (on the floor), eased in over ``floor`` frames
+            x = np.minimum(1.0, np.arange(1, e - s + 1) / floor)
+            r[:, 1] += (src_pts[s, 1] - anchor[1]) * (3.0 * x**2 - 2.0 * x**3)
         size = np.linalg.norm(r, axis=1, keepdims=True)
         r *= np.minimum(1.0, max_offset / np.maximum(size, 1e-12))
         target[s:e] = out_pts[s:e] + r
@@ -400,7 +402,7 @@ def _plant_feet(
     fade: int,
     max_offset: float,
     from_source: bool = False,
-    floor: bool = False,
+    floor: int = 0,
 ) -> tuple[FloatArray, int]:
     pose = forward_kinematics(Motion(skeleton, out_p, out_q, fps))
     src_pose = forward_kinematics(Motion(skeleton, src_p, src_q, fps))
