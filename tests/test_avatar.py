@@ -119,7 +119,7 @@ def test_planted_feet_on_the_floor_when_blends_end_mid_contact(mocap) -> None:
     interface's avatar): a blend may end while a foot it planted is still down. Held where
     it touched down in the blended motion (``feet="held"``), that foot can be held up in
     the air after the blend (the root's height is set after the leg IK, and only over
-    blends); ``feet="floor"`` holds it at the source's height."""
+    blends); ``feet="floor"`` brings it down to the source's height over the blend."""
     from control.avatar import JumpCosts
     from control.motion import load_library
 

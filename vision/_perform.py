@@ -59,8 +59,9 @@ class PerformSettings:
     #: the avatar's blend interval, seconds (transitions and jumps). 0.5 (2026-12-04;
     #: the graph's default is 1 s): the avatar jumps every few tenths of a second, so a
     #: 1 s blend never ends, and its planted feet slid more and its junctions turned
-    #: faster (with planted feet at the source's height, 6 pose runs of bench_accuracy:
-    #: foot slide 0.12 -> 0.09 m/s, junctions' p99 29-48 -> 27-35 degrees)
+    #: faster (with planted feet brought to the source's height, ``feet="floor"``, over
+    #: 12 runs of bench_accuracy: foot slide 0.137 -> 0.067 m/s, junctions' p99 26-43 ->
+    #: 17-30 degrees; on 6 runs 0.4 s did about as well, 0.35 s turned them faster)
     blend: float = 0.5
     #: run relocation's global search in a thread, its answer taken at a later decision,
     #: so that a live source is never held up by it (it takes tens to hundreds of ms);

@@ -10,8 +10,9 @@ blended motion: that is the overlap buffer.
 Feet: over a blend the root's height is set so that the lowest foot point is as high as
 in the source frame (a blend between a squat and a stance keeps its feet on the floor).
 A foot in contact is kept where it touched down (or where it was at the jump; with
-``feet="floor"`` at the height the source frame gives it, the root's height set before
-the leg IK, so that it stays down however a blend carries the body) and then follows
+``feet="floor"`` brought to the height the source frame gives it over the blend
+interval, the root's height set before the leg IK, so that it stays down however a
+blend carries the body) and then follows
 only the source clip's own foot motion; when it lifts, the correction fades
 over the swing. This covers the four cases of the paper: a contact that runs into a blend
 keeps the trajectory before the transition (case 1), one that starts inside a blend is
@@ -159,8 +160,8 @@ def synthesize(
         vision interface's blended jumps, ``control.Avatar.jump``): edge ``e >=
         graph.n_edges`` is jump ``e - graph.n_edges``, blended like any transition.
     feet : ``"held"`` (default): a planted foot held where it touched down; ``"floor"``:
-        at the source frame's height (the vision avatar, whose blends never end; on
-        terrain, or walks of the graph, ``"held"`` slides less).
+        brought to the source frame's height (the vision avatar, whose blends never end;
+        on terrain, or walks of the graph, ``"held"`` slides less).
     """
     data = FrameData(graph, clips)
     frames = np.asarray(frames, dtype=np.int64)
