@@ -94,7 +94,8 @@ class Avatar:
     blend : blend interval b in seconds; ``ik`` keeps planted feet in place.
     anywhere : direct jumps (and ``start``) may go to any frame of the library, not only
         the graph's component; outside it the avatar plays on, and where its clip ends
-        it jumps to the component frame nearest by the graph's distance.
+        it jumps to the nearest frame (the graph's distance) of the same action with a
+        second left to play, else to the component's nearest.
     jump_costs : the ``JumpCosts`` of ``graph`` to use (shared by avatars of one graph,
         so its frame features are computed once); by default its own.
     max_offset : metres a planted foot is held from where the blend puts it before it
@@ -149,6 +150,7 @@ class Avatar:
         # playing on inside a clip, in the component or not (the moves of ``anywhere``)
         self._next = np.ones(graph.n_frames, dtype=bool)
         self._next[graph.clip_start[1:] - 1] = False
+        self._action_ids: IntArray | None = None
         self.anywhere = anywhere
         self._blend_frames = max(1, round(blend * graph.fps))
         if jump_costs is not None and (
@@ -233,10 +235,35 @@ class Avatar:
         self._plan = deque(zip(frames[1:], edges, strict=True))
 
     def _way_back(self) -> int:
-        """The frame of the component nearest (graph distance) to the current one."""
-        targets = np.flatnonzero(self.graph.in_scc & self.jump_costs.landing)
+        """Where the avatar goes when its clip ends outside the component: the frame
+        nearest (graph distance) among those that show the same action (a label of the
+        clip's) and play on for at least a second; without one, the component's
+        nearest. (Always the component's, an exercise take's jumping jacks ran into a
+        playground clip for a frame before the next decision took them back.)"""
+        g = self.graph
+        targets = np.flatnonzero(g.in_scc & self.jump_costs.landing)
+        actions = self._actions()
+        if actions[self.frame] >= 0:
+            clip = np.searchsorted(g.clip_start, np.arange(g.n_frames), side="right")
+            room = g.clip_start[clip] - 1 - np.arange(g.n_frames)  # frames left to play
+            same = (actions == actions[self.frame]) & self.jump_costs.landing
+            same &= room >= g.fps
+            if same.any():
+                targets = np.flatnonzero(same)
         d, _ = self.jump_costs(self.frame, targets)
         return int(targets[int(np.argmin(d))])
+
+    def _actions(self) -> IntArray:
+        """Each graph frame's action (labels of the same name share one), -1 where
+        unlabelled; computed when first asked for."""
+        if self._action_ids is None:
+            names: dict[str, int] = {}
+            parts = []
+            for c in self.graph.clips_of(self.clips):
+                ids = np.array([names.setdefault(n, len(names)) for n in c.label_names] or [0])
+                parts.append(np.where(c.labels >= 0, ids[np.maximum(c.labels, 0)], -1))
+            self._action_ids = np.concatenate(parts).astype(np.int64)
+        return self._action_ids
 
     def _align(self, e: int) -> NDArray[np.float64]:
         if e >= self.graph.n_edges:

@@ -150,3 +150,30 @@ def test_planted_feet_on_the_floor_when_blends_end_mid_contact(mocap) -> None:
         Avatar(g, lib.clips, feet="air")
     with pytest.raises(ValueError, match="feet"):
         synthesize(g, lib.clips, *path, extra=extra, feet="air")
+
+
+def test_where_its_clip_ends_the_avatar_keeps_the_action(mocap) -> None:
+    """Outside the component a jumping avatar plays on; where its clip ends it goes on
+    in the same action (the nearest frame of it with a second left to play), not to the
+    component's nearest frame, which here is a knee raise while the take ends jogging."""
+    from control.motion import load_library
+
+    lib = load_library(mocap, clips=["13_29", "13_30", "01_01"])
+    g = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.03))
+    clips = g.clips_of(lib.clips)
+    labels = np.concatenate(
+        [[c.label_at(i) or "" for i in range(c.motion.n_frames)] for c in clips]
+    )
+    k = [c.name for c in clips].index("13_30")
+    end = int(g.clip_start[k + 1] - 1)
+    assert labels[end] == "Jog" and not g.in_scc[end - 3 : end + 1].any()
+    a = Avatar(g, lib.clips, start=end - 3, anywhere=True)
+    for _ in range(4):
+        a.step()
+    shown = a.history()[0]
+    assert shown[3] == end and labels[shown[4]] == "Jog"
+    clip_end = g.clip_start[np.searchsorted(g.clip_start, shown[4], side="right")] - 1
+    assert clip_end - shown[4] >= g.fps
+    component = np.flatnonzero(g.in_scc & a.jump_costs.landing)
+    d, _ = a.jump_costs(end, component)
+    assert labels[component[np.argmin(d)]] != "Jog"
