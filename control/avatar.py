@@ -103,8 +103,8 @@ class Avatar:
         carries the body further than a graph transition's; on 12 perform runs planted
         feet slid 0.137 m/s against 0.168 at 0.2 (0.142 at 0.3, 0.151 at 0.6), junctions'
         p99 26-43 degrees against 25-40, every decision the same.
-    feet : ``synthesize``'s: ``"held"`` (default), or ``"floor"`` (planted feet at the
-        source's height; the vision interface's avatar, whose blends never end).
+    feet : ``synthesize``'s: ``"held"`` (default), or ``"floor"`` (planted feet brought
+        to the source's height; the vision interface's avatar, whose blends never end).
     """
 
     def __init__(
@@ -238,8 +238,9 @@ class Avatar:
         """Where the avatar goes when its clip ends outside the component: the frame
         nearest (graph distance) among those that show the same action (a label of the
         clip's) and play on for at least a second; without one, the component's
-        nearest. (Always the component's, an exercise take's jumping jacks ran into a
-        playground clip for a frame before the next decision took them back.)"""
+        nearest. (Sent always to the component's nearest, an exercise take's jumping
+        jacks ran into a playground clip for a frame, and the next decision took them
+        back.)"""
         g = self.graph
         targets = np.flatnonzero(g.in_scc & self.jump_costs.landing)
         actions = self._actions()

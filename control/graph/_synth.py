@@ -12,13 +12,13 @@ in the source frame (a blend between a squat and a stance keeps its feet on the 
 A foot in contact is kept where it touched down (or where it was at the jump; with
 ``feet="floor"`` brought to the height the source frame gives it over the blend
 interval, the root's height set before the leg IK, so that it stays down however a
-blend carries the body) and then follows
-only the source clip's own foot motion; when it lifts, the correction fades
-over the swing. This covers the four cases of the paper: a contact that runs into a blend
-keeps the trajectory before the transition (case 1), one that starts inside a blend is
-fixed where it lands (cases 2 and 3: the start side), and one that spans the whole blend
-(case 4) stays planted and the leg absorbs the difference; when the leg cannot reach, the
-foot slips and ``Synthesis.unreachable`` counts those frames.
+blend carries the body) and then follows only the source clip's own foot motion; when
+it lifts, the correction fades over the swing. This covers the four cases of the paper:
+a contact that runs into a blend keeps the trajectory before the transition (case 1),
+one that starts inside a blend is fixed where it lands (cases 2 and 3: the start side),
+and one that spans the whole blend (case 4) stays planted and the leg absorbs the
+difference; when the leg cannot reach, the foot slips and ``Synthesis.unreachable``
+counts those frames.
 """
 
 from __future__ import annotations
@@ -358,9 +358,9 @@ def _foot_targets(
     A contact run is anchored where the foot touched down in the output, or with
     ``from_source`` where the source put it; with ``floor`` > 0 its height goes to the
     source's over that many frames (a foot the blend still holds in the air comes down:
-    at once, the leg would jerk at the junction). The
-    correction is at most ``max_offset`` metres: beyond that the foot slides along with
-    the body rather than stretch or fold the leg.
+    at once, the leg would jerk at the junction). The correction is at most
+    ``max_offset`` metres: beyond that the foot slides along with the body rather than
+    stretch or fold the leg.
     """
     n = out_pts.shape[0]
     target = out_pts.copy()

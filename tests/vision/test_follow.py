@@ -14,7 +14,7 @@ from control.dtw import dtw_batch
 from control.graph import off_floor_seconds
 from control.motion import load_library, read_bvh
 from mimic.cli import main
-from tests.vision.conftest import RECORDING
+from tests.vision.conftest import RECORDING, landmark_points
 from vision import (
     FLOOR_ABOVE,
     MEDIAPIPE_INDEX,
@@ -117,19 +117,12 @@ def test_a_source_of_landmarks_is_followed_by_the_pose_descriptor(setup, mocap: 
     """A performer's landmarks (13_30's joints on another body, seen by another camera,
     with 3% noise) straight from the source: the pose descriptor follows them; a
     silhouette descriptor refuses them, naming the source."""
-    from silhouette_bank import BankSettings, build_bank, with_proportions
-    from silhouette_bank._pose import joint_points
+    from silhouette_bank import BankSettings, build_bank
 
     lib, layer, silhouettes = setup
     clip = load_library(mocap, fps=30, clips=["13_30"]).clip("13_30")
-    rs = RecordSettings()
     frames = np.arange(0, 360)  # 12 s
-    ring = rs.ring()
-    pts = joint_points(with_proportions(clip.motion, rs.body), frames)
-    pose = ring.poses(clip.motion.root_pos[frames].mean(axis=0))[0]
-    px = ring.project(ring.to_camera(pts, np.broadcast_to(pose, (frames.size, 4, 4))))
-    torso = np.linalg.norm(px[:, :2].mean(axis=1) - px[:, 6:8].mean(axis=1), axis=-1)
-    px = px + np.random.default_rng(3).normal(0.0, 0.03, px.shape) * torso[:, None, None]
+    px = landmark_points(clip.motion, frames, seed=3)
     bank = build_bank(lib.clips, BankSettings(descriptor="pose"), tmp_path / "pose", workers=1)
     r = perform(_Landmarks(px, 30.0), layer, bank, lib.clips, PerformSettings())
     made = [d for d in r.decisions if d["decision"] is not None]

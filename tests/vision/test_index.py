@@ -9,7 +9,7 @@ import pytest
 
 from control.dtw import dtw, dtw_windows
 from silhouette_bank import silhouette_features
-from tests.vision.conftest import RECORDING
+from tests.vision.conftest import RECORDING, landmark_points
 from vision import (
     ActionVote,
     Matcher,
@@ -92,9 +92,7 @@ def test_the_pose_descriptors_four_readings_find_the_brute_force_best(
     short list two readings get: still the exact best window in >= 99% of searches
     (13_29's joints on another body, another camera, 3% noise; the library 13_30)."""
     from control.motion import load_library
-    from silhouette_bank import BankSettings, build_bank, with_proportions
-    from silhouette_bank._pose import joint_points
-    from vision import RecordSettings
+    from silhouette_bank import BankSettings, build_bank
 
     lib, layer, _ = setup
     bank = build_bank(lib.clips, BankSettings(descriptor="pose"), tmp_path / "pose", workers=1)
@@ -102,14 +100,7 @@ def test_the_pose_descriptors_four_readings_find_the_brute_force_best(
     shape, centre, starts = m._global_tables()
     index = WindowIndex(shape, centre, starts, m.n, flat_below=0)
     clip = load_library(mocap, fps=layer.graph.fps, clips=["13_29"]).clip("13_29")
-    rs, frames = RecordSettings(), np.arange(0, 300)  # 20 s
-    ring = rs.ring()
-    pts = joint_points(with_proportions(clip.motion, rs.body), frames)
-    pose = ring.poses(clip.motion.root_pos[frames].mean(axis=0))[0]
-    px = ring.project(ring.to_camera(pts, np.broadcast_to(pose, (frames.size, 4, 4))))
-    torso = np.linalg.norm(px[:, :2].mean(axis=1) - px[:, 6:8].mean(axis=1), axis=-1)
-    px = px + np.random.default_rng(2).normal(0.0, 0.03, px.shape) * torso[:, None, None]
-    perf = m.desc.from_points(px)
+    perf = m.desc.from_points(landmark_points(clip.motion, np.arange(0, 300), seed=2))  # 20 s
     hits = total = 0
     for end in range(m.n, perf.shape[0] + 1, 2):
         queries = m.queries(perf[end - m.n : end])
