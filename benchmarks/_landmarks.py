@@ -20,13 +20,19 @@ NOISE = 0.03
 
 
 def landmark_points(
-    motion: Motion, rs: RecordSettings, rng: np.random.Generator, noise: float = NOISE
+    motion: Motion,
+    rs: RecordSettings,
+    rng: np.random.Generator,
+    noise: float = NOISE,
+    frames: np.ndarray | None = None,
 ) -> np.ndarray:
     """Image points ``(F, 12, 2)`` (pixels, x right, y down) of the performer's joints
-    seen by ``rs``'s camera, with Gaussian noise of ``noise`` torso lengths."""
+    at ``frames`` (default all) seen by ``rs``'s camera (static, on the middle of those
+    frames), with Gaussian noise of ``noise`` torso lengths."""
+    frames = np.arange(motion.n_frames) if frames is None else np.asarray(frames)
     ring = rs.ring()
-    pts = joint_points(with_proportions(motion, rs.body))  # (another person's limbs)
-    pose = ring.poses(motion.root_pos.mean(axis=0))[0]
+    pts = joint_points(with_proportions(motion, rs.body), frames)  # (another person's limbs)
+    pose = ring.poses(motion.root_pos[frames].mean(axis=0))[0]
     px = ring.project(ring.to_camera(pts, np.broadcast_to(pose, (pts.shape[0], 4, 4))))
     torso = np.linalg.norm(px[:, :2].mean(axis=1) - px[:, 6:8].mean(axis=1), axis=-1)
     return np.asarray(px + rng.normal(0.0, noise, px.shape) * torso[:, None, None])

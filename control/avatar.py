@@ -31,7 +31,7 @@ from .graph import (
     random_step,
     synthesize,
 )
-from .motion import Clip
+from .motion import Clip, action_keys
 
 __all__ = ["JUMP", "Avatar", "JumpCosts"]
 
@@ -150,7 +150,7 @@ class Avatar:
         # playing on inside a clip, in the component or not (the moves of ``anywhere``)
         self._next = np.ones(graph.n_frames, dtype=bool)
         self._next[graph.clip_start[1:] - 1] = False
-        self._action_ids: IntArray | None = None
+        self._actions: IntArray | None = None  # (``action_keys``, when first needed)
         self.anywhere = anywhere
         self._blend_frames = max(1, round(blend * graph.fps))
         if jump_costs is not None and (
@@ -243,28 +243,20 @@ class Avatar:
         back.)"""
         g = self.graph
         targets = np.flatnonzero(g.in_scc & self.jump_costs.landing)
-        actions = self._actions()
-        if actions[self.frame] >= 0:
+        clips = g.clips_of(self.clips)
+        k = int(np.searchsorted(g.clip_start, self.frame, side="right")) - 1
+        if clips[k].labels[self.frame - g.clip_start[k]] >= 0:  # a labelled action
+            if self._actions is None:
+                self._actions = action_keys(clips)
+            assert self._actions is not None  # (a frame is labelled)
             clip = np.searchsorted(g.clip_start, np.arange(g.n_frames), side="right")
             room = g.clip_start[clip] - 1 - np.arange(g.n_frames)  # frames left to play
-            same = (actions == actions[self.frame]) & self.jump_costs.landing
+            same = (self._actions == self._actions[self.frame]) & self.jump_costs.landing
             same &= room >= g.fps
             if same.any():
                 targets = np.flatnonzero(same)
         d, _ = self.jump_costs(self.frame, targets)
         return int(targets[int(np.argmin(d))])
-
-    def _actions(self) -> IntArray:
-        """Each graph frame's action (labels of the same name share one), -1 where
-        unlabelled; computed when first asked for."""
-        if self._action_ids is None:
-            names: dict[str, int] = {}
-            parts = []
-            for c in self.graph.clips_of(self.clips):
-                ids = np.array([names.setdefault(n, len(names)) for n in c.label_names] or [0])
-                parts.append(np.where(c.labels >= 0, ids[np.maximum(c.labels, 0)], -1))
-            self._action_ids = np.concatenate(parts).astype(np.int64)
-        return self._action_ids
 
     def _align(self, e: int) -> NDArray[np.float64]:
         if e >= self.graph.n_edges:

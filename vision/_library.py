@@ -14,10 +14,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 
 from control.graph import longest_off_floor, lowest_foot
-from control.motion import Clip
+from control.motion import Clip, action_keys
 
 __all__ = [
     "FLOOR_ABOVE",
@@ -61,20 +60,3 @@ def on_the_floor(
         else:
             kept.append(c)
     return kept, out
-
-
-def action_keys(clips: Sequence[Clip]) -> NDArray[np.int64] | None:
-    """The action of every frame of ``clips`` (joined in order) as a number: frames with
-    the same label share one, in whichever clip; an unlabelled frame is its clip's own
-    action. ``None`` when no frame is labelled (the library names no actions)."""
-    if not any((c.labels >= 0).any() for c in clips):
-        return None
-    names: dict[str, int] = {}
-    for c in clips:
-        for name in c.label_names:
-            names.setdefault(name, len(names))
-    out = []
-    for i, c in enumerate(clips):
-        ids = np.array([names[n] for n in c.label_names] + [len(names) + i], dtype=np.int64)
-        out.append(ids[c.labels])  # -1 (unlabelled) picks the clip's own, the last
-    return np.concatenate(out) if out else np.zeros(0, dtype=np.int64)

@@ -51,6 +51,7 @@ __all__ = [
     "Clip",
     "Library",
     "LibrarySpec",
+    "action_keys",
     "default_cache_dir",
     "default_library_path",
     "load_library",
@@ -95,6 +96,23 @@ class Clip:
     def label_at(self, frame: int) -> str | None:
         k = int(self.labels[frame])
         return None if k < 0 else self.label_names[k]
+
+
+def action_keys(clips: Sequence[Clip]) -> NDArray[np.int64] | None:
+    """The action of every frame of ``clips`` (joined in order) as a number: frames with
+    the same label share one, in whichever clip; an unlabelled frame is its clip's own
+    action. ``None`` when no frame is labelled (the library names no actions)."""
+    if not any((c.labels >= 0).any() for c in clips):
+        return None
+    names: dict[str, int] = {}
+    for c in clips:
+        for name in c.label_names:
+            names.setdefault(name, len(names))
+    out = []
+    for i, c in enumerate(clips):
+        ids = np.array([names[n] for n in c.label_names] + [len(names) + i], dtype=np.int64)
+        out.append(ids[c.labels])  # -1 (unlabelled) picks the clip's own, the last
+    return np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
 
 
 @dataclass(frozen=True, eq=False)

@@ -5,33 +5,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from control.clusters import HigherLayer, build_higher_layer
 from control.graph import GraphOptions, build_graph
-from control.motion import Library, Motion, load_library
-from silhouette_bank import Bank, BankSettings, ensure_bank, with_proportions
+from control.motion import Library, load_library
+from silhouette_bank import Bank, BankSettings, ensure_bank
 from tests.conftest import REPO, Prebuild
 
 RECORDING = REPO / "recordings" / "13_29_first12s_160x120.mkv"
-
-
-def landmark_points(motion: Motion, frames: np.ndarray, seed: int) -> np.ndarray:
-    """Image points ``(F, 12, 2)`` of ``motion``'s joints at ``frames`` as a pose model
-    would give them: on ``mimic record``'s default body, seen by its camera, with noise
-    of 3% of the torso length (as ``benchmarks/_landmarks.py``)."""
-    from silhouette_bank._pose import joint_points
-    from vision import RecordSettings
-
-    rs = RecordSettings()
-    ring = rs.ring()
-    pts = joint_points(with_proportions(motion, rs.body), frames)
-    pose = ring.poses(motion.root_pos[frames].mean(axis=0))[0]
-    px = ring.project(ring.to_camera(pts, np.broadcast_to(pose, (frames.size, 4, 4))))
-    torso = np.linalg.norm(px[:, :2].mean(axis=1) - px[:, 6:8].mean(axis=1), axis=-1)
-    noise = np.random.default_rng(seed).normal(0.0, 0.03, px.shape)
-    return np.asarray(px + noise * torso[:, None, None])
 
 
 @pytest.fixture(scope="session")

@@ -9,16 +9,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from benchmarks._landmarks import LandmarkSource, landmark_points
 from control.avatar import JUMP, JumpCosts
 from control.dtw import dtw_batch
 from control.graph import off_floor_seconds
 from control.motion import load_library, read_bvh
 from mimic.cli import main
-from tests.vision.conftest import RECORDING, landmark_points
+from tests.vision.conftest import RECORDING
 from vision import (
     FLOOR_ABOVE,
-    MEDIAPIPE_INDEX,
-    Frame,
     Matcher,
     MatchSettings,
     PerformSettings,
@@ -94,25 +93,6 @@ def test_the_defaults_follow_a_recording_of_a_library_clip(
     assert "actions: 5 labelled (Jog, JumpJack, KneeRaise, Squat, Twist)" in said.err
 
 
-class _Landmarks:
-    """Frames that carry MediaPipe-style landmarks (33, 3), as an outside pose tracker
-    would give them."""
-
-    def __init__(self, points: np.ndarray, fps: float) -> None:
-        self.points, self.fps, self.i, self.name = points, fps, 0, "tracker"
-
-    def read(self) -> Frame | None:
-        if self.i >= len(self.points):
-            return None
-        lm = np.zeros((33, 3))
-        lm[list(MEDIAPIPE_INDEX), :2], lm[list(MEDIAPIPE_INDEX), 2] = self.points[self.i], 1.0
-        self.i += 1
-        return Frame(t=(self.i - 1) / self.fps, index=self.i - 1, landmarks=lm)
-
-    def close(self) -> None:
-        pass
-
-
 def test_a_source_of_landmarks_is_followed_by_the_pose_descriptor(setup, mocap: Path, tmp_path):
     """A performer's landmarks (13_30's joints on another body, seen by another camera,
     with 3% noise) straight from the source: the pose descriptor follows them; a
@@ -122,9 +102,10 @@ def test_a_source_of_landmarks_is_followed_by_the_pose_descriptor(setup, mocap: 
     lib, layer, silhouettes = setup
     clip = load_library(mocap, fps=30, clips=["13_30"]).clip("13_30")
     frames = np.arange(0, 360)  # 12 s
-    px = landmark_points(clip.motion, frames, seed=3)
+    px = landmark_points(clip.motion, RecordSettings(), np.random.default_rng(3), frames=frames)
     bank = build_bank(lib.clips, BankSettings(descriptor="pose"), tmp_path / "pose", workers=1)
-    r = perform(_Landmarks(px, 30.0), layer, bank, lib.clips, PerformSettings())
+    tracker = LandmarkSource(px, 30.0, name="tracker")
+    r = perform(tracker, layer, bank, lib.clips, PerformSettings())
     made = [d for d in r.decisions if d["decision"] is not None]
     assert len(made) >= 100 and r.frames_with_media == 360
     side = {"fps": 30.0, "labels": [clip.label_at(f) for f in frames]}
@@ -134,7 +115,8 @@ def test_a_source_of_landmarks_is_followed_by_the_pose_descriptor(setup, mocap: 
         >= 0.85
     )
     with pytest.raises(ValueError, match="tracker: this source gives body landmarks"):
-        perform(_Landmarks(px, 30.0), layer, silhouettes, lib.clips, PerformSettings())
+        tracker = LandmarkSource(px, 30.0, name="tracker")
+        perform(tracker, layer, silhouettes, lib.clips, PerformSettings())
 
 
 def test_jumps_keep_feet_on_the_floor(setup) -> None:

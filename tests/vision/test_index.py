@@ -7,13 +7,15 @@ import logging
 import numpy as np
 import pytest
 
+from benchmarks._landmarks import landmark_points
 from control.dtw import dtw, dtw_windows
 from silhouette_bank import silhouette_features
-from tests.vision.conftest import RECORDING, landmark_points
+from tests.vision.conftest import RECORDING
 from vision import (
     ActionVote,
     Matcher,
     MatchSettings,
+    RecordSettings,
     VideoSource,
     WindowIndex,
     action_keys,
@@ -100,7 +102,9 @@ def test_the_pose_descriptors_four_readings_find_the_brute_force_best(
     shape, centre, starts = m._global_tables()
     index = WindowIndex(shape, centre, starts, m.n, flat_below=0)
     clip = load_library(mocap, fps=layer.graph.fps, clips=["13_29"]).clip("13_29")
-    perf = m.desc.from_points(landmark_points(clip.motion, np.arange(0, 300), seed=2))  # 20 s
+    rng = np.random.default_rng(2)
+    px = landmark_points(clip.motion, RecordSettings(), rng, frames=np.arange(0, 300))  # 20 s
+    perf = m.desc.from_points(px)
     hits = total = 0
     for end in range(m.n, perf.shape[0] + 1, 2):
         queries = m.queries(perf[end - m.n : end])
