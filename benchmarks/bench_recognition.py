@@ -52,7 +52,15 @@ from numpy.typing import NDArray
 from benchmarks._landmarks import landmark_points
 from benchmarks._report import machine, save
 from benchmarks.bench_real_video import read_labels
-from control.motion import Clip, Motion, default_library_path, load_library, mirror, resample
+from control.motion import (
+    Clip,
+    Motion,
+    action_keys,
+    default_library_path,
+    load_library,
+    mirror,
+    resample,
+)
 from silhouette_bank import (
     BankSettings,
     BodyShape,
@@ -63,10 +71,12 @@ from silhouette_bank import (
     silhouette_features,
 )
 from vision import (
+    ActionClassifier,
     PersonSegmenter,
     PoseReader,
     RecordSettings,
     best_window,
+    choose_action,
     per_frame_cost,
     performer_masks,
     performer_queries,
@@ -118,9 +128,14 @@ def _windows(labels: np.ndarray, n: int, step: int) -> list[int]:
 
 
 class Search:
-    """The window search over a whole bank: every window inside a take, every view."""
+    """The window search over a whole bank: every window inside a take, every view. With
+    ``actions`` (``control.motion.action_keys`` of the bank's clips) the decision is the
+    matcher's vote: each action's best window and the library's action classifier
+    (``vision._classify``); ``nearest`` keeps the best window's label alone."""
 
-    def __init__(self, bank: Any, n: int, lib_labels: np.ndarray) -> None:
+    def __init__(
+        self, bank: Any, n: int, lib_labels: np.ndarray, actions: np.ndarray | None = None
+    ) -> None:
         self.bank = bank
         self.desc = bank.settings.features
         self.n = n
@@ -134,16 +149,44 @@ class Search:
             [np.arange(a, b - n + 1) for a, b in itertools.pairwise(cs)]
         ).astype(np.int64)
         self.lib_labels = lib_labels
+        self.actions = actions
+        self.classifier = None
+        if actions is not None:
+            self.classifier = ActionClassifier.learn(
+                self.shape, self.centre, self.starts, n, actions
+            )
+            end = actions[self.starts + n - 1]
+            self.by_action = [self.starts[end == a] for a in range(int(actions.max()) + 1)]
+            first = {int(a): i for i, a in reversed(list(enumerate(actions)))}
+            self.names = [
+                str(lib_labels[first[a]]) if a in first else "" for a in range(len(self.by_action))
+            ]
+        #: the label of the last call's best window (the nearest alone)
+        self.nearest = ""
 
     def __call__(self, feats: np.ndarray) -> tuple[str, float] | None:
-        """The label at the end of the best window for performer features ``(n, F)``,
-        and its per-frame cost; ``None`` with fewer than half the frames usable."""
+        """The label the decision names for performer features ``(n, F)`` (the vote's
+        action, or the best window's label), and the best window's per-frame cost;
+        ``None`` with fewer than half the frames usable."""
         ok = np.isfinite(feats).all(axis=1)
         if ok.sum() < max(2, self.n // 2):  # as the matcher
             return None
         qs = performer_queries(feats[ok], self.desc, self.mean, self.proj, CENTRE_WEIGHT)
         s, _, cost = best_window(qs, self.shape, self.centre, self.starts, self.n, BAND)
-        return str(self.lib_labels[s + self.n - 1]), per_frame_cost(cost, qs[0].shape[0])
+        self.nearest = str(self.lib_labels[s + self.n - 1])
+        label = self.nearest
+        if self.classifier is not None:
+            costs = np.array(
+                [
+                    best_window(qs, self.shape, self.centre, st, self.n, BAND)[2]
+                    if st.size
+                    else np.inf
+                    for st in self.by_action
+                ]
+            )
+            a = choose_action(costs, self.classifier.log_proba(qs, costs.size))
+            label = self.names[a]
+        return label, per_frame_cost(cost, qs[0].shape[0])
 
     def chance(self, labels: list[str]) -> float:
         ends = self.lib_labels[self.starts + self.n - 1]
@@ -153,6 +196,7 @@ class Search:
 
 def _score(search: Search, feats: np.ndarray, labels: np.ndarray, step: int) -> dict[str, Any]:
     hits: dict[str, list[bool]] = {}
+    nearest = []
     costs = []
     truth = []
     for end in _windows(labels, search.n, step):
@@ -162,11 +206,13 @@ def _score(search: Search, feats: np.ndarray, labels: np.ndarray, step: int) -> 
         t = str(labels[end - 1])
         truth.append(t)
         hits.setdefault(t, []).append(got[0] == t)
+        nearest.append(search.nearest == t)
         costs.append(got[1])
     every = [h for v in hits.values() for h in v]
     return {
         "windows": len(every),
         "right": round(float(np.mean(every)), 3) if every else None,
+        "right_nearest_window": round(float(np.mean(nearest)), 3) if nearest else None,
         "per_action": {a: round(float(np.mean(v)), 3) for a, v in sorted(hits.items())},
         "chance": round(search.chance(truth), 3) if truth else None,
         "costs": costs,
@@ -211,7 +257,12 @@ def _quantiles(x: list[float]) -> dict[str, float] | None:
 
 
 def folds(
-    root: Path, takes: list[str], descriptors: list[str], window: float, variants: bool
+    root: Path,
+    takes: list[str],
+    descriptors: list[str],
+    window: float,
+    variants: bool,
+    classify: bool = True,
 ) -> dict[str, Any]:
     lib = load_library(root, clips=takes)
     rate = float(lib.fps or 15.0)
@@ -230,7 +281,7 @@ def folds(
             bank, _ = ensure_bank(train, settings)
             lib_labels = np.concatenate([_labels(c) for c in train])
             n = max(2, round(window * rate))
-            search = Search(bank, n, lib_labels)
+            search = Search(bank, n, lib_labels, action_keys(train) if classify else None)
             step = max(1, round(0.5 * rate))
             rows: dict[str, Any] = {}
             for var, kw in VARIATIONS.items():
@@ -306,7 +357,7 @@ def folds(
 
 
 def real_clips(
-    root: Path, takes: list[str], videos: Path, labels: Path, window: float
+    root: Path, takes: list[str], videos: Path, labels: Path, window: float, classify: bool = True
 ) -> dict[str, Any]:
     """The pose descriptor on the shared real clips: MediaPipe landmarks, a pose bank of
     all the takes, the label of the best window against ours; beside it the default
@@ -317,8 +368,9 @@ def real_clips(
     sil_bank, _ = ensure_bank(list(lib.clips), BankSettings())
     lib_labels = np.concatenate([_labels(c) for c in lib.clips])
     n = max(2, round(window * rate))
-    search = Search(bank, n, lib_labels)
-    sil_search = Search(sil_bank, n, lib_labels)
+    actions = action_keys(list(lib.clips)) if classify else None
+    search = Search(bank, n, lib_labels, actions)
+    sil_search = Search(sil_bank, n, lib_labels, actions)
     names = {a.lower(): a for a in set(lib_labels) - {""}}
     out: dict[str, Any] = {}
     spans: dict[str, list[tuple[float, float, str]]] = {}
@@ -400,6 +452,11 @@ def main() -> None:
     ap.add_argument("--videos", default=str(HERE.parents[1] / "shared" / "video"))
     ap.add_argument("--labels", default=str(HERE / "videos" / "shared_labels.csv"))
     ap.add_argument("--no-video", action="store_true", help="skip the real clips")
+    ap.add_argument(
+        "--nearest",
+        action="store_true",
+        help="the best window's label alone, without the action classifier",
+    )
     ap.add_argument("--out", default="benchmarks/results/recognition.json")
     args = ap.parse_args()
     root = Path(args.root)
@@ -414,13 +471,19 @@ def main() -> None:
             k: {**v["rs"].to_dict(), **{a: b for a, b in v.items() if a != "rs"}}
             for k, v in VARIATIONS.items()
         },
+        "classifier": not args.nearest,
         "descriptors": folds(
-            root, takes, [d for d in args.descriptors.split(",") if d], args.window, args.variants
+            root,
+            takes,
+            [d for d in args.descriptors.split(",") if d],
+            args.window,
+            args.variants,
+            not args.nearest,
         ),
     }
     if not args.no_video:
         result["real_clips_pose"] = real_clips(
-            root, takes, Path(args.videos), Path(args.labels), args.window
+            root, takes, Path(args.videos), Path(args.labels), args.window, not args.nearest
         )
     save(result, args.out)
 

@@ -229,8 +229,13 @@ def _say_vote(clips: list[Any], match: MatchSettings) -> None:
     else:
         print(
             f"actions: {len(names)} labelled ({', '.join(names)}); the avatar keeps to the "
-            f"one the best windows of the last {match.vote} decisions voted for (--vote 0: "
-            "off)",
+            f"one the best windows of the last {match.vote} decisions voted for"
+            + (
+                ", each vote settled by an action classifier learned from the library"
+                if match.classify
+                else ""
+            )
+            + " (--vote 0: off)",
             file=sys.stderr,
         )
 

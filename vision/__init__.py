@@ -5,6 +5,11 @@ ground truth and evaluation, and synthetic recordings."""
 
 from __future__ import annotations
 
+from ._classify import (
+    ActionClassifier,
+    cached_action_classifier,
+    choose_action,
+)
 from ._decision import (
     Decision,
     MatchSettings,
@@ -122,6 +127,7 @@ __all__ = [
     "PERSON_METHODS",
     "TABLES_VERSION",
     "VISION_COORDS",
+    "ActionClassifier",
     "ActionVote",
     "CameraSource",
     "Decision",
@@ -152,9 +158,11 @@ __all__ = [
     "agreement",
     "avatar_labels",
     "best_window",
+    "cached_action_classifier",
     "cached_shape_stats",
     "cached_window_index",
     "cached_window_tables",
+    "choose_action",
     "clean_mask",
     "evaluation",
     "floor_level",

@@ -81,6 +81,9 @@ class MatchSettings:
     #: against 0.790 over 3 held-out takes x 4 recordings (10: 0.838, 20: 0.844 in an
     #: earlier form), and 0.826 against 0.764 on 18 recordings not used to choose it
     vote: int = 15
+    #: each decision's vote goes to the action the library's action classifier and the
+    #: search's costs agree on (``vision._classify``), not the best window's alone
+    classify: bool = True
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.stay < 1.0:

@@ -30,8 +30,10 @@ from control.clusters import HigherLayer
 from control.dtw import ShapeTable, dtw_batch
 from silhouette_bank import Bank
 
+from ._classify import ActionClassifier, cached_action_classifier, voted_action
 from ._decision import Decision, MatchSettings
 from ._index import WindowIndex, best_of, cached_window_index
+from ._paths import CandidatePaths
 from ._tables import cached_shape_stats, cached_window_tables
 from ._vote import ActionVote
 from ._windows import bank_sequences, best_window, per_frame_cost, performer_queries, window_cost
@@ -48,7 +50,7 @@ IntArray = NDArray[np.int64]
 Gate = tuple[IntArray, NDArray[np.bool_], NDArray[np.bool_]]
 
 
-class Matcher:
+class Matcher(CandidatePaths):
     """Matches a performer's recent features against the avatar's candidate actions."""
 
     def __init__(
@@ -94,6 +96,7 @@ class Matcher:
         self._tables: tuple[ShapeTable, FloatArray, IntArray] | None = None
         self._tables_key = ""
         self._index: WindowIndex | None = None
+        self._classifier: tuple[ActionClassifier | None] | None = None
         #: the run of playback each frame belongs to (a run breaks where playing on cannot)
         self._runs = np.cumsum(np.concatenate(([0], ~self.plays[:-1])))
         #: frames the avatar must have played on before it may jump again; ``decide``
@@ -223,72 +226,10 @@ class Matcher:
         self.why = ""
         return got
 
-    def route(self, frame: int, target: int) -> tuple[IntArray, IntArray] | None:
-        """The shortest way ``(frames, edges)`` from ``frame`` to ``target`` through the
-        graph's component (playing on and transitions, one frame per step; breadth
-        first), at most ``settings.route`` seconds long, or ``None``."""
-        bound = max(1, round(self.settings.route * self.graph.fps))
-        return self.graph.route(frame, target, bound, self.plays)
-
-    def _path(self, frame: int, node: int) -> tuple[IntArray, IntArray] | None:
-        tree = self.layer.forest.tree(frame)
-        key = (tree.root_frame, node)
-        if key in self._cache:
-            got = self._cache[key]
-        else:
-            if len(self._cache) > 200_000:  # bound the memory of a long run
-                self._cache.clear()
-            # the node is reached within the look-ahead, so no longer motion is needed
-            m = self.layer.motion_to(tree.root_frame, node, self.bound)
-            got = None if m is None else (m.frames, m.edges)
-            self._cache[key] = got
-        if got is None:
-            return None
-        frames, edges = got
-        lead = np.arange(frame, tree.root_frame, dtype=np.int64)
-        return (
-            np.concatenate((lead, frames)),
-            np.concatenate((np.full(lead.size, -1, dtype=np.int64), edges)),
-        )
-
-    def _window_frames(self, frames: IntArray) -> IntArray:
-        """The first ``n`` frames of a path, played on past its end when it is short."""
-        out = [int(f) for f in frames[: self.n]]
-        while len(out) < self.n:  # played on while it can, then held
-            out.append(out[-1] + 1 if self.plays[out[-1]] else out[-1])
-        return np.array(out, dtype=np.int64)
-
     def _bank_sequences(self, frames: IntArray) -> FloatArray:
         """DTW features ``(V, n, F)`` of graph ``frames`` in every view."""
         w = self.settings.centre_weight
         return bank_sequences(self.bank, self.to_bank[frames], self.mean, self.proj, w)
-
-    def candidates(self, frame: int) -> list[tuple[int, IntArray, IntArray]]:
-        """``(node, frames, edges)`` of the candidate paths from ``frame``: nodes reached
-        within the look-ahead, earliest first, at most ``max_candidates`` whose first
-        ``window`` seconds differ (paths that part only later look the same to DTW)."""
-        if self.layer.forest.tree_of[frame] < 0:  # outside the component (after a jump)
-            return []
-        tree = self.layer.forest.tree(frame)
-        lead = tree.root_frame - frame
-        reach = tree.arrival + lead <= self.bound
-        reach[0] = True
-        nodes = np.flatnonzero(reach)
-        nodes = nodes[np.argsort(tree.arrival[nodes], kind="stable")]
-        out = []
-        seen: set[bytes] = set()
-        for node in nodes:
-            p = self._path(frame, int(node))
-            if p is None:
-                continue
-            key = self._window_frames(p[0]).tobytes()
-            if key in seen:
-                continue
-            seen.add(key)
-            out.append((int(node), p[0], p[1]))
-            if len(out) >= self.settings.max_candidates:
-                break
-        return out
 
     def own_cost(self, queries: list[FloatArray], recent: IntArray) -> float:
         """DTW cost of the avatar's last frames ``recent`` (best view) against the
@@ -351,7 +292,7 @@ class Matcher:
             return None  # (why says so when the best was rejected)
         self.why = ""
         target, ok, there = self._targets(frame, got, costs)
-        voted = self.vote.cast(target)
+        voted = self.vote.cast(target, self._choice(queries, ranked))
         if there.any():  # the avatar does one of the best windows: its cost is its own
             self.last_own = min(g[2] for g, t in zip(got, there, strict=True) if t)
         if voted is not None and not (ok & voted).any():
@@ -406,6 +347,29 @@ class Matcher:
             latency_ms=(time.perf_counter() - t0) * 1e3,
             extra={"jump": j, "own": own, "blend": float(blend)},
         )
+
+    def classifier(self) -> ActionClassifier | None:
+        """The library's action classifier (``vision._classify``), learned from the
+        search's windows and the vote's ``actions`` on first use and stored in the bank's
+        folder; ``None`` without actions or with ``settings.classify`` off."""
+        actions = self.vote.actions
+        if actions is None or not self.settings.classify:
+            return None
+        if self._classifier is None:
+            shape, centre, starts = self._global_tables()
+            folder, key = self.bank.path or None, self._tables_key
+            got = cached_action_classifier(shape, centre, starts, self.n, actions, folder, key)
+            self._classifier = (got,)
+        return self._classifier[0]
+
+    def _choice(
+        self, queries: list[FloatArray], ranked: list[tuple[IntArray, IntArray, FloatArray]]
+    ) -> int | None:
+        """The action this decision votes for (``voted_action``); ``None``: the best
+        window's."""
+        if self.vote.actions is None or self.vote.size <= 0:
+            return None
+        return voted_action(ranked, self.vote.actions, self.n, self.classifier(), queries)
 
     def _targets(self, frame: int, got: list[tuple[int, int, float]], costs: JumpCosts) -> Gate:
         """The frames after windows ``got`` (where the performer is now), which a jump from

@@ -154,6 +154,8 @@ class Performance:
         actions = action_keys(clips)
         if actions is not None and actions.size == self.graph.n_frames:
             matcher.vote.actions = actions
+            if jumps and settings.match.vote > 0:  # now, not at the first decision
+                matcher.classifier()
         self.segmenter: Any = None
         self.landmarks = matcher.desc.kind == "pose"
         self.reader = PoseReader() if self.landmarks else None

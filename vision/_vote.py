@@ -52,15 +52,18 @@ class ActionVote:
         self.missed = 0
         self._starts: tuple[tuple[int, int, int], NDArray[np.bool_]] | None = None
 
-    def cast(self, target: IntArray) -> NDArray[np.bool_] | None:
-        """The best window's vote (``target``: the frames after the best windows, best
-        first), and which of them show the action most voted for and still show it
-        ``span`` frames on (``None`` without a vote). The voted action changes when
+    def cast(self, target: IntArray, choice: int | None = None) -> NDArray[np.bool_] | None:
+        """The decision's vote (``choice``, an action; by default the best window's:
+        ``target`` holds the frames after the best windows, best first), and which of
+        them show the action most voted for and still show it ``span`` frames on
+        (``None`` without a vote). The voted action changes when
         another has more votes (to the one of them voted for last), or when the last
         ``quick`` votes are all for another."""
         if self.actions is None or self.size <= 0:
             return None
-        best = int(self.actions[min(max(int(target[0]), 0), self.actions.size - 1)])
+        best = choice
+        if best is None:
+            best = int(self.actions[min(max(int(target[0]), 0), self.actions.size - 1)])
         for _ in range(1 + self.missed):  # (a decision stands for those skipped before it)
             self._votes.append(best)
         self.missed = 0

@@ -1,0 +1,141 @@
+"""The action classifier (issue 16): learned from the library's own windows, it settles
+near ties between the best windows of two actions."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+import pytest
+from sklearn.discriminant_analysis import LinearDiscriminantAnalysis
+
+from control.motion import action_keys
+from vision import Matcher, MatchSettings
+from vision._classify import (
+    FLOOR,
+    ActionClassifier,
+    cached_action_classifier,
+    choose_action,
+    voted_action,
+    window_summary,
+)
+
+
+def _tables(actions: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Tables of 3 views whose windows differ by action: each action a block of frames
+    with its own mean shape and its own sway of the centre."""
+    rng = np.random.default_rng(seed)
+    n = 120 * actions
+    act = np.repeat(np.arange(actions), 120)
+    shape = rng.normal(0, 1, (n, 3, 4)) + act[:, None, None] * 0.8
+    t = np.arange(n)[:, None, None]
+    centre = np.concatenate([np.sin(t * (0.2 + 0.1 * act[:, None, None])), 0 * t], axis=2)
+    centre = centre + rng.normal(0, 0.05, (n, 3, 2))
+    return shape.astype(np.float32), centre, np.arange(n - 9, dtype=np.int64), act
+
+
+@pytest.mark.parametrize("actions", [2, 3])
+def test_the_classifiers_probabilities_are_scikit_learns(actions: int) -> None:
+    shape, centre, starts, act = _tables(actions)
+    starts = starts[starts + 9 < shape.shape[0]]
+    clf = ActionClassifier.learn(shape, centre, starts, 10, act)
+    assert clf is not None and list(clf.classes) == list(range(actions))
+    # the same windows, by hand, to scikit-learn
+    rows = starts[:, None] + np.arange(10)
+    x, y = [], []
+    for v in range(3):
+        seq = np.concatenate(
+            [shape[rows, v].astype(np.float64), centre[rows, v] - centre[starts, v][:, None]], -1
+        )
+        x.append(window_summary(seq))
+        y.append(act[starts + 9])
+    order = np.argsort(np.concatenate([starts * 3 + v for v in range(3)]), kind="stable")
+    lda = LinearDiscriminantAnalysis(solver="eigen", shrinkage=0.1)
+    lda.fit(np.concatenate(x)[order], np.concatenate(y)[order])
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        q = rng.normal(0, 1.5, (int(rng.integers(6, 14)), 6))
+        want = lda.predict_log_proba(window_summary(q)[None])[0]
+        np.testing.assert_allclose(clf.log_proba([q]), want, atol=1e-8)
+    # two readings: each action's more probable one; by action number, unknown ones at FLOOR
+    q2 = -q
+    both = clf.log_proba([q, q2], actions + 2)
+    np.testing.assert_allclose(
+        both[:actions], np.maximum(clf.log_proba([q]), clf.log_proba([q2])), atol=1e-12
+    )
+    assert list(both[actions:]) == [FLOOR, FLOOR]
+
+
+def test_one_action_teaches_nothing() -> None:
+    shape, centre, starts, act = _tables(2)
+    assert ActionClassifier.learn(shape, centre, starts, 10, np.zeros_like(act)) is None
+
+
+def test_a_near_tie_goes_to_the_more_probable_action_and_a_clear_win_stays() -> None:
+    inf = np.inf
+    assert choose_action(np.array([1.0, 1.02, inf]), np.array([-10.0, -0.1, FLOOR])) == 1
+    assert choose_action(np.array([1.0, 1.5]), np.array([-3.0, 0.0])) == 0
+    assert choose_action(np.array([2.0, 1.0]), None) == 1  # no classifier: the cheapest
+    assert choose_action(np.array([inf, inf]), np.array([0.0, 0.0])) == -1
+    # the search's short lists give each action's best window
+    ranked = [
+        (np.array([0, 50]), np.array([0, 1]), np.array([5.0, 4.0])),
+        (np.array([100]), np.array([2]), np.array([4.1])),
+    ]
+    act = np.repeat(np.arange(3), 60)
+    shape, centre, starts, _ = _tables(3)
+    clf = ActionClassifier.learn(shape, centre, starts[starts < 170], 10, act)
+    assert clf is not None
+    q = shape[100:110, 2].astype(np.float64)
+    q = np.concatenate([q, centre[100:110, 2] - centre[100, 2]], axis=1)
+    got = voted_action(ranked, act, 10, clf, [q])
+    logp = clf.log_proba([q], 3)
+    cost = np.array([4.0, 4.1, np.inf])  # action 0 (frames 0 and 50 end in it), action 1
+    assert got == choose_action(cost, logp)
+    assert voted_action(ranked, act, 10, None, [q]) is None
+
+
+def test_the_stored_classifier_is_read_back_and_a_damaged_one_learned_again(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    shape, centre, starts, act = _tables(3)
+    a = cached_action_classifier(shape, centre, starts, 10, act, tmp_path, key="k")
+    (path,) = tmp_path.glob("actions-*.npz")
+    b = cached_action_classifier(shape, centre, starts, 10, act, tmp_path, key="k")
+    assert a is not None and b is not None
+    np.testing.assert_array_equal(a.coef, b.coef)
+    path.write_bytes(path.read_bytes()[:100])
+    with caplog.at_level(logging.WARNING):
+        c = cached_action_classifier(shape, centre, starts, 10, act, tmp_path, key="k")
+    assert c is not None and str(path) in caplog.text
+    np.testing.assert_allclose(c.coef, a.coef)
+    # fewer than two actions: stored as such, and read back as no classifier
+    one = np.zeros_like(act)
+    assert cached_action_classifier(shape, centre, starts, 10, one, tmp_path, key="k") is None
+    assert cached_action_classifier(shape, centre, starts, 10, one, tmp_path, key="k") is None
+
+
+def test_the_matchers_vote_goes_to_the_classifiers_choice(setup) -> None:
+    lib, layer, bank = setup
+    keys = action_keys(lib.clips)
+    assert keys is not None
+    m = Matcher(layer, bank, MatchSettings(vote=3))
+    m.vote.actions = keys
+    fa = int(np.flatnonzero(keys == keys[0])[0])
+    other = int(keys[np.flatnonzero(keys != keys[0])[0]])
+    for _ in range(3):
+        m.vote.cast(np.array([fa]), other)  # the best window is of keys[0]; the choice other
+    assert m.vote.voted == other
+    # a whole decision: the classifier is learned from the bank's windows and stored beside it
+    x = np.asarray(bank.features[100 : 100 + m.n, 3], dtype=np.float64)
+    queries = m.queries(x)
+    assert queries is not None
+    ranked: list = []
+    m.index().search(queries, m.settings.band, m.settings.top, ranked=ranked)
+    choice = m._choice(queries, ranked)
+    assert choice is not None and choice == int(keys[100 + m.n - 1])
+    assert list(Path(bank.path).glob("actions-*.npz"))
+    off = Matcher(layer, bank, MatchSettings(vote=3, classify=False))
+    off.vote.actions = keys
+    assert off._choice(queries, ranked) is None
