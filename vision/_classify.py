@@ -156,14 +156,16 @@ def voted_action(
     length: int,
     classifier: ActionClassifier | None,
     queries: list[FloatArray],
+    n_actions: int = 0,
 ) -> int | None:
     """The action a decision votes for (``choose_action``), from the search's ranked
     short lists (``WindowIndex.search``'s ``ranked``: each action's best window among
     them) and ``classifier``; ``None`` without a classifier (the best window's action
-    then) or without a window."""
+    then) or without a window. ``n_actions``: ``actions.max() + 1``, if the caller
+    has it."""
     if classifier is None or not ranked:
         return None
-    cost = np.full(int(actions.max()) + 1, np.inf)
+    cost = np.full(n_actions or int(actions.max()) + 1, np.inf)
     for s, _, c in ranked:
         np.minimum.at(cost, actions[np.minimum(s + length - 1, actions.size - 1)], c)
     a = choose_action(cost, classifier.log_proba(queries, cost.size))

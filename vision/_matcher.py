@@ -96,7 +96,7 @@ class Matcher(CandidatePaths):
         self._tables: tuple[ShapeTable, FloatArray, IntArray] | None = None
         self._tables_key = ""
         self._index: WindowIndex | None = None
-        self._classifier: tuple[ActionClassifier | None] | None = None
+        self._classifier: tuple[ActionClassifier | None, int] | None = None
         #: the run of playback each frame belongs to (a run breaks where playing on cannot)
         self._runs = np.cumsum(np.concatenate(([0], ~self.plays[:-1])))
         #: frames the avatar must have played on before it may jump again; ``decide``
@@ -359,7 +359,7 @@ class Matcher(CandidatePaths):
             shape, centre, starts = self._global_tables()
             folder, key = self.bank.path or None, self._tables_key
             got = cached_action_classifier(shape, centre, starts, self.n, actions, folder, key)
-            self._classifier = (got,)
+            self._classifier = (got, int(actions.max()) + 1 if actions.size else 0)
         return self._classifier[0]
 
     def _choice(
@@ -369,7 +369,9 @@ class Matcher(CandidatePaths):
         window's."""
         if self.vote.actions is None or self.vote.size <= 0:
             return None
-        return voted_action(ranked, self.vote.actions, self.n, self.classifier(), queries)
+        clf = self.classifier()
+        n = self._classifier[1] if self._classifier else 0
+        return voted_action(ranked, self.vote.actions, self.n, clf, queries, n)
 
     def _targets(self, frame: int, got: list[tuple[int, int, float]], costs: JumpCosts) -> Gate:
         """The frames after windows ``got`` (where the performer is now), which a jump from
