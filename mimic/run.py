@@ -96,6 +96,12 @@ def add_run_args(p: argparse.ArgumentParser) -> None:
         default=MatchSettings.vote,
         help="keep to the action the best windows of the last N decisions voted for (0: off)",
     )
+    p.add_argument(
+        "--no-classify",
+        action="store_true",
+        help="each decision votes for its best window's action alone, not settled by the "
+        "action classifier learned from the library",
+    )
     p.add_argument("--seconds", type=float, help="stop after this much media time")
     p.add_argument("--window", type=float, default=1.0, help="seconds of performer matched")
     p.add_argument("--lookahead", type=float, default=1.5, help="candidate actions within, s")
@@ -185,7 +191,11 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
     stderr what was chosen and what was left out."""
     # settings first: a bad one is said before minutes of building
     match = MatchSettings(
-        window=args.window, lookahead=args.lookahead, jumps=not args.no_jumps, vote=args.vote
+        window=args.window,
+        lookahead=args.lookahead,
+        jumps=not args.no_jumps,
+        vote=args.vote,
+        classify=not args.no_classify,
     )
     clips = _clips(args)
     t0 = time.perf_counter()
@@ -231,7 +241,8 @@ def _say_vote(clips: list[Any], match: MatchSettings) -> None:
             f"actions: {len(names)} labelled ({', '.join(names)}); the avatar keeps to the "
             f"one the best windows of the last {match.vote} decisions voted for"
             + (
-                ", each vote settled by an action classifier learned from the library"
+                ", each vote settled by an action classifier learned from the library "
+                "(--no-classify: off)"
                 if match.classify
                 else ""
             )

@@ -139,3 +139,18 @@ def test_the_matchers_vote_goes_to_the_classifiers_choice(setup) -> None:
     off = Matcher(layer, bank, MatchSettings(vote=3, classify=False))
     off.vote.actions = keys
     assert off._choice(queries, ranked) is None
+
+
+def test_perform_says_whether_the_classifier_settles_the_vote(
+    setup, mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from mimic.cli import main
+    from tests.vision.conftest import RECORDING
+
+    base = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "13_30"]
+    for extra, said in (([], True), (["--no-classify"], False)):
+        out = tmp_path / f"a{len(extra)}.bvh"
+        assert main([*base, *extra, "--seconds", "1.5", "--out", str(out)]) == 0
+        err = capsys.readouterr().err
+        assert "actions: " in err
+        assert ("settled by an action classifier" in err) is said
