@@ -48,6 +48,7 @@ __all__ = [
     "CACHE_KINDS",
     "LOCK_NAME",
     "CacheEntry",
+    "array_digest",
     "atomic_write",
     "bound_cache",
     "build_lock",
@@ -72,6 +73,17 @@ DEFAULT_LIMIT_GB = 8.0
 CACHE_KINDS = ("motion", "graph", "layer", "bank")
 #: a temporary file older than this was left by a killed process
 STALE_TMP_S = 3600.0
+
+
+def array_digest(text: str, arrays: Sequence[np.ndarray]) -> str:
+    """SHA-256 (hex) of ``text`` and of each of ``arrays``' dtype, shape and bytes, in
+    order: the name a stored artifact made from those arrays is found under."""
+    h = hashlib.sha256(text.encode())
+    for table in arrays:
+        a = np.ascontiguousarray(table)
+        h.update(f"{a.dtype}{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
 
 
 def checksum(manifest: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> str:

@@ -84,24 +84,7 @@ def add_run_args(p: argparse.ArgumentParser) -> None:
         f"{FLOOR_SECONDS:g} s: climbing, sitting on things); by default they are left out, "
         "as the avatar would float",
     )
-    p.add_argument(
-        "--no-jumps",
-        action="store_true",
-        help="only the paper's cluster paths (and a relocation through the graph once a "
-        "second), no direct blended jumps into the best-matching windows",
-    )
-    p.add_argument(
-        "--vote",
-        type=int,
-        default=MatchSettings.vote,
-        help="keep to the action the best windows of the last N decisions voted for (0: off)",
-    )
-    p.add_argument(
-        "--no-classify",
-        action="store_true",
-        help="each decision votes for its best window's action alone, not settled by the "
-        "action classifier learned from the library",
-    )
+    _add_jump_args(p)
     p.add_argument("--seconds", type=float, help="stop after this much media time")
     p.add_argument("--window", type=float, default=1.0, help="seconds of performer matched")
     p.add_argument("--lookahead", type=float, default=1.5, help="candidate actions within, s")
@@ -147,6 +130,28 @@ def add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--k", type=int, help="number of clusters (default: BIC)")
     p.add_argument("--start", help="avatar starts at CLIP:FRAME")
     p.add_argument("--seed", type=int, default=0)
+
+
+def _add_jump_args(p: argparse.ArgumentParser) -> None:
+    """The direct jumps' options, and the action vote's."""
+    p.add_argument(
+        "--no-jumps",
+        action="store_true",
+        help="only the paper's cluster paths (and a relocation through the graph once a "
+        "second), no direct blended jumps into the best-matching windows",
+    )
+    p.add_argument(
+        "--vote",
+        type=int,
+        default=MatchSettings.vote,
+        help="keep to the action the best windows of the last N decisions voted for (0: off)",
+    )
+    p.add_argument(
+        "--no-classify",
+        action="store_true",
+        help="each decision votes for its best window's action alone, not settled by the "
+        "action classifier learned from the library",
+    )
 
 
 def choose_descriptor(name: str, source: Any) -> str:

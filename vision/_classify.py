@@ -21,14 +21,13 @@ and the pose descriptor from 0.816 / 0.871 / 0.787 to 0.838 / 0.870 / 0.808, wit
 
 from __future__ import annotations
 
-import hashlib
 import logging
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from control.artifacts import atomic_write, checksum, read_npz, verify_checksum
+from control.artifacts import array_digest, atomic_write, checksum, read_npz, verify_checksum
 from control.dtw import ShapeTable
 
 __all__ = [
@@ -212,14 +211,9 @@ def cached_action_classifier(
     folder that cannot be written is only read."""
     if folder is None:
         return ActionClassifier.learn(shape, centre, starts, length, actions)
-    h = hashlib.sha256(
-        f"{CLASSIFIER_VERSION}|{length}|{TIMES}|{LEARN_ROWS}|{SHRINKAGE}|{key}".encode()
-    )
-    for table in (starts, actions) if key else (shape, centre, starts, actions):
-        a = np.ascontiguousarray(table)
-        h.update(f"{a.dtype}{a.shape}".encode())
-        h.update(a.tobytes())
-    path = Path(folder) / f"actions-{h.hexdigest()[:24]}.npz"
+    text = f"{CLASSIFIER_VERSION}|{length}|{TIMES}|{LEARN_ROWS}|{SHRINKAGE}|{key}"
+    digest = array_digest(text, (starts, actions) if key else (shape, centre, starts, actions))
+    path = Path(folder) / f"actions-{digest[:24]}.npz"
     if path.is_file():
         try:
             d = read_npz(
@@ -232,7 +226,9 @@ def cached_action_classifier(
             if d["classes"].size == 0:
                 return None  # (stored: the windows show fewer than two actions)
             return ActionClassifier(d["classes"], d["coef"], d["intercept"])
-        except (ClassifierFileError, ValueError) as exc:  # (its message names the file)
+        except ClassifierFileError as exc:  # (its message names the file)
+            log.warning("learning the action classifier again: %s", exc)
+        except ValueError as exc:  # arrays of the wrong shapes
             log.warning("learning the action classifier again: %s: %s", path, exc)
     out = ActionClassifier.learn(shape, centre, starts, length, actions)
     arrays = {

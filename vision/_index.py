@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from control.artifacts import atomic_write, checksum, read_npz, verify_checksum
+from control.artifacts import array_digest, atomic_write, checksum, read_npz, verify_checksum
 from control.dtw import SHAPE_DTYPE, ShapeTable, dtw_windows
 
 log = logging.getLogger(__name__)
@@ -319,12 +319,9 @@ def cached_window_index(
 
     if folder is None:
         return WindowIndex(shape, centre, starts, length, **options)
-    h = hashlib.sha256(f"{INDEX_VERSION}|{length}|{sorted(options.items())}|{key}".encode())
-    for table in (starts,) if key else (shape, centre, starts):
-        a = np.ascontiguousarray(table)
-        h.update(f"{a.dtype}{a.shape}".encode())
-        h.update(a.tobytes())
-    path = Path(folder) / f"index-{h.hexdigest()[:24]}.npz"
+    text = f"{INDEX_VERSION}|{length}|{sorted(options.items())}|{key}"
+    digest = array_digest(text, (starts,) if key else (shape, centre, starts))
+    path = Path(folder) / f"index-{digest[:24]}.npz"
     if path.is_file():
         try:
             keys = ("checksum", "mean", "basis", "index", "nprobe")
