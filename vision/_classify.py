@@ -13,10 +13,12 @@ The decision's action is then the one with the least ``cost / best cost - WEIGHT
 (``choose_action``): its best window's DTW cost, relative to the best of all, less the
 classifier's log-probability of it (for the performer as seen or mirrored, whichever is
 more probable). On ``bench_recognition``'s leave-one-take-out folds (1 s windows, 9
-variations) this took the outline from 0.775 / 0.887 / 0.785 to 0.822 / 0.894 / 0.802
-and the pose descriptor from 0.816 / 0.871 / 0.787 to 0.838 / 0.870 / 0.808, with any
-``WEIGHT`` from 0.01 to 0.07 within a point of that; the classifier alone gave 0.78 /
-0.89 / 0.78 (outline): it is the two together that carry over.
+variations; 2026-12-04) this took the outline from 0.775 / 0.887 / 0.785 to 0.827 /
+0.895 / 0.804 and the pose descriptor from 0.811 / 0.880 / 0.794 to 0.846 / 0.874 /
+0.814; in a harness of the same folds any ``WEIGHT`` from 0.01 to 0.07 gave within a
+point of 0.03's figures, and the classifier alone 0.78 / 0.89 / 0.78 (outline): it is
+the two together that carry over. Following (``bench_accuracy``, 12 runs): landmarks
+0.907 -> 0.933, silhouettes 0.892 -> 0.900.
 """
 
 from __future__ import annotations
