@@ -59,9 +59,11 @@ __all__ = [
     "clear_cache",
     "current_umask",
     "is_locked",
+    "read_checked_npz",
     "read_npz",
     "touch",
     "verify_checksum",
+    "write_checked_npz",
 ]
 
 log = logging.getLogger(__name__)
@@ -171,6 +173,23 @@ def read_npz(
     if missing:
         raise error(path, f"not a {what} (missing {', '.join(missing)})")
     return arrays
+
+
+def write_checked_npz(path: str | Path, arrays: Mapping[str, np.ndarray]) -> None:
+    """``arrays`` as an ``.npz`` file with their ``checksum``, written whole or not at all
+    (``atomic_write``); ``read_checked_npz`` reads it back."""
+    with atomic_write(path, "wb") as fh:
+        np.savez(fh, checksum=np.array(checksum({}, arrays)), **arrays)  # type: ignore[arg-type]
+
+
+def read_checked_npz(
+    path: Path, keys: Sequence[str], error: Callable[[Path, str], Exception], what: str
+) -> dict[str, np.ndarray]:
+    """The arrays ``keys`` of a ``write_checked_npz`` file (``read_npz``), its checksum
+    verified: ``error(path, problem)`` when it does not match."""
+    d = read_npz(path, ("checksum", *keys), error, what)
+    verify_checksum({"checksum": str(d.pop("checksum"))}, d, path, error)
+    return d
 
 
 # --- the cache -------------------------------------------------------------------------------

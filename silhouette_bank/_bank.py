@@ -54,9 +54,11 @@ from control.artifacts import (
     build_lock,
     cache_root,
     checksum,
+    read_checked_npz,
     read_npz,
     touch,
     verify_checksum,
+    write_checked_npz,
 )
 from control.jobs import run_jobs
 from control.motion import Clip, clips_digest
@@ -159,8 +161,7 @@ def _key(digest: str, settings: BankSettings) -> str:
 
 
 def _write_shard(path: str, arrays: dict[str, np.ndarray]) -> None:
-    with atomic_write(path, "wb") as fh:
-        np.savez(fh, checksum=np.array(checksum({}, arrays)), **arrays)  # type: ignore[arg-type]
+    write_checked_npz(path, arrays)
 
 
 def _read_npz(path: Path, keys: Sequence[str]) -> dict[str, np.ndarray]:
@@ -171,8 +172,7 @@ def _shard_ok(path: Path, n: int, views: int, size: int) -> bool:
     if not path.is_file():
         return False
     try:
-        d = _read_npz(path, ("checksum", "features", "root_motion"))
-        verify_checksum({"checksum": str(d.pop("checksum"))}, d, path, BankFileError)
+        d = read_checked_npz(path, ("features", "root_motion"), BankFileError, "bank file")
     except BankFileError:
         return False
     return d["features"].shape == (n, views, size) and d["root_motion"].shape == (n, views, 2)

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from control.artifacts import array_digest, atomic_write, checksum, read_npz, verify_checksum
+from control.artifacts import array_digest, read_checked_npz, write_checked_npz
 from control.dtw import ShapeTable
 
 __all__ = [
@@ -218,13 +218,8 @@ def cached_action_classifier(
     path = Path(folder) / f"actions-{digest[:24]}.npz"
     if path.is_file():
         try:
-            d = read_npz(
-                path,
-                ("checksum", "classes", "coef", "intercept"),
-                ClassifierFileError,
-                "action classifier",
-            )
-            verify_checksum({"checksum": str(d.pop("checksum"))}, d, path, ClassifierFileError)
+            keys = ("classes", "coef", "intercept")
+            d = read_checked_npz(path, keys, ClassifierFileError, "action classifier")
             if d["classes"].size == 0:
                 return None  # (stored: the windows show fewer than two actions)
             return ActionClassifier(d["classes"], d["coef"], d["intercept"])
@@ -239,8 +234,7 @@ def cached_action_classifier(
         "intercept": np.zeros(0) if out is None else out.intercept,
     }
     try:
-        with atomic_write(path, "wb") as fh:
-            np.savez(fh, checksum=np.array(checksum({}, arrays)), **arrays)  # type: ignore[arg-type]
+        write_checked_npz(path, arrays)
     except OSError as exc:  # a bank folder that is only ours to read
         log.info("the action classifier is not stored: %s", exc)
     return out

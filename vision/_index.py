@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from control.artifacts import array_digest, atomic_write, checksum, read_npz, verify_checksum
+from control.artifacts import array_digest, read_checked_npz, write_checked_npz
 from control.dtw import SHAPE_DTYPE, ShapeTable, dtw_windows
 
 log = logging.getLogger(__name__)
@@ -324,9 +324,8 @@ def cached_window_index(
     path = Path(folder) / f"index-{digest[:24]}.npz"
     if path.is_file():
         try:
-            keys = ("checksum", "mean", "basis", "index", "nprobe")
-            d = read_npz(path, keys, IndexFileError, "window index")
-            verify_checksum({"checksum": str(d.pop("checksum"))}, d, path, IndexFileError)
+            keys = ("mean", "basis", "index", "nprobe")
+            d = read_checked_npz(path, keys, IndexFileError, "window index")
             index: Any = faiss.deserialize_index(np.ascontiguousarray(d["index"], dtype=np.uint8))
             if int(d["nprobe"]):  # (an inverted-file index: its lists searched)
                 index.nprobe = int(d["nprobe"])
@@ -337,15 +336,14 @@ def cached_window_index(
         except RuntimeError as exc:  # faiss could not read the index it wrote
             log.warning("building the window index again: %s: %s", path, exc)
     out = WindowIndex(shape, centre, starts, length, **options)
-    arrays = {
+    arrays: dict[str, np.ndarray] = {
         "mean": np.asarray(out.mean, dtype=np.float32),
         "basis": out.basis,
         "index": np.asarray(faiss.serialize_index(out.index), dtype=np.uint8),
         "nprobe": np.array(out.nprobe),
     }
     try:
-        with atomic_write(path, "wb") as fh:
-            np.savez(fh, checksum=np.array(checksum({}, arrays)), **arrays)  # type: ignore[arg-type]
+        write_checked_npz(path, arrays)
     except OSError as exc:  # a bank folder that is only ours to read
         log.info("the window index is not stored: %s", exc)
     return out

@@ -37,7 +37,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 import silhouette_bank
-from control.artifacts import atomic_write, checksum, read_npz, verify_checksum
+from control.artifacts import (
+    atomic_write,
+    checksum,
+    read_checked_npz,
+    verify_checksum,
+    write_checked_npz,
+)
 from control.dtw import SHAPE_DTYPE, ShapeTable
 from silhouette_bank import Bank, block_hashes, npy_file, open_mapped
 
@@ -97,16 +103,15 @@ def cached_shape_stats(bank: Bank) -> tuple[FloatArray, FloatArray]:
     path = folder / "windows-stats.npz"
     if path.is_file():
         try:
-            d = read_npz(path, ("checksum", "bank", "mean", "proj"), WindowTablesError, "stats")
-            verify_checksum({"checksum": str(d.pop("checksum"))}, d, path, WindowTablesError)
+            d = read_checked_npz(path, ("bank", "mean", "proj"), WindowTablesError, "stats")
             if str(d["bank"]) == bank.checksum:
                 return d["mean"].astype(np.float64), d["proj"].astype(np.float64)
         except WindowTablesError as exc:
             log.warning("making the shape statistics again: %s", exc)
     mean, proj = shape_stats(bank)
     arrays = {"bank": np.array(bank.checksum), "mean": mean, "proj": proj}
-    with contextlib.suppress(OSError), atomic_write(path, "wb") as fh:  # (a read-only folder)
-        np.savez(fh, checksum=np.array(checksum({}, arrays)), **arrays)  # type: ignore[arg-type]
+    with contextlib.suppress(OSError):  # (a read-only folder)
+        write_checked_npz(path, arrays)
     return mean, proj
 
 
