@@ -157,10 +157,10 @@ class Search:
             )
             end = actions[self.starts + n - 1]
             self.by_action = [self.starts[end == a] for a in range(int(actions.max()) + 1)]
-            first = {int(a): i for i, a in reversed(list(enumerate(actions)))}
-            self.names = [
-                str(lib_labels[first[a]]) if a in first else "" for a in range(len(self.by_action))
-            ]
+            ids, first = np.unique(actions, return_index=True)  # each action's first frame
+            self.names = [""] * len(self.by_action)
+            for a, f in zip(ids, first, strict=True):
+                self.names[a] = str(lib_labels[f])
         #: the label of the last call's best window (the nearest alone)
         self.nearest = ""
 

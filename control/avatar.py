@@ -151,6 +151,8 @@ class Avatar:
         self._next = np.ones(graph.n_frames, dtype=bool)
         self._next[graph.clip_start[1:] - 1] = False
         self._actions: IntArray | None = None  # (``action_keys``, when first needed)
+        #: landing frames with a second left to play in their clip (with ``_actions``)
+        self._lasting = np.zeros(0, dtype=bool)
         self.anywhere = anywhere
         self._blend_frames = max(1, round(blend * graph.fps))
         if jump_costs is not None and (
@@ -248,11 +250,11 @@ class Avatar:
         if clips[k].labels[self.frame - g.clip_start[k]] >= 0:  # a labelled action
             if self._actions is None:
                 self._actions = action_keys(clips)
+                clip = np.searchsorted(g.clip_start, np.arange(g.n_frames), side="right")
+                room = g.clip_start[clip] - 1 - np.arange(g.n_frames)  # frames left to play
+                self._lasting = self.jump_costs.landing & (room >= g.fps)
             assert self._actions is not None  # (a frame is labelled)
-            clip = np.searchsorted(g.clip_start, np.arange(g.n_frames), side="right")
-            room = g.clip_start[clip] - 1 - np.arange(g.n_frames)  # frames left to play
-            same = (self._actions == self._actions[self.frame]) & self.jump_costs.landing
-            same &= room >= g.fps
+            same = (self._actions == self._actions[self.frame]) & self._lasting
             if same.any():
                 targets = np.flatnonzero(same)
         d, _ = self.jump_costs(self.frame, targets)
