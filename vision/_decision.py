@@ -35,8 +35,11 @@ class MatchSettings:
     #: (0: no prior), so the avatar keeps its action unless another fits clearly better
     stay: float = 0.0
     #: also match the performer mirrored (left and right exchanged), and for landmarks
-    #: with left and right labels swapped: the best reading wins
-    mirror: bool = True
+    #: with left and right labels swapped: the best reading wins. ``None``: the
+    #: descriptor's own default (``Descriptor.reads_mirrored``: silhouettes yes, which
+    #: cannot tell a pose from its mirror image seen from behind; landmarks no, which
+    #: name the performer's sides)
+    mirror: bool | None = None
     #: per-frame cost above which a window matches nothing real and no decision is made
     #: (``None``: the descriptor's own threshold, ``Descriptor.reject``)
     reject: float | None = None

@@ -12,8 +12,8 @@ its shape numbers (Hu moments, grid cells, or landmarks) mapped by ``shape_stats
 bank's learned metric, or the descriptor's standardisation), and the centre's
 displacement since the window's first frame, in units of body size (performer: from the
 image; bank: the root's image motion accumulated plus the centre relative to the root),
-times ``centre_weight``. The performer is read as seen and mirrored (and, for landmarks,
-with the sides swapped; ``Descriptor.variants``); the best reading wins. A best match
+times ``centre_weight``. A silhouette is read as seen and mirrored, landmarks as seen only
+(they name the performer's sides; ``Descriptor.variants``); the best reading wins. A best match
 costing more than ``reject`` per frame is no match: ``why`` says so.
 """
 

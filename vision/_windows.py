@@ -72,10 +72,11 @@ def performer_queries(
     mean: FloatArray,
     proj: FloatArray,
     centre_weight: float,
-    mirror: bool = True,
+    mirror: bool | None = None,
 ) -> list[FloatArray]:
     """DTW queries of a performer's features ``(n, F)`` without NaN rows: one per
-    reading of ``desc.variants`` (as seen; mirrored; for landmarks, sides swapped)."""
+    reading of ``desc.variants`` (as seen; with ``mirror``, by default the descriptor's
+    ``reads_mirrored``, also mirrored, and for landmarks with the sides swapped)."""
     return [
         performer_sequence(np.asarray(v, dtype=np.float64), mean, proj, centre_weight, desc)
         for v in desc.variants(performer, mirror)

@@ -87,18 +87,20 @@ def test_index_finds_the_brute_force_best(setup) -> None:
     assert total >= 80 and min(hits) >= 0.99 * total, hits
 
 
-def test_the_pose_descriptors_four_readings_find_the_brute_force_best(
-    setup, mocap, tmp_path
+@pytest.mark.parametrize(("mirror", "readings"), [(None, 1), (True, 4)])
+def test_the_pose_descriptors_readings_find_the_brute_force_best(
+    setup, mocap, tmp_path, mirror, readings
 ) -> None:
-    """Landmarks read four ways (as seen, left and right swapped, both mirrored) share the
-    short list two readings get: still the exact best window in >= 99% of searches
-    (13_29's joints on another body, another camera, 3% noise; the library 13_30)."""
+    """Landmarks read as seen (the default), or four ways (as seen, left and right
+    swapped, both mirrored: they share the short list two readings get): the exact best
+    window in >= 99% of searches (13_29's joints on another body, another camera, 3%
+    noise; the library 13_30)."""
     from control.motion import load_library
     from silhouette_bank import BankSettings, build_bank
 
     lib, layer, _ = setup
     bank = build_bank(lib.clips, BankSettings(descriptor="pose"), tmp_path / "pose", workers=1)
-    m = Matcher(layer, bank, MatchSettings())
+    m = Matcher(layer, bank, MatchSettings(mirror=mirror))
     shape, centre, starts = m._global_tables()
     index = WindowIndex(shape, centre, starts, m.n, flat_below=0)
     clip = load_library(mocap, fps=layer.graph.fps, clips=["13_29"]).clip("13_29")
@@ -108,7 +110,7 @@ def test_the_pose_descriptors_four_readings_find_the_brute_force_best(
     hits = total = 0
     for end in range(m.n, perf.shape[0] + 1, 2):
         queries = m.queries(perf[end - m.n : end])
-        assert queries is not None and len(queries) == 4
+        assert queries is not None and len(queries) == readings
         b = best_window(queries, shape, centre, starts, m.n, m.settings.band)
         total += 1
         hits += index.search(queries, m.settings.band)[0][2] <= b[2] + 1e-9

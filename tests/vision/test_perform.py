@@ -441,14 +441,16 @@ def test_garbage_is_rejected_and_the_log_says_why(setup) -> None:
 
 def test_the_pose_descriptor_finds_a_skeletons_own_frame_and_view(setup, tmp_path: Path) -> None:
     """The avatar's joints projected by a ring camera, as landmarks: locate finds that
-    frame and view (mirrored too, and with left and right swapped, as detectors do); the
-    same landmarks upside down match nothing."""
+    frame and view (read as seen, the default; with ``mirror``, mirrored too, and with
+    left and right swapped, as a detector may give them); the same landmarks upside down
+    match nothing."""
     from silhouette_bank import CameraRing, get_descriptor
     from silhouette_bank._pose import joint_points
 
     lib, layer, _ = setup
     bank = build_bank(lib.clips, BankSettings(descriptor="pose"), tmp_path / "pose", workers=1)
     matcher = Matcher(layer, bank, MatchSettings(window=1.0))
+    every = Matcher(layer, bank, MatchSettings(window=1.0, mirror=True))  # four readings
     desc = get_descriptor("pose")
     _, _, starts = matcher._global_tables()
     # windows inside the graph's component (the sample this test was written with)
@@ -464,11 +466,12 @@ def test_the_pose_descriptor_finds_a_skeletons_own_frame_and_view(setup, tmp_pat
         pose = ring.poses(clip.motion.root_pos[frames[0]])[view]
         px = ring.project(ring.to_camera(pts, np.broadcast_to(pose, (frames.size, 4, 4))))
         x = desc.from_points(px)  # the image corner as origin, as on the live side
+        got = matcher.find_window(x)
+        assert got is not None and abs(got[0] - s) <= 1
+        assert got[1] == view and matcher.per_frame(got[2], x) < 0.5
         for reading in (x, desc.swap(x), desc.mirror(x)):
-            got = matcher.find_window(reading)
+            got = every.find_window(reading)
             assert got is not None and abs(got[0] - s) <= 1
-            if reading is x:
-                assert got[1] == view and matcher.per_frame(got[2], x) < 0.5
         upside = x.copy()
         upside[:, 1 : desc.n_shape : 2] *= -1.0
         assert matcher.find_window(upside) is None and "no match" in matcher.why
