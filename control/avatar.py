@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .graph import (
+    TURN_RATE,
     FrameFeatures,
     MotionGraph,
     Synthesis,
@@ -105,6 +106,9 @@ class Avatar:
         p99 26-43 degrees against 25-40, every decision the same.
     feet : ``synthesize``'s: ``"held"`` (default), or ``"floor"`` (planted feet brought
         to the source's height; the vision interface's avatar, whose blends never end).
+    turn_limit, ik_turn_rate : ``synthesize``'s: degrees a second a blended joint may
+        turn in a frame beyond its source frame's own turn (``None``: no limit), and the
+        leg IK's corrections.
     """
 
     def __init__(
@@ -119,6 +123,8 @@ class Avatar:
         jump_costs: JumpCosts | None = None,
         max_offset: float = 0.4,
         feet: str = "held",
+        turn_limit: float | None = None,
+        ik_turn_rate: float = TURN_RATE,
     ) -> None:
         if not max_offset >= 0:
             raise ValueError(f"max_offset must be metres >= 0, got {max_offset}")
@@ -126,6 +132,7 @@ class Avatar:
             raise ValueError(f"feet must be 'held' or 'floor', not {feet!r}")
         self.graph = graph
         self.max_offset, self.feet = max_offset, feet
+        self.turn_limit, self.ik_turn_rate = turn_limit, ik_turn_rate
         self.clips = list(clips)
         self.blend = blend
         self.ik = ik
@@ -339,4 +346,6 @@ class Avatar:
             max_offset=self.max_offset,
             extra=self.jumps() if self._jump_src else None,
             feet=self.feet,
+            turn_limit=self.turn_limit,
+            ik_turn_rate=self.ik_turn_rate,
         )

@@ -45,6 +45,16 @@ __all__ = ["MAX_COVER", "PerformResult", "PerformSettings", "Performance", "perf
 #: a silhouette mask covering more of the frame than this is no performer (a white
 #: frame, the lights going on under a background subtractor): treated as no silhouette
 MAX_COVER = 0.6
+#: degrees a second the avatar's blended joints may turn in a frame beyond what their
+#: source frames turn (``control.graph.follow_turns``), and the rate of its leg IK's
+#: corrections (``TURN_RATE`` is 300 elsewhere). Its blends pile up (a jump every few
+#: tenths of a second), and a fading offset on a fast joint turned it up to 45 degrees in
+#: a frame at junctions (the library's 99th percentile: 31). Over the 12 landmark runs of
+#: ``bench_accuracy`` (2026-12-04, the same paths re-synthesized): junctions' p99 22-41
+#: degrees (5 runs over 31) without either, 22-33 (2) with the limit alone, 21-30 (none)
+#: with both; planted feet slid 0.058 m/s against 0.054.
+TURN_LIMIT = 450.0
+IK_TURN_RATE = 200.0
 
 
 @dataclass(frozen=True)
@@ -200,6 +210,8 @@ class Performance:
             jump_costs=self.costs,
             blend=self.settings.blend,
             feet="floor",  # its blends never end: planted feet on the floor (synthesize)
+            turn_limit=TURN_LIMIT,
+            ik_turn_rate=IK_TURN_RATE,
         )
 
     # --- the steps -------------------------------------------------------------------------

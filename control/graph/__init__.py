@@ -38,6 +38,7 @@ from ._quality import (
 )
 from ._synth import FrameData, Synthesis, compose, hermite, segment_maps, synthesize
 from ._terrain import CapturedTerrain, FootTrack, captured_terrain, foot_track, terrain_options
+from ._turns import follow_turns, own_turns
 from ._walk import random_step, random_walk
 
 __all__ = [
@@ -64,6 +65,7 @@ __all__ = [
     "close_pairs",
     "compose",
     "contact_groups",
+    "follow_turns",
     "foot_slide",
     "foot_track",
     "frame_features",
@@ -82,6 +84,7 @@ __all__ = [
     "lower_bound_features",
     "lowest_foot",
     "off_floor_seconds",
+    "own_turns",
     "pair_distances",
     "q_embed",
     "quality_summary",

@@ -44,6 +44,7 @@ from ._features import root_scales, rotate_y, yaw_q
 from ._graph import MotionGraph
 from ._ik import TURN_RATE, knee_hinge, leg_chain, solve_leg
 from ._quality import lowest_foot
+from ._turns import follow_turns, own_turns
 
 __all__ = ["FrameData", "Synthesis", "compose", "synthesize"]
 
@@ -139,6 +140,8 @@ def synthesize(
     anchor: str = "output",
     extra: tuple[IntArray, IntArray, FloatArray] | None = None,
     feet: str = "held",
+    turn_limit: float | None = None,
+    ik_turn_rate: float = TURN_RATE,
 ) -> Synthesis:
     """Turn a path through the graph into motion.
 
@@ -162,24 +165,21 @@ def synthesize(
     feet : ``"held"`` (default): a planted foot held where it touched down; ``"floor"``:
         brought to the source frame's height (the vision avatar, whose blends never end;
         on terrain, or walks of the graph, ``"held"`` slides less).
+    turn_limit, ik_turn_rate : degrees a second: no blended joint turns in a frame more than
+        this or its source frame does (``follow_turns``; ``None``: no limit); the most the
+        leg IK's corrections turn (``TURN_RATE``).
     """
     data = FrameData(graph, clips)
-    frames = np.asarray(frames, dtype=np.int64)
-    jumps = np.asarray(jumps, dtype=np.int64)
-    edges = np.asarray(edges, dtype=np.int64)
-    src_of, dst_of, align_of = _edge_tables(graph, extra)
-    _check_path(graph, frames, jumps, edges, src_of, dst_of)
-    if not blend > 0 or not fade >= 0 or not max_offset >= 0:
-        raise ValueError("blend must be positive, fade and max_offset not negative")
-    if anchor not in ("output", "source"):
-        raise ValueError(f"anchor must be 'output' or 'source', not {anchor!r}")
-    if feet not in ("held", "floor"):
-        raise ValueError(f"feet must be 'held' or 'floor', not {feet!r}")
+    frames, jumps, edges, align_of = _checked_path(graph, frames, jumps, edges, extra)
+    _check_options(blend, fade, max_offset, anchor, feet, turn_limit, ik_turn_rate)
     b = max(1, round(blend * graph.fps))
 
     src_p, src_q, out_p, out_q, blended, v1 = _place_and_blend(
         data, graph, frames, jumps, edges, align_of, b
     )
+    if turn_limit is not None and jumps.size:
+        own = own_turns(src_q, jumps, v1[1])
+        out_q = follow_turns(out_q, own, turn_limit / graph.fps)
     states = data.states[frames]
     unreachable = 0
     # the root's height over blends: before the leg IK with feet="floor", else after it
@@ -201,11 +201,47 @@ def synthesize(
             max_offset,
             anchor == "source",
             b if feet == "floor" else 0,
+            ik_turn_rate,
         )
     if lift and feet == "held":  # (planted feet move up or down with the body)
         out_p = _lifted(data.skeleton, graph.fps, src_p, src_q, out_p, out_q, blended)
     motion = Motion(data.skeleton, out_p, out_q, graph.fps, name="walk", source="graph")
     return Synthesis(motion, frames, jumps, edges, states, blended, unreachable)
+
+
+def _checked_path(
+    graph: MotionGraph,
+    frames: ArrayLike,
+    jumps: ArrayLike,
+    edges: ArrayLike,
+    extra: tuple[IntArray, IntArray, FloatArray] | None,
+) -> tuple[IntArray, IntArray, IntArray, FloatArray]:
+    """The path's arrays, checked (``_check_path``), and each edge's alignment."""
+    frames = np.asarray(frames, dtype=np.int64)
+    jumps = np.asarray(jumps, dtype=np.int64)
+    edges = np.asarray(edges, dtype=np.int64)
+    src_of, dst_of, align_of = _edge_tables(graph, extra)
+    _check_path(graph, frames, jumps, edges, src_of, dst_of)
+    return frames, jumps, edges, align_of
+
+
+def _check_options(
+    blend: float,
+    fade: float,
+    max_offset: float,
+    anchor: str,
+    feet: str,
+    turn_limit: float | None,
+    ik_turn_rate: float,
+) -> None:
+    if not blend > 0 or not fade >= 0 or not max_offset >= 0:
+        raise ValueError("blend must be positive, fade and max_offset not negative")
+    if anchor not in ("output", "source"):
+        raise ValueError(f"anchor must be 'output' or 'source', not {anchor!r}")
+    if feet not in ("held", "floor"):
+        raise ValueError(f"feet must be 'held' or 'floor', not {feet!r}")
+    if not (turn_limit is None or turn_limit > 0) or not ik_turn_rate > 0:
+        raise ValueError("turn_limit and ik_turn_rate must be degrees a second > 0")
 
 
 def _place_and_blend(
@@ -404,6 +440,7 @@ def _plant_feet(
     max_offset: float,
     from_source: bool = False,
     floor: int = 0,
+    turn_rate: float = TURN_RATE,
 ) -> tuple[FloatArray, int]:
     pose = forward_kinematics(Motion(skeleton, out_p, out_q, fps))
     src_pose = forward_kinematics(Motion(skeleton, src_p, src_q, fps))
@@ -432,7 +469,7 @@ def _plant_feet(
             target[todo],
             hinge,
             todo,
-            TURN_RATE / fps,
+            turn_rate / fps,
         )
         out_q[todo[:, None], np.array(chain)[None, :]] = new
         hip = pose.positions[todo, chain[0]]

@@ -12,6 +12,7 @@ from control.graph import (
     GraphOptions,
     MotionGraph,
     build_graph,
+    follow_turns,
     foot_slide,
     knee_hinge,
     leg_chain,
@@ -358,3 +359,93 @@ def test_a_blend_near_a_half_turn_does_not_swing_the_limb(
     # a half turn taken away over the blend's 15 frames by the Hermite curve: its
     # fastest frame turns 1.5 x 180 / 15 = 18 degrees
     assert step.max() < 20.0
+
+
+def _reference_follow(want: np.ndarray, own: np.ndarray, step: float) -> np.ndarray:
+    """``follow_turns`` written with scipy's rotations, frame by frame and joint by joint."""
+    from scipy.spatial.transform import Rotation, Slerp
+
+    def rot(q: np.ndarray) -> Rotation:
+        return Rotation.from_quat(q[..., [1, 2, 3, 0]])  # scipy: (x, y, z, w)
+
+    out = want.copy()
+    for t in range(1, want.shape[0]):
+        for j in range(want.shape[1]):
+            prev, goal = rot(out[t - 1, j]), rot(want[t, j])
+            turn = (prev.inv() * goal).magnitude()
+            cap = max(np.radians(step), own[t, j])
+            if turn > cap:
+                r = Slerp([0.0, 1.0], Rotation.concatenate([prev, goal]))([cap / turn])[0]
+                q = r.as_quat()[[3, 0, 1, 2]]
+                out[t, j] = q if np.dot(q, want[t, j]) >= 0 else -q
+            # (else the wanted rotation itself)
+    return out
+
+
+def test_follow_turns_lets_a_joint_turn_a_step_beyond_its_source() -> None:
+    """A joint whose wanted rotation jumps 90 degrees while its source turns 2 degrees a
+    frame goes ``step`` a frame and catches up; a joint whose source turns faster than
+    ``step`` follows it; every frame equals scipy's slerp of the same rule."""
+    n, step = 30, 10.0
+    axis = np.array([0.0, 0.6, 0.8])
+    ang = np.radians(np.stack((2.0 * np.arange(n), 25.0 * np.arange(n)), axis=1))  # (n, 2)
+    ang[12:, 0] += np.radians(90.0)  # joint 0: a blend's offset lands at once at frame 12
+    want = np.concatenate(
+        (np.cos(ang / 2)[..., None], np.sin(ang / 2)[..., None] * axis), axis=-1
+    )  # (n, 2, 4)
+    own = np.zeros((n, 2))
+    own[1:, 0], own[1:, 1] = np.radians(2.0), np.radians(25.0)
+    out = follow_turns(want, own, step)
+    np.testing.assert_allclose(out, _reference_follow(want, own, step), atol=1e-9)
+    per = np.degrees(np.linalg.norm(qlog(qmul(qconj(out[:-1]), out[1:])), axis=-1))  # (n-1, 2)
+    assert per[:, 0].max() <= step + 1e-6 and per[11, 0] == pytest.approx(step)
+    np.testing.assert_allclose(per[:, 1], 25.0, atol=1e-6)  # the fast source, untouched
+    np.testing.assert_allclose(out[:12], want[:12], atol=1e-12)  # nothing to limit
+    # 90 degrees at 10 - 2 a frame: caught up 12 frames later, then the wanted motion
+    np.testing.assert_allclose(np.abs(np.sum(out[24:, 0] * want[24:, 0], -1)), 1.0, atol=1e-9)
+    with pytest.raises(ValueError, match="want must be"):
+        follow_turns(want[:, 0], own, step)
+    with pytest.raises(ValueError, match="step must be"):
+        follow_turns(want, own, 0.0)
+
+
+def test_a_turn_limit_keeps_every_joint_within_its_step_or_its_source(
+    graph: MotionGraph, medium_lib: Library
+) -> None:
+    """``synthesize(turn_limit=...)`` on a path of several transitions (no IK): no joint
+    turns in a frame by more than the limit's step or its source frame's own turn; a
+    limit no blend reaches changes nothing."""
+    room = _edges_with_room(graph, 5, 40)
+    edges: list[int] = []
+    for e in room:  # a chain of transitions, each taken 3-12 frames after the last lands
+        if not edges or 3 <= int(graph.src[e]) - int(graph.dst[edges[-1]]) <= 12:
+            same = (
+                not edges
+                or graph.locate(int(graph.src[e]))[0] == graph.locate(int(graph.dst[edges[-1]]))[0]
+            )
+            if same:
+                edges.append(int(e))
+        if len(edges) == 4:
+            break
+    assert len(edges) >= 2
+    frames, jumps = _path(graph, edges, 5)
+    edges_a = np.array(edges)
+    plain = synthesize(graph, medium_lib.clips, frames, jumps, edges_a, blend=0.5, ik=False)
+    limit = 150.0
+    held = synthesize(
+        graph, medium_lib.clips, frames, jumps, edges_a, blend=0.5, ik=False, turn_limit=limit
+    )
+    q = held.motion.quats
+    per = np.linalg.norm(qlog(qmul(qconj(q[:-1]), q[1:])), axis=-1)  # (T - 1, J) radians
+    src = np.concatenate([c.motion.quats for c in medium_lib.clips])[frames]
+    own = np.linalg.norm(qlog(qmul(qconj(src[:-1]), src[1:])), axis=-1)
+    own[jumps - 1] = np.inf  # (across a jump the source's own turn is its virtual frame's)
+    cap = np.maximum(np.radians(limit / graph.fps), own) + 1e-9
+    assert (per <= cap).all()
+    assert not np.allclose(held.motion.quats, plain.motion.quats)  # the blends were limited
+    loose = synthesize(
+        graph, medium_lib.clips, frames, jumps, edges_a, blend=0.5, ik=False, turn_limit=1e9
+    )
+    np.testing.assert_allclose(loose.motion.quats, plain.motion.quats, atol=1e-12)
+    with pytest.raises(ValueError, match="turn_limit"):
+        synthesize(graph, medium_lib.clips, frames, jumps, edges_a, turn_limit=0.0)
