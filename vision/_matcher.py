@@ -36,7 +36,14 @@ from ._index import WindowIndex, best_of, cached_window_index
 from ._paths import CandidatePaths
 from ._tables import cached_shape_stats, cached_window_tables
 from ._vote import ActionVote
-from ._windows import bank_sequences, best_window, per_frame_cost, performer_queries, window_cost
+from ._windows import (
+    bank_sequences,
+    best_window,
+    per_frame_cost,
+    performer_queries,
+    phased_targets,
+    window_cost,
+)
 
 __all__ = ["EARLY_WINDOWS", "Matcher"]
 
@@ -291,7 +298,7 @@ class Matcher(CandidatePaths):
         if not got or self._rejected(got[0][2], queries[0]):
             return None  # (why says so when the best was rejected)
         self.why = ""
-        target, ok, there = self._targets(frame, got, costs)
+        target, ok, there = self._targets(frame, got, costs, queries)
         voted = self.vote.cast(target, self._choice(queries, ranked))
         if there.any():  # the avatar does one of the best windows: its cost is its own
             self.last_own = min(g[2] for g, t in zip(got, there, strict=True) if t)
@@ -381,18 +388,28 @@ class Matcher(CandidatePaths):
         st = self.settings
         only = self.vote.starts(self.n)
         got = best_of(ranked, st.top, only)
-        target, ok, _ = self._targets(frame, got, costs)
+        target, ok, _ = self._targets(frame, got, costs, queries)
         voted = self.vote.gate(target)
         if not (ok & voted).any() and not at_voted.any():
             got = self.index().search(queries, st.band, st.top, only)
-            target, ok, _ = self._targets(frame, got, costs)
+            target, ok, _ = self._targets(frame, got, costs, queries)
             voted = self.vote.gate(target)
         return got, target, ok, voted
 
-    def _targets(self, frame: int, got: list[tuple[int, int, float]], costs: JumpCosts) -> Gate:
-        """The frames after windows ``got`` (where the performer is now), which a jump from
-        ``frame`` may land on, and which the avatar is about to be at anyway (no jump)."""
+    def _targets(
+        self,
+        frame: int,
+        got: list[tuple[int, int, float]],
+        costs: JumpCosts,
+        queries: list[FloatArray],
+    ) -> Gate:
+        """The frames after windows ``got`` (where the performer is now; placed by the
+        performer's last frames, ``phased_targets``), which a jump from ``frame`` may land
+        on, and which the avatar is about to be at anyway (no jump)."""
         target = np.array([g[0] for g in got], dtype=np.int64) + self.n
+        views = np.array([g[1] for g in got], dtype=np.int64)
+        shape = self._global_tables()[0]
+        target = phased_targets(target, views, queries, shape, self._runs, self.settings.phase)
         ok = target < self.graph.n_frames
         ok[ok] &= costs.landing[target[ok]] & self.plays[target[ok] - 1]
         there = (target >= frame - 2) & (target <= frame + self.n) & self._same_run(frame, target)

@@ -14,11 +14,13 @@ from control.dtw import SHAPE_DTYPE, ShapeTable, dtw_best_window, dtw_windows
 from silhouette_bank import DEFAULT_DESCRIPTOR, Bank, Descriptor, get_descriptor
 
 __all__ = [
+    "PHASE_FRAMES",
     "bank_sequences",
     "best_window",
     "per_frame_cost",
     "performer_queries",
     "performer_sequence",
+    "phased_targets",
     "shape_stats",
     "window_cost",
     "window_tables",
@@ -170,3 +172,42 @@ def best_window(
         if got[2] < best[2]:
             best = got
     return best
+
+
+#: frames of the performer's last (0.2 s at 15 frames/s) that place a window's end
+PHASE_FRAMES = 3
+
+
+def phased_targets(
+    target: IntArray,
+    views: IntArray,
+    queries: list[FloatArray],
+    shape: ShapeTable,
+    runs: IntArray,
+    shift: int,
+) -> IntArray:
+    """Each ``target`` (the frame after a window, where the performer is now, seen from
+    table view ``views``), moved by up to ``shift`` frames within its clip's run
+    (``runs``: a run id per table frame) to where the library's last ``PHASE_FRAMES``
+    frames before it are nearest the performer's last (``queries``' shape numbers, the
+    nearer reading, no time warping). DTW places a window's end loosely: its band lets
+    the last frames slide, and the window costs about the same."""
+    if shift <= 0 or target.size == 0:
+        return target
+    n, d = shape.shape[0], shape.shape[2]
+    step = np.arange(-shift, shift + 1)
+    end = target[:, None] - 1 + step[None, :]  # the window's last frame, moved
+    m = min(PHASE_FRAMES, *(q.shape[0] for q in queries))
+    lo = end - m + 1
+    home = runs[np.clip(target - 1, 0, n - 1)][:, None]
+    ok = (lo >= 0) & (end + 1 < n)
+    ok &= (runs[np.clip(lo, 0, n - 1)] == home) & (runs[np.clip(end + 1, 0, n - 1)] == home)
+    rows = np.clip(lo[..., None] + np.arange(m), 0, n - 1)  # (K, 2 shift + 1, m)
+    tab = shape[rows, views[:, None, None]].astype(np.float64)  # (K, 2 shift + 1, m, d)
+    cost = np.min(
+        [np.sum((tab - q[None, None, -m:, :d]) ** 2, axis=(-1, -2)) for q in queries], axis=0
+    )
+    cost[~ok] = np.inf
+    cost[:, shift] = np.where(ok[:, shift], cost[:, shift], -np.inf)  # (unmoved: never worse)
+    best = np.argmin(cost, axis=1)
+    return np.asarray(target + step[best], dtype=np.int64)

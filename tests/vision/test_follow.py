@@ -192,14 +192,14 @@ def test_a_jump_is_scored_by_its_match_and_with_a_blend_weight_by_its_blend_too(
     frame, j = 40, 200  # the performer does the window that ends at frame j, seen from view 3
     recent = np.arange(frame - 30, frame + 1, dtype=np.int64)
     for w in (0.0, 1.0):
-        m = Matcher(layer, bank, MatchSettings(blend_weight=w, hold=0.0))
+        m = Matcher(layer, bank, MatchSettings(blend_weight=w, hold=0.0, phase=0))
         window = np.arange(j - m.n + 1, j + 1)
         performer = bank.features[m.to_bank[window], 3].astype(np.float64)
         performer += 0.02 * np.random.default_rng(0).normal(size=performer.shape)
         queries = m.queries(performer)
         assert queries is not None
         got = m.index().search(queries, m.settings.band, m.settings.top)
-        target, ok, _ = m._targets(frame, got, costs)
+        target, ok, _ = m._targets(frame, got, costs, queries)
         assert ok.sum() >= 3
         costs.near = int(target[ok][2])  # the third best match
         d = m.jump(frame, performer, recent, costs, queries)
@@ -234,3 +234,29 @@ def test_the_playgrounds_climbs_are_left_out(mocap: Path, tmp_path: Path, capsys
     assert set(on_the_floor(lib.clips)[1]) == left  # the playground's floor-leaving takes
     motion = read_bvh(out)
     assert off_floor_seconds(motion, floor_level(lib.clips), FLOOR_ABOVE) <= 0.5
+
+
+def test_a_jumps_target_moves_to_where_the_performers_last_frames_are() -> None:
+    """``phased_targets``: a target a few frames off the library frames that match the
+    performer's last ``PHASE_FRAMES`` moves onto them, within ``shift`` and within its
+    clip's run; the nearer of two readings counts; ``shift`` 0 moves nothing."""
+    from vision._windows import PHASE_FRAMES, phased_targets
+
+    rng = np.random.default_rng(3)
+    n, views, d = 120, 4, 6
+    # a motion that moves on steadily: the further a frame from another, the less alike
+    shape = (0.1 * np.arange(n)[:, None, None] * rng.normal(size=(1, views, d))).astype(np.float32)
+    runs = np.repeat([0, 1], [60, 60])  # two clips' runs: frames 0-59 and 60-119
+    end = 40  # the performer's last frames are the library's frames up to 40, view 2
+    tail = shape[end - PHASE_FRAMES + 1 : end + 1, 2].astype(np.float64)
+    query = np.concatenate((rng.normal(size=(10, d)), tail))
+    query = np.concatenate((query, np.zeros((query.shape[0], 2))), axis=1)  # the centre
+    other = query + 5.0  # a reading that matches nothing
+    views_ = np.array([2, 2, 2, 2])
+    target = np.array([end + 1 - 4, end + 1, end + 1 + 3, end + 1 + 9])
+    got = phased_targets(target, views_, [other, query], shape, runs, 6)
+    np.testing.assert_array_equal(got, [end + 1, end + 1, end + 1, end + 1 + 3])  # (9: 6 at most)
+    np.testing.assert_array_equal(phased_targets(target, views_, [query], shape, runs, 0), target)
+    # a target by the end of its run is moved only within it, never into the next clip
+    near = np.array([58])
+    assert 58 - 6 <= phased_targets(near, np.array([2]), [query], shape, runs, 6)[0] <= 59
