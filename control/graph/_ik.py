@@ -67,6 +67,27 @@ TURN_RATE = 300.0
 
 
 @numba.njit(cache=True)
+def turn_toward(
+    pw: float, px: float, py: float, pz: float, w: float, x: float, y: float, z: float, step: float
+) -> tuple[float, float, float, float]:  # pragma: no cover
+    """The rotation ``(w, x, y, z)``, or where it is more than ``step`` radians from
+    ``(pw, px, py, pz)``, the one ``step`` of the way to it along the shorter arc (numba;
+    the sign is the hemisphere of ``p``)."""
+    dot = pw * w + px * x + py * y + pz * z
+    if dot < 0.0:
+        w, x, y, z, dot = -w, -x, -y, -z, -dot
+    theta = math.acos(min(dot, 1.0))  # half the turn
+    if 2.0 * theta > step:
+        t = step / (2.0 * theta)
+        a = math.sin((1.0 - t) * theta) / math.sin(theta)
+        b = math.sin(t * theta) / math.sin(theta)
+        w, x, y, z = a * pw + b * w, a * px + b * x, a * py + b * y, a * pz + b * z
+        size = math.sqrt(w * w + x * x + y * y + z * z)
+        w, x, y, z = w / size, x / size, y / size, z / size
+    return w, x, y, z
+
+
+@numba.njit(cache=True)
 def _limit_turns(q: FloatArray, frames: IntArray, step: float) -> FloatArray:  # pragma: no cover
     out = q.copy()
     n = out.shape[0]
@@ -77,18 +98,7 @@ def _limit_turns(q: FloatArray, frames: IntArray, step: float) -> FloatArray:  #
             pw, px, py, pz = 1.0, 0.0, 0.0, 0.0  # a run of frames starts (ends) uncorrected
         else:
             pw, px, py, pz = out[near, 0], out[near, 1], out[near, 2], out[near, 3]
-        w, x, y, z = out[i, 0], out[i, 1], out[i, 2], out[i, 3]
-        dot = pw * w + px * x + py * y + pz * z
-        if dot < 0.0:
-            w, x, y, z, dot = -w, -x, -y, -z, -dot
-        theta = math.acos(min(dot, 1.0))  # half the turn
-        if 2.0 * theta > step:
-            t = step / (2.0 * theta)
-            a = math.sin((1.0 - t) * theta) / math.sin(theta)
-            b = math.sin(t * theta) / math.sin(theta)
-            w, x, y, z = a * pw + b * w, a * px + b * x, a * py + b * y, a * pz + b * z
-            size = math.sqrt(w * w + x * x + y * y + z * z)
-            w, x, y, z = w / size, x / size, y / size, z / size
+        w, x, y, z = turn_toward(pw, px, py, pz, out[i, 0], out[i, 1], out[i, 2], out[i, 3], step)
         out[i, 0], out[i, 1], out[i, 2], out[i, 3] = w, x, y, z
     return out
 

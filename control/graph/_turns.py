@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..motion import FloatArray, qconj, qlog, qmul
+from ._ik import turn_toward
 
 __all__ = ["follow_turns", "own_turns"]
 
@@ -29,19 +30,8 @@ def _follow_turns(want: FloatArray, cap: FloatArray) -> FloatArray:  # pragma: n
     n, joints = want.shape[0], want.shape[1]
     for i in range(1, n):
         for j in range(joints):
-            pw, px, py, pz = out[i - 1, j, 0], out[i - 1, j, 1], out[i - 1, j, 2], out[i - 1, j, 3]
-            w, x, y, z = want[i, j, 0], want[i, j, 1], want[i, j, 2], want[i, j, 3]
-            dot = pw * w + px * x + py * y + pz * z
-            if dot < 0.0:
-                w, x, y, z, dot = -w, -x, -y, -z, -dot
-            theta = math.acos(min(dot, 1.0))  # half the turn
-            if 2.0 * theta > cap[i, j]:
-                t = cap[i, j] / (2.0 * theta)
-                a = math.sin((1.0 - t) * theta) / math.sin(theta)
-                b = math.sin(t * theta) / math.sin(theta)
-                w, x, y, z = a * pw + b * w, a * px + b * x, a * py + b * y, a * pz + b * z
-                size = math.sqrt(w * w + x * x + y * y + z * z)
-                w, x, y, z = w / size, x / size, y / size, z / size
+            p, q = out[i - 1, j], want[i, j]
+            w, x, y, z = turn_toward(p[0], p[1], p[2], p[3], q[0], q[1], q[2], q[3], cap[i, j])
             out[i, j, 0], out[i, j, 1], out[i, j, 2], out[i, j, 3] = w, x, y, z
     return out
 
