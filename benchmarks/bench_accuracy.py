@@ -11,8 +11,10 @@ library is every other clip (or every other clip of ``--clips``). ``--recordings
 each held-out take more ways (``RECORDINGS``: a side camera, a high one, a thinner body
 with ragged edges, other proportions: ``long_legs``, ``short_legs``; cameras behind,
 left, low and far, a wider body: ``az140``, ``az-60``, ``low_far``, ``wide``; the take
-mirrored, a performer using the other arm and leg: ``mirrored``), each a run of its own:
-one recording a fold swings with a setting. With ``--descriptor pose`` the performer is
+mirrored, a performer using the other arm and leg: ``mirrored``; the take at 0.7, 0.5 and
+1.3 times its tempo: ``slow``, ``slower``, ``fast``; the take with a still pause of 2 s
+every 6 s: ``pauses``, ``benchmarks._takes``), each a run of its own: one recording a fold
+swings with a setting. With ``--descriptor pose`` the performer is
 not the recording's silhouettes but the landmarks a pose model would give of the same
 performer and camera (``benchmarks._landmarks``: the take's joints on the recording's
 body, 3% noise), what a camera with MediaPipe feeds the matcher. For each match
@@ -25,6 +27,9 @@ performer did ``lag`` seconds earlier):
   performer frame scores 1; beside it, ``score_either_side``: each avatar frame or its
   mirror image, whichever is nearer (a silhouette cannot tell a pose seen from the front
   from its mirror image seen from behind);
+- with ``pauses``, ``holds``: what the avatar does while the performer stands still
+  (from 0.5 s into each pause): its jumps a minute, how far its joints turn a frame
+  (the largest turn, beside it the same elsewhere) and its pose score there;
 - label agreement: the fraction of decisions at which the avatar's frame carries the
   performer's action label (frames of unlabelled clips count as disagreement);
 - recognition: the matcher's global window search alone (no avatar), the fraction of
@@ -41,6 +46,7 @@ import argparse
 import ast
 import dataclasses
 import itertools
+import re
 import tempfile
 import time
 from pathlib import Path
@@ -51,6 +57,7 @@ import numpy as np
 from benchmarks._landmarks import LandmarkSource, landmark_points
 from benchmarks._oracle import pose_oracle
 from benchmarks._report import machine, save
+from benchmarks._takes import held_since, hold_figures, paused_clip, retimed_clip
 from control.clusters import cached_higher_layer
 from control.dtw import dtw_best_window
 from control.graph import (
@@ -207,6 +214,7 @@ def _run_figures(
     walk_frames: np.ndarray,
     train: list[Any],
     lib_q_mirror: np.ndarray | None = None,
+    holds: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """Agreement, pose score, coherence, latency and physical checks of one perform run.
     With ``lib_q_mirror`` (the library's rotations, each clip mirrored), also the pose
@@ -272,6 +280,12 @@ def _run_figures(
     lib_slide = np.concatenate([foot_slide(c.motion, c.contacts.states) for c in train])
     lib_jj = np.concatenate([joint_jumps(c.motion) for c in train])
     at = jumps_at[(jumps_at >= 1) & (jumps_at <= syn_jumps.size)] - 1
+    still = None
+    if holds is not None:  # what the avatar does while the performer stands still
+        still = hold_figures(holds, fps, times, motion, r.avatar_start_s, jumps_at)
+        b = held_since(holds, fps)[np.clip(np.round(times * fps).astype(int), 0, holds.size - 1)]
+        err = _pose_dist(lib_q[frames[b]], truth_q[np.round(times[b] * fps).astype(int)])
+        still["pose_score"] = round(float((random_err - err.mean()) / (random_err - nearest)), 3)
     return {
         "window": window,
         "lookahead": lookahead,
@@ -303,6 +317,7 @@ def _run_figures(
             "joint_change_p99_deg": float(np.percentile(syn_jumps[at], 99)) if at.size else None,
             "library_joint_change_p99_deg": float(np.percentile(lib_jj, 99)),
         },
+        "holds": still,
     }
 
 
@@ -324,9 +339,20 @@ RECORDINGS = {
     "wide": RecordSettings(body=BodyShape(width=1.3, height=0.95), azimuth=-100.0, seed=5),
     # the take mirrored: a performer who uses the other arm and leg (``MIRRORED``)
     "mirrored": RecordSettings(seed=6),
+    # the take with a still pause of 2 s every 6 s, as real performers stop (``PAUSED``)
+    "pauses": RecordSettings(seed=7),
+    # the take at another tempo (``TEMPO``; the shared squat clip's are 0.45 of the
+    # library's)
+    "slow": RecordSettings(seed=8),
+    "slower": RecordSettings(seed=10),
+    "fast": RecordSettings(seed=9),
 }
 #: recordings of the held-out take mirrored left for right (the library is not)
 MIRRORED = frozenset({"mirrored"})
+#: recordings of the held-out take with pauses (``benchmarks._pauses``)
+PAUSED = frozenset({"pauses"})
+#: recordings of the held-out take at another tempo (``benchmarks._takes``)
+TEMPO = {"slow": 0.7, "slower": 0.5, "fast": 1.3}
 
 
 def fold(
@@ -431,12 +457,20 @@ def fold(
     out["recordings"] = {}
     for rec in recordings:
         ctx = (perf_clip, layer, bank, train, lib_labels, lib_q, truth_q, walk_frames, lib_qm)
+        holds = None
         if rec in MIRRORED:  # (its pose score keeps the take's scale: random walk, nearest)
             assert other_side is not None
             q = other_side.motion.quats[:, joints]
             ctx = (other_side, layer, bank, train, lib_labels, lib_q, q, walk_frames, lib_qm)
+        elif rec in PAUSED or rec in TEMPO:
+            if rec in PAUSED:
+                other, holds = paused_clip(perf_clip)
+            else:
+                other = retimed_clip(perf_clip, TEMPO[rec])
+            q = other.motion.quats[:, joints]
+            ctx = (other, layer, bank, train, lib_labels, lib_q, q, walk_frames, lib_qm)
         recognition, ceiling, runs = _recorded_runs(
-            rec, ctx, settings, stay, match, random_err, float(nearest.mean())
+            rec, ctx, settings, stay, match, random_err, float(nearest.mean()), holds
         )
         out["recordings"][rec] = {"settings": RECORDINGS[rec].to_dict(), "recognition": recognition}
         out.setdefault("recognition", recognition)  # the first recording's
@@ -453,6 +487,7 @@ def _recorded_runs(
     match: dict[str, Any] | None,
     random_err: float,
     nearest: float,
+    holds: np.ndarray | None = None,
 ) -> tuple[dict[str, Any], float, list[dict[str, Any]]]:
     """The held-out take filmed as recording ``rec`` (``RECORDINGS``): recognition alone,
     the label ceiling, and a run of ``perform`` per match setting."""
@@ -507,6 +542,7 @@ def _recorded_runs(
                 walk_frames,
                 train,
                 lib_qm,
+                holds,
             )
             fig["recording"] = rec
             fig["evaluate"] = {
@@ -598,7 +634,7 @@ def main() -> None:
         (float(w), float(a)) for w, a in (s.split(":") for s in args.settings.split(","))
     )
     match: dict[str, Any] = {}
-    for item in filter(None, args.match.split(",")):
+    for item in filter(None, re.split(r",(?![^()]*\))", args.match)):  # (not in tuples)
         key, _, value = item.partition("=")
         match[key.strip()] = ast.literal_eval(value.strip())
     recordings = tuple(r for r in args.recordings.split(",") if r)

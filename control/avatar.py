@@ -218,8 +218,9 @@ class Avatar:
 
     def take(self, frames: Sequence[int] | IntArray, edges: Sequence[int] | IntArray) -> None:
         """Perform a path: ``frames[0]`` must be the current frame; ``edges[i]`` is the
-        transition into ``frames[i + 1]`` (-1 for playback, ``JUMP`` for a direct blended
-        jump to a frame of the component). Replaces any path in progress."""
+        transition into ``frames[i + 1]`` (-1 for playback, or for the same frame again:
+        held still; ``JUMP`` for a direct blended jump to a frame of the component).
+        Replaces any path in progress."""
         frames = [int(f) for f in frames]
         edges = [int(e) for e in edges]
         if not frames or frames[0] != self.frame:
@@ -231,7 +232,7 @@ class Avatar:
             ok = (
                 bool(self.jump_costs.landing[g])
                 if e == JUMP
-                else (e == -1 and g == f + 1 and plays[f])
+                else (e == -1 and (g == f or (g == f + 1 and plays[f])))
                 if e < 0
                 else (
                     0 <= e < self.graph.n_edges

@@ -95,6 +95,19 @@ class MatchSettings:
     #: the same decision for decision (3 frames moved: 0.692; 10: 0.696; 2, 5 or 8
     #: compared: 0.701, 0.696, 0.682)
     phase: int = 6
+    #: the action vote also reads the performer at these tempos against the library's
+    #: (0.6: the performer moves at 0.6 times its speed, so their last ``window / 0.6``
+    #: seconds are resampled to a window; ``vision._windows.tempo_readings``); where the
+    #: avatar lands stays by the performer as seen. Off by default: (0.6,) measured on
+    #: 2026-12-04 (bench_accuracy, landmarks, 3 takes x 4 recordings at tempos 1, 0.7,
+    #: 0.5 and 1.3) lifted label agreement 0.907 -> 0.923 (the takes at 0.5: 0.843 ->
+    #: 0.897) but cost pose score 0.715 -> 0.707, and the shared squat clip (its squats at
+    #: 0.45) lost one decision of 39 at lag <= 1 s; with silhouettes a decision's p99 went
+    #: over 5 ms (5.2-7.6) and 13_29 lost agreement (0.906 -> 0.879)
+    tempos: tuple[float, ...] = ()
+    #: with jumps, the avatar may hold its frame still (``Matcher.held``) when that
+    #: matches a performer standing still better than any jump or playing on
+    still: bool = True
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.stay < 1.0:
@@ -109,6 +122,9 @@ class MatchSettings:
             raise ValueError(f"vote must be a number of decisions >= 0 (0: off), got {self.vote}")
         if self.reject is not None and not self.reject > 0:
             raise ValueError(f"reject must be positive, got {self.reject}")
+        object.__setattr__(self, "tempos", tuple(self.tempos))
+        if not all(isinstance(t, (int, float)) and 0.25 <= t <= 4.0 for t in self.tempos):
+            raise ValueError(f"tempos must be numbers in [0.25, 4], got {self.tempos}")
 
 
 @dataclass(frozen=True, eq=False)

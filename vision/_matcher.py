@@ -20,6 +20,7 @@ costing more than ``reject`` per frame is no match: ``why`` says so.
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 
 import numpy as np
@@ -33,6 +34,7 @@ from silhouette_bank import Bank
 from ._classify import ActionClassifier, cached_action_classifier, voted_action
 from ._decision import Decision, MatchSettings
 from ._index import WindowIndex, best_of, cached_window_index
+from ._landing import Landing
 from ._paths import CandidatePaths
 from ._tables import cached_shape_stats, cached_window_tables
 from ._vote import ActionVote
@@ -41,7 +43,7 @@ from ._windows import (
     best_window,
     per_frame_cost,
     performer_queries,
-    phased_targets,
+    tempo_readings,
     window_cost,
 )
 
@@ -54,10 +56,9 @@ EARLY_WINDOWS = 150_000
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
-Gate = tuple[IntArray, NDArray[np.bool_], NDArray[np.bool_]]
 
 
-class Matcher(CandidatePaths):
+class Matcher(CandidatePaths, Landing):
     """Matches a performer's recent features against the avatar's candidate actions."""
 
     def __init__(
@@ -110,6 +111,8 @@ class Matcher(CandidatePaths):
         #: needs at least this many (and a window's) ``recent`` frames
         self.hold_frames = max(1, round(self.settings.hold * self.graph.fps))
         self.recent_frames = max(self.n, self.hold_frames + 1)
+        #: performer frames ``decide`` reads (its ``tempos`` need more than a window)
+        self.history_frames = max([self.n] + [math.ceil(self.n / t) for t in self.settings.tempos])
         #: the avatar's own recent cost at the last ``jump`` (``inf`` before a window)
         self.last_own = float("inf")
         d_max = layer.graph.report.get("max_distance") if layer.graph.report else None
@@ -171,17 +174,14 @@ class Matcher(CandidatePaths):
         (``Descriptor.variants``: as seen, mirrored, ...). ``None`` (and ``why``) when
         fewer than half the window's frames are usable."""
         self._check(performer)
-        ok = np.isfinite(performer).all(axis=1)
+        now = performer[-self.n :]
+        ok = np.isfinite(now).all(axis=1)
         if ok.sum() < max(2, self.n // 2):
             self.why = "no silhouette" if self.desc.kind == "silhouette" else "no pose"
             return None
+        st = self.settings
         return performer_queries(
-            performer[ok],
-            self.desc,
-            self.mean,
-            self.proj,
-            self.settings.centre_weight,
-            self.settings.mirror,
+            now[ok], self.desc, self.mean, self.proj, st.centre_weight, st.mirror
         )
 
     def per_frame(self, cost: float, query: FloatArray) -> float:
@@ -220,7 +220,7 @@ class Matcher(CandidatePaths):
         if starts.size == 0:
             self.why = "no window in the component"
             return []
-        span = performer.shape[0]
+        span = min(performer.shape[0], self.n)
         # a window not yet whole (the first second) by brute force too, over windows of
         # its own length: the index holds whole windows
         if exact or span < self.n:
@@ -299,7 +299,7 @@ class Matcher(CandidatePaths):
             return None  # (why says so when the best was rejected)
         self.why = ""
         target, ok, there = self._targets(frame, got, costs, queries)
-        voted = self.vote.cast(target, self._choice(queries, ranked))
+        voted = self.vote.cast(target, self._choice(queries, ranked, performer))
         if there.any():  # the avatar does one of the best windows: its cost is its own
             self.last_own = min(g[2] for g, t in zip(got, there, strict=True) if t)
         if voted is not None and not (ok & voted).any():
@@ -321,7 +321,8 @@ class Matcher(CandidatePaths):
             own = self.own_cost(queries, self.own_frames(frame, recent))
         self.last_own = own
         m, lead = self.hold_frames, self._lead_in(recent)
-        settled = leave or lead.size < m or bool(np.all(np.diff(lead[-m:]) == 1))
+        # (a frame held still, as played on, lets it jump)
+        settled = leave or lead.size < m or bool(np.isin(np.diff(lead[-m:]), (0, 1)).all())
         # the blend only adds to a match's cost: no (slower) distances when the best cannot win
         if (not settled or not match.min() < st.jump_ratio * own) and np.isfinite(own):
             return None
@@ -343,7 +344,7 @@ class Matcher(CandidatePaths):
             view=int(got[i][1]) % self.ring_views,
             candidates=int(idx.size),
             latency_ms=(time.perf_counter() - t0) * 1e3,
-            extra={"jump": j, "own": own, "blend": float(blend)},
+            extra={"jump": j, "own": own, "blend": float(blend), "leave": float(leave)},
         )
 
     def classifier(self) -> ActionClassifier | None:
@@ -361,15 +362,24 @@ class Matcher(CandidatePaths):
         return self._classifier[0]
 
     def _choice(
-        self, queries: list[FloatArray], ranked: list[tuple[IntArray, IntArray, FloatArray]]
+        self,
+        queries: list[FloatArray],
+        ranked: list[tuple[IntArray, IntArray, FloatArray]],
+        performer: FloatArray,
     ) -> int | None:
-        """The action this decision votes for (``voted_action``); ``None``: the best
-        window's."""
+        """The action this decision votes for (``voted_action``), the performer's
+        features read at ``settings.tempos`` too; ``None``: the best window's."""
         if self.vote.actions is None or self.vote.size <= 0:
             return None
+        st = self.settings
+        args = (self.desc, self.mean, self.proj, st.centre_weight)
+        extra = tempo_readings(performer, self.n, st.tempos, queries[0].shape[0], *args)
+        if extra:
+            ranked = list(ranked)
+            self.index().search(extra, st.band, st.top, ranked=ranked)
         clf = self.classifier()
         n = self._classifier[1] if self._classifier else 0
-        return voted_action(ranked, self.vote.actions, self.n, clf, queries, n)
+        return voted_action(ranked, self.vote.actions, self.n, clf, queries + extra, n)
 
     def _voted_windows(
         self,
@@ -396,38 +406,6 @@ class Matcher(CandidatePaths):
             voted = self.vote.gate(target)
         return got, target, ok, voted
 
-    def _targets(
-        self,
-        frame: int,
-        got: list[tuple[int, int, float]],
-        costs: JumpCosts,
-        queries: list[FloatArray],
-    ) -> Gate:
-        """The frames after windows ``got`` (where the performer is now; placed by the
-        performer's last frames, ``phased_targets``), which a jump from ``frame`` may land
-        on, and which the avatar is at anyway, within 2 frames in its run (no jump; up to
-        a window ahead before 2026-12-04, which left it out of step: pose score 0.701 ->
-        0.708 on bench_accuracy's 12 landmark runs, 0.703 -> 0.710 on the 18 checks)."""
-        target = np.array([g[0] for g in got], dtype=np.int64) + self.n
-        views = np.array([g[1] for g in got], dtype=np.int64)
-        shape = self._global_tables()[0]
-        target = phased_targets(target, views, queries, shape, self._runs, self.settings.phase)
-        ok = target < self.graph.n_frames
-        ok[ok] &= costs.landing[target[ok]] & self.plays[target[ok] - 1]
-        there = (np.abs(target - frame) <= 2) & self._same_run(frame, target)
-        return target, ok & ~there, there
-
-    def _playback(self, frame: int) -> IntArray:
-        """``frame`` and up to a window of frames playing on from it."""
-        out = [frame]
-        while len(out) <= self.n and self.plays[out[-1]]:
-            out.append(out[-1] + 1)
-        return np.array(out, dtype=np.int64)
-
-    def _same_run(self, frame: int, target: IntArray) -> NDArray[np.bool_]:
-        """Whether ``frame`` plays on to each of ``target`` (or back from it)."""
-        return self._runs[np.clip(target, 0, self.graph.n_frames - 1)] == self._runs[frame]
-
     def decide(
         self,
         frame: int,
@@ -446,10 +424,11 @@ class Matcher(CandidatePaths):
             return None
         if self.settings.jumps and recent is not None and jump_costs is not None:
             j = self.jump(frame, performer, recent, jump_costs, queries)
+            if j is None and self.why:  # the best window was rejected: nothing real matches
+                return None
+            j = self.held(frame, queries, j) or j  # a performer standing still
             if j is not None:
                 return dataclasses.replace(j, latency_ms=(time.perf_counter() - t0) * 1e3)
-            if self.why:  # the best window was rejected: nothing real matches
-                return None
             on = self._playback(frame)
             lee = self.settings.cluster_paths and self.layer.forest.tree_of[frame] >= 0
             if not lee and on.size > 1:

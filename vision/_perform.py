@@ -172,6 +172,8 @@ class Performance:
         self.why_blank = ""  # why the latest frame has no features
         self.period = 1.0 / self.graph.fps
         self.buffer: deque[NDArray[np.float64]] = deque(maxlen=matcher.n)
+        #: the buffer's frames and those before, as many as the matcher's tempos read
+        self.history: deque[NDArray[np.float64]] = deque(maxlen=matcher.history_frames)
         self.blank = np.full(matcher.n_features, np.nan)  # a frame without a silhouette
         self.latest = self.blank
         self.latest_mask: NDArray[np.bool_] | None = None
@@ -269,6 +271,7 @@ class Performance:
         """The library-rate buffer, and the avatar's clock, up to media time ``t``."""
         while self.next_tick <= t + 1e-9:
             self.buffer.append(self.latest)
+            self.history.append(self.latest)
             self.next_tick += self.period
         while self.t_avatar + self.period <= t + 1e-9:
             self.avatar.step()
@@ -367,7 +370,10 @@ class Performance:
             buffer = np.array(self.buffer)
             d = (
                 matcher.decide(
-                    avatar.frame, buffer, avatar.recent(matcher.recent_frames), avatar.jump_costs
+                    avatar.frame,
+                    np.array(self.history),
+                    avatar.recent(matcher.recent_frames),
+                    avatar.jump_costs,
                 )
                 if self.jumps
                 else matcher.decide(avatar.frame, buffer)
@@ -392,6 +398,8 @@ class Performance:
         self.view = d.view if d.view >= 0 else self.view
         if "plays_on" in d.extra:
             entry["plays_on"] = True
+        if "held" in d.extra:
+            entry["held"] = True
         if "jump" in d.extra:
             own = d.extra["own"]
             entry.update(

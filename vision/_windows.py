@@ -6,6 +6,7 @@ cost and the best window by exact DTW."""
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,7 +22,9 @@ __all__ = [
     "performer_queries",
     "performer_sequence",
     "phased_targets",
+    "retimed",
     "shape_stats",
+    "tempo_readings",
     "window_cost",
     "window_tables",
 ]
@@ -211,3 +214,41 @@ def phased_targets(
     cost[:, shift] = np.where(ok[:, shift], cost[:, shift], -np.inf)  # (unmoved: never worse)
     best = np.argmin(cost, axis=1)
     return np.asarray(target + step[best], dtype=np.int64)
+
+
+def retimed(performer: FloatArray, span: int, rows: int) -> FloatArray | None:
+    """The performer's last ``span`` frames ``(span, F)`` resampled to ``rows`` frames
+    (linearly, over the frames with features); ``None`` when fewer than ``span`` frames
+    are there or fewer than half of them have features."""
+    if span < 2 or performer.shape[0] < span or span == rows:
+        return None
+    seg = performer[-span:]
+    ok = np.isfinite(seg).all(axis=1)
+    if ok.sum() < max(2, span // 2):
+        return None
+    t = np.flatnonzero(ok).astype(np.float64)
+    at = np.linspace(0.0, span - 1.0, rows)
+    good = seg[ok]
+    return np.stack([np.interp(at, t, good[:, j]) for j in range(seg.shape[1])], axis=1)
+
+
+def tempo_readings(
+    performer: FloatArray,
+    n: int,
+    tempos: Sequence[float],
+    rows: int,
+    desc: Descriptor,
+    mean: FloatArray,
+    proj: FloatArray,
+    centre_weight: float,
+) -> list[FloatArray]:
+    """DTW queries of the performer's features ``(m, F)`` read at each of ``tempos``
+    against the library's (0.6: the performer moves at 0.6 times its speed, so their
+    last ``n / 0.6`` frames stand for a window of ``n``), ``retimed`` to ``rows`` frames
+    and read as seen only; a tempo without enough frames gives none."""
+    out: list[FloatArray] = []
+    for tempo in tempos:
+        got = retimed(performer, round(n / tempo), rows)
+        if got is not None:
+            out += performer_queries(got, desc, mean, proj, centre_weight, False)
+    return out

@@ -148,7 +148,7 @@ def synthesize(
     Parameters
     ----------
     graph, clips : the graph and the library clips it was built from.
-    frames : (T,) graph frames; consecutive entries play on or follow a transition.
+    frames : (T,) graph frames; consecutive ones play on, hold still or follow a transition.
     jumps : (M,) increasing output frames ``t`` where ``frames[t]`` follows transition
         ``edges[m]`` from ``frames[t - 1]``.
     blend : the blend interval b in seconds (Lee et al.: 1-2 s).
@@ -373,10 +373,14 @@ def _check_path(
     played[jumps - 1] = False
     last = np.zeros(n, dtype=bool)
     last[graph.clip_start[1:] - 1] = True
-    wrong = played & ((np.diff(frames) != 1) | last[frames[:-1]])
+    step = np.diff(frames)
+    # a frame plays on to the next, or is held (shown again: a performer standing still)
+    wrong = played & (((step != 1) | last[frames[:-1]]) & (step != 0))
     if wrong.any():
         t = int(np.argmax(wrong)) + 1
-        raise ValueError(f"output frame {t}: frame {frames[t]} neither plays on nor follows a jump")
+        raise ValueError(
+            f"output frame {t}: frame {frames[t]} neither plays on, is held nor follows a jump"
+        )
 
 
 def _foot_targets(

@@ -305,9 +305,32 @@ def test_planted_feet_slide_less(graph: MotionGraph, medium_lib: Library) -> Non
     assert slide_ik < 1.3 * slide_raw
 
 
+def test_a_held_frame_stands_still(graph: MotionGraph, medium_lib: Library) -> None:
+    """A frame shown again (a performer standing still) is the same pose at the same
+    place, its root not moved on, and the motion plays on from there as before (outside
+    a blend: within one, the blend's offset goes on fading)."""
+    frames, jumps, edges = random_walk(graph, 400, seed=1)
+    calm = [
+        t
+        for t in range(1, frames.size - 1)
+        if not np.any((jumps <= t + 1) & (jumps > t - 2 * graph.fps))  # no blend under way
+    ]
+    t = calm[len(calm) // 2]
+    held = np.concatenate((frames[: t + 1], np.full(10, frames[t]), frames[t + 1 :]))
+    later = np.where(jumps > t, jumps + 10, jumps)
+    plain = synthesize(graph, medium_lib.clips, frames, jumps, edges, ik=False)
+    still = synthesize(graph, medium_lib.clips, held, later, edges, ik=False)
+    p, q = still.motion.root_pos, still.motion.quats
+    np.testing.assert_allclose(p[t : t + 11], np.broadcast_to(p[t], (11, 3)))
+    np.testing.assert_allclose(q[t : t + 11], np.broadcast_to(q[t], (11, *q.shape[1:])))
+    np.testing.assert_allclose(p[: t + 1], plain.motion.root_pos[: t + 1])
+    np.testing.assert_allclose(p[t + 11 :], plain.motion.root_pos[t + 1 :], atol=1e-9)
+    np.testing.assert_allclose(q[t + 11 :], plain.motion.quats[t + 1 :], atol=1e-9)
+
+
 def test_bad_paths_are_refused(graph: MotionGraph, medium_lib: Library) -> None:
     frames, jumps, edges = random_walk(graph, 200, seed=1)
-    with pytest.raises(ValueError, match="neither plays on nor follows a jump"):
+    with pytest.raises(ValueError, match="neither plays on, is held nor follows a jump"):
         synthesize(graph, medium_lib.clips, frames[::2], np.zeros(0, int), np.zeros(0, int))
     with pytest.raises(ValueError, match="edge does not lead"):
         synthesize(graph, medium_lib.clips, frames, jumps, np.roll(edges, 1))

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from benchmarks._landmarks import LandmarkSource, landmark_points
-from control.avatar import JUMP, JumpCosts
+from control.avatar import JUMP, Avatar, JumpCosts
 from control.dtw import dtw_batch
 from control.graph import off_floor_seconds
 from control.motion import load_library, read_bvh
@@ -260,3 +260,33 @@ def test_a_jumps_target_moves_to_where_the_performers_last_frames_are() -> None:
     # a target by the end of its run is moved only within it, never into the next clip
     near = np.array([58])
     assert 58 - 6 <= phased_targets(near, np.array([2]), [query], shape, runs, 6)[0] <= 59
+
+
+def test_a_performer_standing_still_is_held_still(setup) -> None:
+    """A performer standing still in the pose of the avatar's frame: the avatar holds that
+    frame (shown again, its root not moved on), rather than jump about among the
+    library's windows, none of which stands still; a performer doing the window that
+    plays into that frame is not held; ``still=False`` never holds."""
+    lib, layer, bank = setup
+    costs = JumpCosts(layer.graph, lib.clips, anywhere=True)
+    m = Matcher(layer, bank)
+    j = 200  # mid-squat in 13_30
+    recent = np.arange(j - 30, j + 1, dtype=np.int64)
+    noise = 0.01 * np.random.default_rng(2).normal(size=(m.n, bank.features.shape[2]))
+    still = np.repeat(bank.features[m.to_bank[[j]], 3].astype(np.float64), m.n, axis=0) + noise
+    d = m.decide(j, still, recent, costs)
+    assert d is not None and "held" in d.extra
+    assert np.all(d.frames == j) and np.all(d.edges == -1) and d.cost < d.runner_up
+    window = m.to_bank[np.arange(j - m.n + 1, j + 1)]
+    moving = bank.features[window, 3].astype(np.float64) + noise
+    d2 = m.decide(j, moving, recent, costs)
+    assert d2 is not None and "held" not in d2.extra
+    off = Matcher(layer, bank, MatchSettings(still=False)).decide(j, still, recent, costs)
+    assert off is not None and "held" not in off.extra
+    # the avatar takes the hold: its frame shown again, standing where it stood
+    avatar = Avatar(layer.graph, lib.clips, start=j, anywhere=True)
+    avatar.take(d.frames, d.edges)
+    for _ in range(5):
+        avatar.step()
+    syn = avatar.motion().motion
+    np.testing.assert_allclose(syn.root_pos[1:], np.broadcast_to(syn.root_pos[0], (5, 3)))
