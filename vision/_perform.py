@@ -7,8 +7,9 @@ the avatar takes what it chose (blending into it); at most one decision a frame,
 a stall the points missed are skipped (the log says how many), not made in a burst. With
 ``MatchSettings.jumps`` (the default) that is motion matching: a direct blended jump into
 the frame after one of the library's best windows when it fits the performer clearly
-better than the avatar's own last second, else playing on; without, the paper's best
-cluster path, and now and then the way through the graph to a better window
+better than the avatar's own last second, holding its frame still when that fits a
+performer standing still better (``MatchSettings.still``), else playing on; without, the
+paper's best cluster path, and now and then the way through the graph to a better window
 (relocation). Without a usable silhouette (nobody in view, a dark frame, a camera that
 is reconnecting) the avatar simply keeps moving: along its current path, then on its own.
 """
