@@ -37,8 +37,6 @@ class Landing:
     _bank_sequences: Callable[[IntArray], FloatArray]
     ring_views: int
     last_own: float
-    #: the bank view (variants counted) of the last search's best window (-1: none yet)
-    last_view: int
 
     def held(
         self, frame: int, queries: list[FloatArray], rival: Decision | None
@@ -55,14 +53,12 @@ class Landing:
         against = rival.cost if rival is not None else self.last_own
         if not np.isfinite(against):
             return None
-        # the frame seen from the best window's view and its two neighbours on the ring
-        # (the camera does not move), or from every view before the first search
+        # the frame's features taken once, seen from every view (restricted to the best
+        # window's view and its two neighbours, the avatar held less: on bench_accuracy's
+        # pauses, 13_31 with landmarks, 129 -> 204 jumps a minute while the performer
+        # stood still)
         one = self._bank_sequences(np.array([frame], dtype=np.int64))  # (V, 1, F)
-        views = np.arange(one.shape[0])
-        if self.last_view >= 0:
-            v, ring = self.last_view, self.ring_views
-            views = v - v % ring + (v % ring + np.array([-1, 0, 1])) % ring
-        refs = np.repeat(one[views], self.n, axis=1)
+        refs = np.repeat(one, self.n, axis=1)
         refs[..., -2:] = 0.0  # the centre does not move
         band = self.settings.band
         costs = np.array([dtw_batch(q, refs, window=band) for q in queries])
@@ -76,7 +72,7 @@ class Landing:
             cluster_path=np.zeros(0, dtype=np.int64),
             cost=cost,
             runner_up=against,
-            view=int(views[int(np.argmin(costs.min(axis=0)))]) % self.ring_views,
+            view=int(np.argmin(costs.min(axis=0))) % self.ring_views,
             candidates=1,
             latency_ms=0.0,
             extra={"held": 1.0},

@@ -115,7 +115,6 @@ class Matcher(CandidatePaths, Landing):
         self.history_frames = max([self.n] + [math.ceil(self.n / t) for t in self.settings.tempos])
         #: the avatar's own recent cost at the last ``jump`` (``inf`` before a window)
         self.last_own = float("inf")
-        self.last_view = -1
         d_max = layer.graph.report.get("max_distance") if layer.graph.report else None
         self.d_max = float(d_max) if d_max else 1.0
         self.vote = ActionVote(self.settings.vote, self.n // 2)  # (actions: the caller's)
@@ -298,7 +297,7 @@ class Matcher(CandidatePaths, Landing):
         self.last_own = float("inf")
         if not got or self._rejected(got[0][2], queries[0]):
             return None  # (why says so when the best was rejected)
-        self.why, self.last_view = "", int(got[0][1])
+        self.why = ""
         target, ok, there = self._targets(frame, got, costs, queries)
         voted = self.vote.cast(target, self._choice(queries, ranked, performer))
         if there.any():  # the avatar does one of the best windows: its cost is its own
