@@ -101,9 +101,9 @@ class MatchSettings:
     #: avatar lands stays by the performer as seen. Off by default: (0.6,) measured on
     #: 2026-12-04 (bench_accuracy, landmarks, 3 takes x 4 recordings at tempos 1, 0.7,
     #: 0.5 and 1.3) lifted label agreement 0.907 -> 0.923 (the takes at 0.5: 0.843 ->
-    #: 0.897) but cost pose score 0.715 -> 0.707, and the shared squat clip (its squats at
+    #: 0.897) but cost pose score 0.714 -> 0.707, and the shared squat clip (its squats at
     #: 0.45) lost one decision of 39 at lag <= 1 s; with silhouettes a decision's p99 went
-    #: over 5 ms (5.2-7.6) and 13_29 lost agreement (0.906 -> 0.879)
+    #: over 5 ms (5.2-7.6) and 13_29 lost agreement (0.907 -> 0.879)
     tempos: tuple[float, ...] = ()
     #: with jumps, the avatar may hold its frame still (``Matcher.held``) when that
     #: matches a performer standing still better than any jump or playing on
