@@ -397,10 +397,9 @@ class Performance:
             return entry
         avatar.take(d.frames, d.edges)
         self.view = d.view if d.view >= 0 else self.view
-        if "plays_on" in d.extra:
-            entry["plays_on"] = True
-        if "held" in d.extra:
-            entry["held"] = True
+        for key, name in (("plays_on", "plays_on"), ("held", "held"), ("leave", "leaves")):
+            if d.extra.get(key):  # (leaves: for the action voted for, whatever it costs)
+                entry[name] = True
         if "jump" in d.extra:
             own = d.extra["own"]
             entry.update(

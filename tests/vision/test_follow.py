@@ -114,6 +114,13 @@ def test_a_source_of_landmarks_is_followed_by_the_pose_descriptor(setup, mocap: 
         max(_agreement(r.decisions, side, lambda _n, f: label(f), lag) for lag in (0, 0.5, 1))
         >= 0.85
     )
+    # a performer who stops for 3 s (at 5 s): the avatar holds still, and the log says so
+    still = np.concatenate((np.arange(0, 150), np.full(90, 150), np.arange(151, 240)))
+    px2 = landmark_points(clip.motion, RecordSettings(), np.random.default_rng(4), frames=still)
+    r2 = perform(LandmarkSource(px2, 30.0), layer, bank, lib.clips, PerformSettings())
+    pause = [d for d in r2.decisions if 6.0 <= d["t"] < 8.0]
+    assert sum(bool(d.get("held")) for d in pause) >= 0.6 * len(pause)  # (16 of 20)
+    assert not any(d.get("held") for d in r.decisions if d["t"] < 1.5)  # (a window in)
     with pytest.raises(ValueError, match="tracker: this source gives body landmarks"):
         tracker = LandmarkSource(px, 30.0, name="tracker")
         perform(tracker, layer, silhouettes, lib.clips, PerformSettings())

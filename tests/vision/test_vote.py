@@ -124,7 +124,7 @@ def test_the_avatar_leaves_an_action_the_performer_is_not_doing(setup) -> None:
     keys = action_keys(lib.clips)
     assert keys is not None
 
-    def decide(vote: int) -> int | None:
+    def decide(vote: int) -> tuple[int, bool] | None:
         m = Matcher(layer, bank, MatchSettings(vote=vote, jump_ratio=0.01))
         m.vote.actions = keys
         s = squat[len(squat) // 2]
@@ -132,11 +132,14 @@ def test_the_avatar_leaves_an_action_the_performer_is_not_doing(setup) -> None:
         j = jog[len(jog) // 2]
         shown = np.arange(j - m.recent_frames + 1, j + 1)  # played on: settled
         d = m.decide(j, performer.astype(np.float64), shown, costs)
-        return None if d is None or "jump" not in d.extra else int(d.extra["jump"])
+        if d is None or "jump" not in d.extra:
+            return None
+        return int(d.extra["jump"]), bool(d.extra["leave"])
 
     assert decide(0) is None
-    landed = decide(1)
-    assert landed is not None and labels[landed] == "Squat"
+    got = decide(1)
+    assert got is not None and labels[got[0]] == "Squat"
+    assert got[1]  # it leaves for the voted action (the decision log says `leaves`)
 
 
 def test_the_avatar_jumps_only_into_the_voted_action(setup) -> None:
