@@ -1,6 +1,7 @@
-"""Where a direct jump lands, for ``Matcher``: the frame after each of the search's best
-windows, placed by the performer's last frames (``phased_targets``), and whether the
-avatar is there already."""
+"""Where the avatar goes next, for ``Matcher``: a direct jump lands on the frame after
+one of the search's best windows, placed by the performer's last frames
+(``phased_targets``), unless the avatar is there already; or, for a performer standing
+still, the avatar holds its frame (``held``)."""
 
 from __future__ import annotations
 
@@ -26,7 +27,8 @@ Gate = tuple[IntArray, NDArray[np.bool_], NDArray[np.bool_]]
 
 
 class Landing:
-    """What ``Matcher`` inherits for its jumps' targets; it sets the attributes below."""
+    """What ``Matcher`` inherits for its jumps' targets and for holding still; it sets the
+    attributes below."""
 
     graph: MotionGraph
     settings: MatchSettings

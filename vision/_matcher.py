@@ -417,7 +417,8 @@ class Matcher(CandidatePaths, Landing):
         (NaN rows, frames without a silhouette, are dropped); ``None`` without enough.
         With the avatar's ``recent`` frames and its ``jump_costs`` (and
         ``settings.jumps``), a direct blended jump (``jump``) when one is clearly better
-        than what the avatar is doing."""
+        than what the avatar is doing, or its frame held still (``held``) when that is
+        better still."""
         t0 = time.perf_counter()
         queries = self.queries(performer)
         if queries is None:
