@@ -31,13 +31,19 @@ def retimed_clip(clip: Clip, tempo: float) -> Clip:
     m = clip.motion
     fast = resample(dataclasses.replace(m, fps=m.fps * tempo), m.fps)
     src = np.clip(np.round(np.arange(fast.n_frames) * tempo).astype(int), 0, m.n_frames - 1)
-    contacts = Contacts(clip.contacts.states[src], clip.contacts.ankle_rest, clip.contacts.toe_rest)
+    motion = dataclasses.replace(fast, source=f"{m.source} (tempo {tempo:g})")
+    return _reindexed(clip, motion, src, clip.labels[src])
+
+
+def _reindexed(
+    clip: Clip, motion: Motion, idx: NDArray[np.int64], labels: NDArray[np.int64]
+) -> Clip:
+    """``clip`` as ``motion``, each of whose frames shows ``clip``'s frame ``idx``
+    (contacts and source frames taken from there), with ``labels``."""
+    states = clip.contacts.states[idx]
+    contacts = Contacts(states, clip.contacts.ankle_rest, clip.contacts.toe_rest)
     return dataclasses.replace(
-        clip,
-        motion=dataclasses.replace(fast, source=f"{m.source} (tempo {tempo:g})"),
-        contacts=contacts,
-        labels=clip.labels[src],
-        source_frames=clip.source_frames[src],
+        clip, motion=motion, contacts=contacts, labels=labels, source_frames=clip.source_frames[idx]
     )
 
 
@@ -66,12 +72,7 @@ def paused_clip(
     motion = Motion(
         m.skeleton, m.root_pos[idx], m.quats[idx], fps, m.name, f"{m.source} (with pauses)"
     )
-    labels = np.where(holds, -1, clip.labels[idx])
-    contacts = Contacts(clip.contacts.states[idx], clip.contacts.ankle_rest, clip.contacts.toe_rest)
-    out = dataclasses.replace(
-        clip, motion=motion, contacts=contacts, labels=labels, source_frames=clip.source_frames[idx]
-    )
-    return out, holds
+    return _reindexed(clip, motion, idx, np.where(holds, -1, clip.labels[idx])), holds
 
 
 def held_since(holds: NDArray[np.bool_], fps: float, react: float = 0.5) -> NDArray[np.bool_]:
@@ -85,20 +86,18 @@ def held_since(holds: NDArray[np.bool_], fps: float, react: float = 0.5) -> NDAr
 
 
 def hold_figures(
-    holds: NDArray[np.bool_],
+    begun: NDArray[np.bool_],
     fps: float,
     times: NDArray[np.float64],
     avatar: Motion,
     avatar_start: float,
     jumps_at: NDArray[np.int64],
-    react: float = 0.5,
 ) -> dict[str, float | int | None]:
-    """What the avatar does while the performer holds still (``holds`` at the take's
-    ``fps``), ``react`` seconds after each hold begins: its jumps a minute and how far its
-    joints turn a frame (``joint_jumps``: the largest turn, degrees; beside it the same
-    elsewhere), and the decisions counted."""
-    n = holds.size
-    begun = held_since(holds, fps, react)
+    """What the avatar does while the performer holds still (``begun``, at the take's
+    ``fps``: ``held_since``'s frames): its jumps a minute and how far its joints turn a
+    frame (``joint_jumps``: the largest turn, degrees; beside it the same elsewhere), and
+    the decisions counted."""
+    n = begun.size
     shown = avatar_start + np.arange(avatar.n_frames) / avatar.fps
     k = np.clip(np.round(shown * fps).astype(int), 0, n - 1)
     still = begun[k] & (shown * fps < n)

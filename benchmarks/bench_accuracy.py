@@ -282,8 +282,9 @@ def _run_figures(
     at = jumps_at[(jumps_at >= 1) & (jumps_at <= syn_jumps.size)] - 1
     still = None
     if holds is not None:  # what the avatar does while the performer stands still
-        still = hold_figures(holds, fps, times, motion, r.avatar_start_s, jumps_at)
-        b = held_since(holds, fps)[np.clip(np.round(times * fps).astype(int), 0, holds.size - 1)]
+        begun = held_since(holds, fps)
+        still = hold_figures(begun, fps, times, motion, r.avatar_start_s, jumps_at)
+        b = begun[np.clip(np.round(times * fps).astype(int), 0, holds.size - 1)]
         err = _pose_dist(lib_q[frames[b]], truth_q[np.round(times[b] * fps).astype(int)])
         still["pose_score"] = round(float((random_err - err.mean()) / (random_err - nearest)), 3)
     return {
@@ -349,7 +350,7 @@ RECORDINGS = {
 }
 #: recordings of the held-out take mirrored left for right (the library is not)
 MIRRORED = frozenset({"mirrored"})
-#: recordings of the held-out take with pauses (``benchmarks._pauses``)
+#: recordings of the held-out take with pauses (``benchmarks._takes``)
 PAUSED = frozenset({"pauses"})
 #: recordings of the held-out take at another tempo (``benchmarks._takes``)
 TEMPO = {"slow": 0.7, "slower": 0.5, "fast": 1.3}
@@ -457,16 +458,17 @@ def fold(
     out["recordings"] = {}
     for rec in recordings:
         ctx = (perf_clip, layer, bank, train, lib_labels, lib_q, truth_q, walk_frames, lib_qm)
-        holds = None
-        if rec in MIRRORED:  # (its pose score keeps the take's scale: random walk, nearest)
-            assert other_side is not None
-            q = other_side.motion.quats[:, joints]
-            ctx = (other_side, layer, bank, train, lib_labels, lib_q, q, walk_frames, lib_qm)
-        elif rec in PAUSED or rec in TEMPO:
-            if rec in PAUSED:
-                other, holds = paused_clip(perf_clip)
-            else:
-                other = retimed_clip(perf_clip, TEMPO[rec])
+        # another performer than the take as it is (its pose score keeps the take's scale:
+        # random walk, nearest)
+        other, holds = None, None
+        if rec in MIRRORED:
+            other = other_side
+            assert other is not None
+        elif rec in PAUSED:
+            other, holds = paused_clip(perf_clip)
+        elif rec in TEMPO:
+            other = retimed_clip(perf_clip, TEMPO[rec])
+        if other is not None:
             q = other.motion.quats[:, joints]
             ctx = (other, layer, bank, train, lib_labels, lib_q, q, walk_frames, lib_qm)
         recognition, ceiling, runs = _recorded_runs(

@@ -60,8 +60,7 @@ class Landing:
         # pauses, 13_31 with landmarks, 129 -> 204 jumps a minute while the performer
         # stood still)
         one = self._bank_sequences(np.array([frame], dtype=np.int64))  # (V, 1, F)
-        refs = np.repeat(one, self.n, axis=1)
-        refs[..., -2:] = 0.0  # the centre does not move
+        refs = np.repeat(one, self.n, axis=1)  # (one frame: its centre does not move)
         band = self.settings.band
         costs = np.array([dtw_batch(q, refs, window=band) for q in queries])
         cost = float(costs.min())

@@ -17,6 +17,7 @@ is reconnecting) the avatar simply keeps moving: along its current path, then on
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import json
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -172,8 +173,8 @@ class Performance:
         self.reader = PoseReader() if self.landmarks else None
         self.why_blank = ""  # why the latest frame has no features
         self.period = 1.0 / self.graph.fps
-        self.buffer: deque[NDArray[np.float64]] = deque(maxlen=matcher.n)
-        #: the buffer's frames and those before, as many as the matcher's tempos read
+        #: the performer's features at the library's rate: the last window (``window``)
+        #: and before it as many as the matcher's tempos read
         self.history: deque[NDArray[np.float64]] = deque(maxlen=matcher.history_frames)
         self.blank = np.full(matcher.n_features, np.nan)  # a frame without a silhouette
         self.latest = self.blank
@@ -268,10 +269,14 @@ class Performance:
         self.latest_mask = mask
         return mask
 
+    def window(self) -> NDArray[np.float64]:
+        """The performer's last window of features ``(m, F)``, ``m`` up to ``matcher.n``."""
+        n = len(self.history)
+        return np.array(list(itertools.islice(self.history, max(0, n - self.matcher.n), n)))
+
     def advance(self, t: float) -> None:
-        """The library-rate buffer, and the avatar's clock, up to media time ``t``."""
+        """The library-rate history, and the avatar's clock, up to media time ``t``."""
         while self.next_tick <= t + 1e-9:
-            self.buffer.append(self.latest)
             self.history.append(self.latest)
             self.next_tick += self.period
         while self.t_avatar + self.period <= t + 1e-9:
@@ -286,13 +291,13 @@ class Performance:
         start the avatar where the library looks most like the performer (its motion so
         far is dropped), at the frame that matches the performer's latest."""
         matcher = self.matcher
-        got = matcher.find_window(np.array(self.buffer))
+        got = matcher.find_window(self.window())
         if got is None:
             return
         self.located = True
         self.last_relocate = t  # that was this second's global search
         # with jumps, where the performer is now: the window's last frame
-        at = got[0] + len(self.buffer) - 1 if self.jumps else got[0]
+        at = got[0] + len(self.window()) - 1 if self.jumps else got[0]
         self.avatar = self.new_avatar(at)
         self.views, self.view = [got[1]], got[1]
         self.t_start = t
@@ -311,12 +316,12 @@ class Performance:
         due = t - self.last_relocate >= settings.match.relocate - 1e-9
         if self.searcher is None and due:
             self.last_relocate = t
-            got = matcher.find_window(np.array(self.buffer))
+            got = matcher.find_window(self.window())
         elif self.searcher is not None and self.pending is not None and self.pending.done():
             got, self.pending = self.pending.result(), None
         elif self.searcher is not None and self.pending is None and due:
             self.last_relocate = t
-            self.pending = self.searcher.submit(matcher.find_window, np.array(self.buffer))
+            self.pending = self.searcher.submit(matcher.find_window, self.window())
         if got is None or not got[2] < settings.match.relocate_ratio * d.cost:
             return d
         way = matcher.route(self.avatar.frame, got[0])
@@ -356,11 +361,12 @@ class Performance:
         }
         if missed:
             entry["skipped"] = missed
-        full = len(self.buffer) == matcher.n
+        filled = min(len(self.history), matcher.n)
+        full = filled == matcher.n
         # the avatar is placed as soon as half a window is in (then played on until the
         # window is whole), unless told where to start
         if not self.located and settings.match.locate and self.start is None:
-            half = len(self.buffer) >= max(2, (matcher.n + 1) // 2) and matcher.early_search
+            half = filled >= max(2, (matcher.n + 1) // 2) and matcher.early_search
             if full or half:
                 self.place_avatar(t, entry)
                 avatar = self.avatar
@@ -368,7 +374,6 @@ class Performance:
         routing = t < self.en_route - 1e-9
         d = None
         if full and not routing:
-            buffer = np.array(self.buffer)
             d = (
                 matcher.decide(
                     avatar.frame,
@@ -377,7 +382,7 @@ class Performance:
                     avatar.jump_costs,
                 )
                 if self.jumps
-                else matcher.decide(avatar.frame, buffer)
+                else matcher.decide(avatar.frame, self.window())
             )
         if d is not None and not self.jumps and settings.match.relocate > 0:
             d = self.relocate(t, d, entry)
