@@ -1,5 +1,5 @@
-"""Performers who keep another tempo or stop now and then (``bench_accuracy --recordings
-slow, fast, pauses``).
+"""Performers who keep another tempo, stop now and then, or move less or more than the
+library's (``bench_accuracy --recordings slow, fast, pauses, small, big``).
 
 A performer rarely keeps the library's tempo: on the shared squat clip each squat takes
 about 3 s, the library's about 1.3 s. ``retimed_clip`` plays the take slower or faster.
@@ -11,6 +11,11 @@ for ``hold`` seconds, at the frame of the next second where the take moves least
 person would rest: a squat's top, a knee raise's end). The held frames carry no action
 label (they are no library action, as on the squat clip), and ``holds`` marks them, so
 that the benchmark can say what the avatar does while the performer stands still.
+
+People also do an exercise with their own reach: arms that stop short of the head in a
+jumping jack, a shallower squat, a wider twist. ``styled_clip`` scales every joint's turn
+away from its mean over the take (the root's orientation and path kept, its height moved
+so that the lowest foot stays where the take's was).
 """
 
 from __future__ import annotations
@@ -21,9 +26,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from control.graph import joint_jumps
-from control.motion import Clip, Contacts, Motion, resample
+from control.motion import Clip, Contacts, Motion, foot_points, qconj, qexp, qlog, qmul, resample
 
-__all__ = ["held_since", "hold_figures", "paused_clip", "retimed_clip"]
+__all__ = ["held_since", "hold_figures", "paused_clip", "retimed_clip", "styled_clip"]
 
 
 def retimed_clip(clip: Clip, tempo: float) -> Clip:
@@ -33,6 +38,30 @@ def retimed_clip(clip: Clip, tempo: float) -> Clip:
     src = np.clip(np.round(np.arange(fast.n_frames) * tempo).astype(int), 0, m.n_frames - 1)
     motion = dataclasses.replace(fast, source=f"{m.source} (tempo {tempo:g})")
     return _reindexed(clip, motion, src, clip.labels[src])
+
+
+def styled_clip(clip: Clip, reach: float) -> Clip:
+    """``clip`` done with ``reach`` times its movement (0.7: every joint but the root turns
+    0.7 times as far from its mean over the take), its lowest foot where the take's is."""
+    m = clip.motion
+    q = m.quats.copy()
+    joints = q[:, 1:]
+    ref = joints[0]  # each joint's mean turn: the average of its frames, signs aligned
+    aligned = np.where((joints * ref).sum(axis=-1, keepdims=True) < 0, -joints, joints)
+    mean = aligned.mean(axis=0)
+    mean /= np.linalg.norm(mean, axis=-1, keepdims=True)
+    away = qlog(qmul(np.broadcast_to(qconj(mean), joints.shape), joints))
+    q[:, 1:] = qmul(np.broadcast_to(mean, joints.shape), qexp(reach * away))
+    styled = dataclasses.replace(m, quats=q, source=f"{m.source} (reach {reach:g})")
+    lowest = []
+    for x in (m, styled):
+        ankle, toe = foot_points(x)  # (F, 2, 3) each, y up
+        lowest.append(np.minimum(ankle[..., 1], toe[..., 1]).min(axis=1))
+    root = m.root_pos.copy()
+    root[:, 1] += lowest[0] - lowest[1]
+    styled = dataclasses.replace(styled, root_pos=root)
+    idx = np.arange(m.n_frames, dtype=np.int64)
+    return _reindexed(clip, styled, idx, clip.labels)
 
 
 def _reindexed(

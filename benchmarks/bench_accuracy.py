@@ -13,7 +13,8 @@ with ragged edges, other proportions: ``long_legs``, ``short_legs``; cameras beh
 left, low and far, a wider body: ``az140``, ``az-60``, ``low_far``, ``wide``; the take
 mirrored, a performer using the other arm and leg: ``mirrored``; the take at 0.7, 0.5 and
 1.3 times its tempo: ``slow``, ``slower``, ``fast``; the take with a still pause of 2 s
-every 6 s: ``pauses``, ``benchmarks._takes``), each a run of its own: one recording a fold
+every 6 s: ``pauses``; the take done with 0.7 and 1.25 times its reach: ``small``,
+``big``, ``benchmarks._takes``), each a run of its own: one recording a fold
 swings with a setting. With ``--descriptor pose`` the performer is
 not the recording's silhouettes but the landmarks a pose model would give of the same
 performer and camera (``benchmarks._landmarks``: the take's joints on the recording's
@@ -57,7 +58,7 @@ import numpy as np
 from benchmarks._landmarks import LandmarkSource, landmark_points
 from benchmarks._oracle import pose_oracle
 from benchmarks._report import machine, save
-from benchmarks._takes import held_since, hold_figures, paused_clip, retimed_clip
+from benchmarks._takes import held_since, hold_figures, paused_clip, retimed_clip, styled_clip
 from control.clusters import cached_higher_layer
 from control.dtw import dtw_best_window
 from control.graph import (
@@ -347,6 +348,10 @@ RECORDINGS = {
     "slow": RecordSettings(seed=8),
     "slower": RecordSettings(seed=10),
     "fast": RecordSettings(seed=9),
+    # the take done with less or more reach: every joint turns 0.7 or 1.25 times as far
+    # from its mean (``REACH``)
+    "small": RecordSettings(seed=11),
+    "big": RecordSettings(seed=12),
 }
 #: recordings of the held-out take mirrored left for right (the library is not)
 MIRRORED = frozenset({"mirrored"})
@@ -354,6 +359,8 @@ MIRRORED = frozenset({"mirrored"})
 PAUSED = frozenset({"pauses"})
 #: recordings of the held-out take at another tempo (``benchmarks._takes``)
 TEMPO = {"slow": 0.7, "slower": 0.5, "fast": 1.3}
+#: recordings of the held-out take with another reach (``benchmarks._takes``)
+REACH = {"small": 0.7, "big": 1.25}
 
 
 def fold(
@@ -468,6 +475,8 @@ def fold(
             other, holds = paused_clip(perf_clip)
         elif rec in TEMPO:
             other = retimed_clip(perf_clip, TEMPO[rec])
+        elif rec in REACH:
+            other = styled_clip(perf_clip, REACH[rec])
         if other is not None:
             q = other.motion.quats[:, joints]
             ctx = (other, layer, bank, train, lib_labels, lib_q, q, walk_frames, lib_qm)

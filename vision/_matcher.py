@@ -310,7 +310,9 @@ class Matcher(CandidatePaths, Landing):
         if voted is not None:
             ok &= voted
             leave = self.vote.leaves(frame, int(self._playback(frame)[: self.n // 2 + 1][-1]))
-        if not ok.any():
+        if not ok.any():  # no jump: holding still is weighed against playing on
+            if not np.isfinite(self.last_own) and self.plays[frame]:
+                self.last_own = self.own_cost(queries, self.own_frames(frame, recent))
             return None
         idx = np.flatnonzero(ok)
         match = np.array([got[i][2] for i in idx])

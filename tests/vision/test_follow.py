@@ -269,7 +269,7 @@ def test_a_jumps_target_moves_to_where_the_performers_last_frames_are() -> None:
     assert 58 - 6 <= phased_targets(near, np.array([2]), [query], shape, runs, 6)[0] <= 59
 
 
-def test_a_performer_standing_still_is_held_still(setup) -> None:
+def test_a_performer_standing_still_is_held_still(setup, monkeypatch) -> None:
     """A performer standing still in the pose of the avatar's frame: the avatar holds that
     frame (shown again, its root not moved on), rather than jump about among the
     library's windows, none of which stands still; a performer doing the window that
@@ -290,6 +290,16 @@ def test_a_performer_standing_still_is_held_still(setup) -> None:
     assert d2 is not None and "held" not in d2.extra
     off = Matcher(layer, bank, MatchSettings(still=False)).decide(j, still, recent, costs)
     assert off is not None and "held" not in off.extra
+
+    # with no jump weighed (none of the best windows may be landed on, and the avatar is
+    # at none of them), holding is weighed against playing on
+    def nowhere(frame, got, costs, queries):
+        target = np.array([g[0] for g in got], dtype=np.int64) + m.n
+        return target, np.zeros(len(got), dtype=bool), np.zeros(len(got), dtype=bool)
+
+    monkeypatch.setattr(m, "_targets", nowhere)
+    d3 = m.decide(j, still, recent, costs)
+    assert d3 is not None and "held" in d3.extra and np.isfinite(d3.runner_up)
     # the avatar takes the hold: its frame shown again, standing where it stood
     avatar = Avatar(layer.graph, lib.clips, start=j, anywhere=True)
     avatar.take(d.frames, d.edges)

@@ -1,6 +1,6 @@
 """A performer at another tempo, or one who stops: the matcher's readings of the
 performer at other tempos (``MatchSettings.tempos``) and the benchmark's takes that keep
-another tempo or pause (``benchmarks._takes``)."""
+another tempo, pause, or move with another reach (``benchmarks._takes``)."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from benchmarks._takes import held_since, paused_clip, retimed_clip
+from benchmarks._takes import held_since, paused_clip, retimed_clip, styled_clip
 from control.graph import joint_jumps
-from control.motion import load_library
+from control.motion import foot_points, load_library, qconj, qlog, qmul
 from silhouette_bank import get_descriptor
 from vision import MatchSettings
 from vision._windows import retimed, tempo_readings
@@ -92,3 +92,33 @@ def test_a_retimed_take_keeps_its_labels(mocap: Path, tempo: float) -> None:
     assert abs(other.motion.n_frames - n / tempo) <= 2 and other.motion.fps == 30.0
     src = np.clip(np.round(np.arange(other.motion.n_frames) * tempo).astype(int), 0, n - 1)
     np.testing.assert_array_equal(other.labels, clip.labels[src])
+
+
+def test_a_take_with_another_reach_turns_its_joints_that_much_further(mocap: Path) -> None:
+    """``styled_clip``: every joint but the root turns ``reach`` times as far from its mean
+    over the take; the root's orientation and path across the floor are the take's, its
+    height moved so that the lowest foot is where the take's was; the labels are kept;
+    reach 1 is the take itself."""
+    clip = load_library(mocap, fps=30, clips=["13_30"]).clip("13_30")
+    q = clip.motion.quats
+    same = styled_clip(clip, 1.0)
+    np.testing.assert_allclose(np.abs((same.motion.quats * q).sum(axis=-1)), 1.0, atol=1e-9)
+    np.testing.assert_allclose(same.motion.root_pos, clip.motion.root_pos, atol=1e-9)
+    for reach in (0.7, 1.25):
+        other = styled_clip(clip, reach)
+        assert np.array_equal(other.labels, clip.labels)
+        np.testing.assert_allclose(other.motion.quats[:, 0], q[:, 0])
+        np.testing.assert_allclose(
+            other.motion.root_pos[:, [0, 2]], clip.motion.root_pos[:, [0, 2]]
+        )
+        # each joint's turn from the first frame to every other: about reach times the take's
+        # (exactly so about the mean; the knees' and elbows' turns keep their axis)
+        turn = [qlog(qmul(qconj(x[:1, 1:]), x[:, 1:])) for x in (q, other.motion.quats)]
+        big = np.linalg.norm(turn[0], axis=-1) > 0.3
+        ratio = np.linalg.norm(turn[1], axis=-1)[big] / np.linalg.norm(turn[0], axis=-1)[big]
+        assert abs(np.median(ratio) - reach) < 0.05
+        lowest = []
+        for m in (clip.motion, other.motion):
+            ankle, toe = foot_points(m)
+            lowest.append(np.minimum(ankle[..., 1], toe[..., 1]).min(axis=1))
+        np.testing.assert_allclose(lowest[1], lowest[0], atol=1e-9)
