@@ -291,13 +291,14 @@ class Performance:
         start the avatar where the library looks most like the performer (its motion so
         far is dropped), at the frame that matches the performer's latest."""
         matcher = self.matcher
-        got = matcher.find_window(self.window())
+        window = self.window()
+        got = matcher.find_window(window)
         if got is None:
             return
         self.located = True
         self.last_relocate = t  # that was this second's global search
         # with jumps, where the performer is now: the window's last frame
-        at = got[0] + len(self.window()) - 1 if self.jumps else got[0]
+        at = got[0] + len(window) - 1 if self.jumps else got[0]
         self.avatar = self.new_avatar(at)
         self.views, self.view = [got[1]], got[1]
         self.t_start = t
