@@ -36,6 +36,7 @@ from ._descriptor import (
 from ._features import feature_size, silhouette_features
 from ._gl import GLRenderer
 from ._metric import METRIC_FRAMES, lda_directions, learn_metric, metric_rings
+from ._pose import joint_points
 from ._raster import rasterize
 from ._render import (
     draw_ground_shadow,
@@ -93,6 +94,7 @@ __all__ = [
     "gl_silhouettes",
     "grid_cells",
     "hu_log",
+    "joint_points",
     "lda_directions",
     "learn_metric",
     "load_bank",

@@ -108,6 +108,11 @@ class MatchSettings:
     #: with jumps, the avatar may hold its frame still (``Matcher.held``) when that
     #: matches a performer standing still better than any jump or playing on
     still: bool = True
+    #: for silhouettes read as seen and mirrored: windows that only the performer facing
+    #: the other way explains (``vision._facing``: facing the camera by default, then as
+    #: the evidence says) cost ``1 + facing`` times as much (0: off), so that the avatar
+    #: raises the knee the performer raises, not the other
+    facing: float = 0.3
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.stay < 1.0:
@@ -118,6 +123,8 @@ class MatchSettings:
             raise ValueError("top must be >= 1, blend_weight, hold >= 0 and jump_ratio > 0")
         if self.phase < 0:
             raise ValueError(f"phase must be a number of frames >= 0 (0: off), got {self.phase}")
+        if not self.facing >= 0:
+            raise ValueError(f"facing must be >= 0 (0: off), got {self.facing}")
         if self.vote < 0:
             raise ValueError(f"vote must be a number of decisions >= 0 (0: off), got {self.vote}")
         if self.reject is not None and not self.reject > 0:

@@ -261,16 +261,19 @@ class WindowIndex:
         exact DTW (band ``band``) among the broad phase's short lists, cheapest first,
         at most one per start; with ``only`` (a flag for each table frame), only windows
         that start where it is set. ``ranked`` (a list) gets each query's short list and
-        its costs, ``(starts, views, costs)``, for ``best_of``."""
+        its costs, ``(starts, views, costs)``, for ``best_of``: one a query, in order."""
         if only is not None and only.shape != self._ok.shape:
             raise ValueError(f"only must flag each of the {self._ok.size} table frames")
         lists = []
         for q in queries:
             q = np.ascontiguousarray(q, dtype=np.float64)
             s, v = self.shortlisted(q, only, len(queries))
-            if s.size:
-                cost = dtw_windows(q, self.shape, self.centre, s, v, self.length, band)
-                lists.append((s, v, cost))
+            cost = (  # (one list a query, empty or not: ``ranked`` keeps the readings' order)
+                dtw_windows(q, self.shape, self.centre, s, v, self.length, band)
+                if s.size
+                else np.zeros(0)
+            )
+            lists.append((s, v, cost))
         if ranked is not None:
             ranked.extend(lists)
         return best_of(lists, top)

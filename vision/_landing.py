@@ -15,6 +15,7 @@ from control.dtw import ShapeTable, dtw_batch
 from control.graph import MotionGraph
 
 from ._decision import Decision, MatchSettings
+from ._facing import Facing
 from ._windows import phased_targets
 
 __all__ = ["Gate", "Landing"]
@@ -39,6 +40,14 @@ class Landing:
     _bank_sequences: Callable[[IntArray], FloatArray]
     ring_views: int
     last_own: float
+    #: the performer's facing, for silhouettes read both ways (set by the caller, who has
+    #: the library's motion: ``Performance``)
+    facing: Facing | None
+
+    def weighed(self, costs: FloatArray, middle: int) -> FloatArray:
+        """Costs ``(readings, V)`` of one window (its middle frame ``middle``) in each
+        view, weighed by the performer's ``facing`` when there is one."""
+        return costs if self.facing is None else self.facing.weigh_views(costs, middle)
 
     def held(
         self, frame: int, queries: list[FloatArray], rival: Decision | None
@@ -62,7 +71,7 @@ class Landing:
         one = self._bank_sequences(np.array([frame], dtype=np.int64))  # (V, 1, F)
         refs = np.repeat(one, self.n, axis=1)  # (one frame: its centre does not move)
         band = self.settings.band
-        costs = np.array([dtw_batch(q, refs, window=band) for q in queries])
+        costs = self.weighed(np.array([dtw_batch(q, refs, window=band) for q in queries]), frame)
         cost = float(costs.min())
         if not cost < self.settings.jump_ratio * against:
             return None

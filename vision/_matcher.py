@@ -13,7 +13,8 @@ bank's learned metric, or the descriptor's standardisation), and the centre's
 displacement since the window's first frame, in units of body size (performer: from the
 image; bank: the root's image motion accumulated plus the centre relative to the root),
 times ``centre_weight``. A silhouette is read as seen and mirrored, landmarks as seen only
-(they name the performer's sides; ``Descriptor.variants``); the best reading wins. A best match
+(they name the performer's sides; ``Descriptor.variants``); the best reading wins, weighed
+by which way the performer faces (``vision._facing``). A best match
 costing more than ``reject`` per frame is no match: ``why`` says so.
 """
 
@@ -33,6 +34,7 @@ from silhouette_bank import Bank
 
 from ._classify import ActionClassifier, cached_action_classifier, voted_action
 from ._decision import Decision, MatchSettings
+from ._facing import Facing
 from ._index import WindowIndex, best_of, cached_window_index
 from ._landing import Landing
 from ._paths import CandidatePaths
@@ -44,7 +46,7 @@ from ._windows import (
     per_frame_cost,
     performer_queries,
     tempo_readings,
-    window_cost,
+    window_costs,
 )
 
 __all__ = ["EARLY_WINDOWS", "Matcher"]
@@ -118,6 +120,7 @@ class Matcher(CandidatePaths, Landing):
         d_max = layer.graph.report.get("max_distance") if layer.graph.report else None
         self.d_max = float(d_max) if d_max else 1.0
         self.vote = ActionVote(self.settings.vote, self.n // 2)  # (actions: the caller's)
+        self.facing: Facing | None = None  # (``Landing``; the caller's: ``Performance``)
 
     def _check(self, performer: FloatArray) -> None:
         if performer.ndim != 2 or performer.shape[1] != self.n_features:
@@ -245,11 +248,14 @@ class Matcher(CandidatePaths, Landing):
         w = self._lead_in(recent)[-self.n :]
         if w.size < self.n:
             return float("inf")
+        band = self.settings.band
         if np.all(np.diff(w) == 1) and self._same_run(int(w[0]), w[-1:])[0]:
             shape, centre, _ = self._global_tables()  # a library window: as the search costs it
-            return window_cost(queries, shape, centre, int(w[0]), self.n, self.settings.band)
-        refs = self._bank_sequences(w)
-        return float(min(dtw_batch(q, refs, window=self.settings.band).min() for q in queries))
+            costs = window_costs(queries, shape, centre, int(w[0]), self.n, band)
+        else:
+            refs = self._bank_sequences(w)
+            costs = np.array([dtw_batch(q, refs, window=band) for q in queries])
+        return float(self.weighed(costs, int(w[self.n // 2])).min())
 
     def own_frames(self, frame: int, recent: IntArray) -> IntArray:
         """The frames whose cost is the avatar's own (``jump``): with
@@ -298,6 +304,9 @@ class Matcher(CandidatePaths, Landing):
         if not got or self._rejected(got[0][2], queries[0]):
             return None  # (why says so when the best was rejected)
         self.why = ""
+        if self.facing is not None:
+            ranked[:] = self.facing.weigh(ranked)
+            got = best_of(ranked, st.top)
         target, ok, there = self._targets(frame, got, costs, queries)
         voted = self.vote.cast(target, self._choice(queries, ranked, performer))
         if there.any():  # the avatar does one of the best windows: its cost is its own
@@ -403,7 +412,10 @@ class Matcher(CandidatePaths, Landing):
         target, ok, _ = self._targets(frame, got, costs, queries)
         voted = self.vote.gate(target)
         if not (ok & voted).any() and not at_voted.any():
-            got = self.index().search(queries, st.band, st.top, only)
+            lists: list[tuple[IntArray, IntArray, FloatArray]] = []
+            got = self.index().search(queries, st.band, st.top, only, lists)
+            if self.facing is not None:
+                got = best_of(self.facing.weigh(lists, observe=False), st.top, only)
             target, ok, _ = self._targets(frame, got, costs, queries)
             voted = self.vote.gate(target)
         return got, target, ok, voted
@@ -451,11 +463,14 @@ class Matcher(CandidatePaths, Landing):
             self.why = "no candidate path"
             return None
         views = self.bank.features.shape[1]
-        refs = np.concatenate([self._bank_sequences(self._window_frames(f)) for _, f, _ in cands])
+        wins = [self._window_frames(f) for _, f, _ in cands]
+        refs = np.concatenate([self._bank_sequences(w) for w in wins])
         group = np.repeat(np.arange(len(cands)), views)
-        costs = np.min(
-            [dtw_batch(q, refs, group, window=self.settings.band) for q in queries], axis=0
-        ).reshape(len(cands), views)
+        each = np.array([dtw_batch(q, refs, group, window=self.settings.band) for q in queries])
+        each = each.reshape(len(queries), len(cands), views)
+        for i, w in enumerate(wins if self.facing is not None else []):
+            each[:, i] = self.weighed(each[:, i], int(w[self.n // 2]))
+        costs = each.min(axis=0)
         per_path = costs.min(axis=1)
         rank = per_path  # the costs reported stay DTW costs; the prior only ranks
         if self.settings.stay > 0:

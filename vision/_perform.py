@@ -34,6 +34,7 @@ from control.motion import Clip
 from silhouette_bank import Bank, silhouette_features
 
 from ._decision import Decision, MatchSettings
+from ._facing import Facing
 from ._landmarks import PoseReader
 from ._library import action_keys
 from ._matcher import Matcher
@@ -168,6 +169,7 @@ class Performance:
             matcher.vote.actions = actions
             if jumps and settings.match.vote > 0:  # now, not at the first decision
                 matcher.classifier()
+        matcher.facing = Facing.of(clips, matcher, settings.decide_every)
         self.segmenter: Any = None
         self.landmarks = matcher.desc.kind == "pose"
         self.reader = PoseReader() if self.landmarks else None
@@ -421,6 +423,8 @@ class Performance:
             candidates=d.candidates,
             latency_ms=round(d.latency_ms, 3),
         )
+        if self.matcher.facing is not None:  # which way the performer is taken to face
+            entry["facing"] = "camera" if self.matcher.facing.toward else "away"
         return entry
 
     def run(

@@ -25,7 +25,7 @@ __all__ = [
     "retimed",
     "shape_stats",
     "tempo_readings",
-    "window_cost",
+    "window_costs",
     "window_tables",
 ]
 
@@ -138,19 +138,19 @@ def window_tables(
     return shape, centre
 
 
-def window_cost(
+def window_costs(
     queries: list[FloatArray],
     shape: ShapeTable,
     centre: FloatArray,
     start: int,
     length: int,
     band: int,
-) -> float:
-    """DTW cost of the window of the tables at ``start`` nearest any of ``queries``, over
-    every view."""
+) -> FloatArray:
+    """DTW costs ``(len(queries), V)`` of the window of the tables at ``start`` against
+    each of ``queries``, in every view."""
     views = np.arange(shape.shape[1], dtype=np.int64)
     at = np.full(views.size, start, dtype=np.int64)
-    return float(min(dtw_windows(q, shape, centre, at, views, length, band).min() for q in queries))
+    return np.array([dtw_windows(q, shape, centre, at, views, length, band) for q in queries])
 
 
 def per_frame_cost(cost: float, length: int) -> float:
