@@ -107,6 +107,12 @@ def _pose_dist(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
     return np.sum((np.linalg.norm(qlog(qmul(qconj(qb), qa)), axis=-1) / 2.0) ** 2, axis=-1)
 
 
+def _score(err: float, random_err: float, nearest: float) -> float:
+    """The pose score of a mean pose error ``err``: 1 at the library's nearest poses'
+    error ``nearest``, 0 at a random walk's ``random_err``."""
+    return float((random_err - err) / max(random_err - nearest, 1e-9))
+
+
 def _silhouette_rows(
     video: Path, descriptor: str, perf_labels: list[str | None], fps: float
 ) -> tuple[np.ndarray, list[str | None]]:
@@ -230,11 +236,11 @@ def _run_figures(
         ok = (k >= 0) & (k < truth_q.shape[0])
         each = _pose_dist(lib_q[frames[ok]], truth_q[k[ok]])
         err = each.mean()
-        score = (random_err - err) / max(random_err - nearest, 1e-9)
+        score = _score(err, random_err, nearest)
         either = None
         if lib_q_mirror is not None:
             other = _pose_dist(lib_q_mirror[frames[ok]], truth_q[k[ok]])
-            either = (random_err - np.minimum(each, other).mean()) / max(random_err - nearest, 1e-9)
+            either = _score(np.minimum(each, other).mean(), random_err, nearest)
         lab = [perf_labels[i] for i in k[ok]]
         got = [str(lib_labels[f]) for f in frames[ok]]
         pairs = [(g, t) for g, t in zip(got, lab, strict=True) if t is not None]
@@ -287,7 +293,7 @@ def _run_figures(
         still = hold_figures(begun, fps, times, motion, r.avatar_start_s, jumps_at)
         b = begun[np.clip(np.round(times * fps).astype(int), 0, holds.size - 1)]
         err = _pose_dist(lib_q[frames[b]], truth_q[np.round(times[b] * fps).astype(int)])
-        still["pose_score"] = round(float((random_err - err.mean()) / (random_err - nearest)), 3)
+        still["pose_score"] = round(_score(err.mean(), random_err, nearest), 3)
     return {
         "window": window,
         "lookahead": lookahead,
@@ -456,10 +462,7 @@ def fold(
     )
     # its windows' last frames shown at once, as a pose score (the avatar's ceiling)
     out["pose_oracle"]["pose_score"] = round(
-        float(
-            (random_err - out["pose_oracle"]["pose_error"]) / max(random_err - nearest.mean(), 1e-9)
-        ),
-        3,
+        _score(out["pose_oracle"]["pose_error"], random_err, float(nearest.mean())), 3
     )
     print(f"{test}: following by the true pose {out['pose_oracle']}", flush=True)
     out["recordings"] = {}
