@@ -6,23 +6,27 @@ its window among all the ring's views: of a performer raising the left knee, the
 knee seen from the front (as seen) or from behind (mirrored), but just as well the right
 knee seen from behind (as seen) or from the front (mirrored). Label agreement does not
 care; the performer does, who sees the avatar raise the other knee. On
-``bench_accuracy``'s silhouette runs it did so at a fifth to a third of the decisions.
+``bench_accuracy``'s silhouette runs its pose was nearer the performer's mirror image
+than the performer's own at a fifth to a third of the decisions.
 
 The two hypotheses are the performer facing the camera (the readings as seen in views
 from the avatar's front, mirrored in views from its back) and facing away (the
 others). ``Facing`` weighs windows against the one the evidence favours: a window that
 only the other explains costs ``1 + penalty`` times as much. The evidence is how much
-cheaper the best window each hypothesis explains is, on a log scale, summed over the
-decisions with a memory of about ``MEMORY_S`` seconds; before any, the performer faces
-the camera, as in front of a webcam. Perspective makes the true hypothesis the cheaper
-one at about two thirds of a take's windows (``bench_accuracy``'s cameras from the
-front, above and behind: the sum took the right side in every one). Views within
-``MARGIN`` degrees of the avatar's side are never weighed: seen from the side a pose
-and its mirror image look alike, and the performer's heading wanders across the side
-(in a ``/tmp`` harness of ``bench_recognition``'s search, 3 takes x 11 recordings,
-weighing side views too made those from the side worse; ``MARGIN`` 0, 15 and 30 gave the
-avatar's own-side pose error 0.456-0.49 against 0.568 unweighed, the label the same
-within 0.005).
+cheaper the best window each hypothesis explains is, on a log scale (at most ``STEP`` a
+decision), summed over the decisions with a memory of about ``MEMORY_S`` seconds;
+before any, the performer faces the camera, as in front of a webcam. Perspective makes
+the true hypothesis the cheaper one at about two thirds of a take's windows
+(``bench_accuracy``'s cameras from the front, above and behind: the sum settled on the
+right side in every one). Neither hypothesis is weighed in views within ``MARGIN``
+degrees of the avatar's side (seen from the side a pose and its mirror image look alike,
+and the performer's heading wanders across the side: in a ``/tmp`` harness of
+``bench_recognition``'s search, 3 takes x 11 recordings, weighing side views too made
+those from the side worse; ``MARGIN`` 0, 15 and 30 gave the avatar's own-side pose error
+0.456-0.49 against 0.568 unweighed, the label the same within 0.005), nor in windows
+that show no side (``clip_sides``: a squat is its own mirror image, and weighing its
+views only cost the shared real squat clip, filmed by another camera than the bank's,
+4 of its 39 decisions, 0.641 -> 0.538 with silhouettes; with sides only, 0.641).
 """
 
 from __future__ import annotations
@@ -34,13 +38,15 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.ndimage import maximum_filter1d
 
-from control.motion import Clip
+from control.graph import weighted_joints
+from control.motion import Clip, mirror, qconj, qlog, qmul
 from silhouette_bank import joint_points
 
 log = logging.getLogger(__name__)
 
-__all__ = ["MARGIN", "MEMORY_S", "STEP", "Facing", "clip_headings"]
+__all__ = ["MARGIN", "MEMORY_S", "SIDED", "STEP", "Facing", "clip_headings", "clip_sides"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -52,6 +58,11 @@ MARGIN = 15.0
 MEMORY_S = 30.0
 #: the most one decision adds to the evidence (a cost ratio of about 1.05)
 STEP = 0.05
+#: a window shows a side when, at some frame, its pose is this far from its own mirror
+#: image (the sum over the weighted joints of squared half-angles, as ``bench_accuracy``'s
+#: pose error): the exercise takes' knee raises, toe touches and twists (median 0.3-2.3),
+#: not their squats, jumping jacks and arm circles (90th percentile 0.14-0.35)
+SIDED = 0.4
 
 
 def clip_headings(clips: Sequence[Clip]) -> FloatArray:
@@ -67,11 +78,27 @@ def clip_headings(clips: Sequence[Clip]) -> FloatArray:
     return np.concatenate(out) if out else np.zeros(0)
 
 
+def clip_sides(clips: Sequence[Clip], length: int) -> NDArray[np.bool_]:
+    """Whether the ``length`` frames around each frame of ``clips`` (one after another)
+    show a side: a pose at least ``SIDED`` from its mirror image. A ``KeyError`` names a
+    limb the skeleton lacks."""
+    out = []
+    for clip in clips:
+        joints = weighted_joints(clip.motion.skeleton)
+        q = clip.motion.quats[:, joints]
+        other = mirror(clip.motion).quats[:, joints]
+        d = np.sum((np.linalg.norm(qlog(qmul(qconj(other), q)), axis=-1) / 2.0) ** 2, axis=-1)
+        out.append(maximum_filter1d(d, size=max(1, length), mode="nearest") >= SIDED)
+    return np.concatenate(out) if out else np.zeros(0, dtype=bool)
+
+
 class Facing:
     """The performer's facing, for a matcher that reads silhouettes both ways.
 
     ``zone[f, v]``: +1 where ring view ``v`` sees the avatar at frame ``f`` from the front
-    (more than ``MARGIN`` degrees from its side), -1 from behind, 0 from the side."""
+    (more than ``MARGIN`` degrees from its side), -1 from behind, 0 from the side or where
+    the window around ``f`` shows no side (``sided``: a squat looks the same mirrored, so
+    either facing explains it)."""
 
     def __init__(
         self,
@@ -81,10 +108,13 @@ class Facing:
         penalty: float,
         memory: float = 0.99,
         margin: float = MARGIN,
+        sided: NDArray[np.bool_] | None = None,
     ) -> None:
         c = np.cos(np.asarray(azimuths)[None, :] - np.asarray(headings)[:, None])
         edge = math.sin(math.radians(margin))
         self.zone = np.where(c > edge, 1, np.where(c < -edge, -1, 0)).astype(np.int8)
+        if sided is not None:
+            self.zone[~np.asarray(sided, dtype=bool)] = 0
         self.ring_views = self.zone.shape[1]
         self.half = half  # a window is seen as at its middle frame
         self.penalty = penalty
@@ -151,12 +181,12 @@ class Facing:
         if matcher.desc.kind != "silhouette" or not both or st.facing <= 0:
             return None
         try:
-            headings = clip_headings(clips)
-        except ValueError as exc:
+            headings, sided = clip_headings(clips), clip_sides(clips, matcher.n)
+        except (KeyError, ValueError) as exc:
             log.warning("the performer's facing is not weighed: %s", exc)
             return None
         if headings.size != matcher.graph.n_frames:
             return None
         ring = matcher.bank.settings.ring
         memory = math.exp(-period / MEMORY_S)
-        return cls(headings, ring.azimuths(), matcher.n // 2, st.facing, memory)
+        return cls(headings, ring.azimuths(), matcher.n // 2, st.facing, memory, sided=sided)

@@ -12,7 +12,7 @@ import pytest
 from control.graph import weighted_joints
 from control.motion import load_library, mirror, qconj, qlog, qmul
 from vision import MatchSettings, PerformSettings, RecordSettings, VideoSource, record_clip
-from vision._facing import STEP, Facing, clip_headings
+from vision._facing import STEP, Facing, clip_headings, clip_sides
 from vision._perform import Performance
 
 
@@ -29,6 +29,18 @@ def test_headings_are_where_the_hips_face(mocap: Path) -> None:
     turned = dataclasses.replace(clip, motion=dataclasses.replace(clip.motion, quats=q))
     moved = np.angle(np.exp(1j * (clip_headings([turned]) - h)))
     np.testing.assert_allclose(moved, math.pi / 2, atol=1e-6)
+
+
+def test_only_windows_that_show_a_side_are_weighed(mocap: Path) -> None:
+    """13_30's knee raises show a side (a pose unlike its mirror image), its squats and
+    jumping jacks do not; a window that shows none is seen from neither front nor back."""
+    clip = load_library(mocap, fps=30, clips=["13_30"]).clip("13_30")
+    sided = clip_sides([clip], 30)
+    labels = np.array([clip.label_at(f) for f in range(clip.motion.n_frames)])
+    assert sided[labels == "KneeRaise"].mean() > 0.9
+    assert sided[labels == "Squat"].mean() < 0.2 and sided[labels == "JumpJack"].mean() < 0.2
+    f = Facing(np.zeros(4), np.radians([0.0, 180.0]), 0, 0.3, sided=np.array([1, 0, 1, 0], bool))
+    np.testing.assert_array_equal(f.zone, [[1, -1], [0, 0], [1, -1], [0, 0]])
 
 
 def _facing() -> Facing:
