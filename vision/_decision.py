@@ -113,7 +113,8 @@ class MatchSettings:
     #: the evidence says) cost ``1 + facing`` times as much (0: off), so that the avatar
     #: raises the knee the performer raises, not the other. 0.3 (2026-12-04,
     #: ``bench_accuracy``, the 12 silhouette runs): label agreement 0.903 -> 0.911, pose
-    #: score 0.623 -> 0.659; 0.1 gave 0.908 and 0.649, 1.0 gave 0.911 and 0.659
+    #: score 0.623 -> 0.656 (weighing every window, not only those that show a side:
+    #: 0.911 and 0.659 at 0.3, 0.908 and 0.649 at 0.1, 0.911 and 0.659 at 1.0)
     facing: float = 0.3
 
     def __post_init__(self) -> None:
