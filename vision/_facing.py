@@ -40,8 +40,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import maximum_filter1d
 
+from control.clusters import orientation_distance
 from control.graph import weighted_joints
-from control.motion import Clip, mirror, qconj, qlog, qmul
+from control.motion import Clip, mirrored_rotations
 from silhouette_bank import joint_points
 
 log = logging.getLogger(__name__)
@@ -85,9 +86,8 @@ def clip_sides(clips: Sequence[Clip], length: int) -> NDArray[np.bool_]:
     out = []
     for clip in clips:
         joints = weighted_joints(clip.motion.skeleton)
-        q = clip.motion.quats[:, joints]
-        other = mirror(clip.motion).quats[:, joints]
-        d = np.sum((np.linalg.norm(qlog(qmul(qconj(other), q)), axis=-1) / 2.0) ** 2, axis=-1)
+        other = mirrored_rotations(clip.motion, joints)
+        d = np.sum(orientation_distance(other, clip.motion.quats[:, joints]) ** 2, axis=-1)
         out.append(maximum_filter1d(d, size=max(1, length), mode="nearest") >= SIDED)
     return np.concatenate(out) if out else np.zeros(0, dtype=bool)
 
@@ -147,11 +147,11 @@ class Facing:
         toward, out = self.toward, []
         for r, (s, v, c) in enumerate(ranked):
             z = self._zones(s + self.half, v)
-            for hyp in (True, False):
-                m = self._unexplained(r, z, hyp)
+            masks = {hyp: self._unexplained(r, z, hyp) for hyp in (True, False)}
+            for hyp, m in masks.items():
                 if m.any():
                     best[hyp] = min(best[hyp], float(c[m].min()))
-            out.append((s, v, np.where(self._unexplained(r, z, toward), c * (1 + self.penalty), c)))
+            out.append((s, v, np.where(masks[toward], c * (1 + self.penalty), c)))
         if observe and 0.0 < best[False] < math.inf and 0.0 < best[True] < math.inf:
             # facing the camera explains its windows better when those it does not
             # explain cost more; by at most ``STEP`` a decision (a run of windows of

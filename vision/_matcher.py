@@ -468,8 +468,9 @@ class Matcher(CandidatePaths, Landing):
         group = np.repeat(np.arange(len(cands)), views)
         each = np.array([dtw_batch(q, refs, group, window=self.settings.band) for q in queries])
         each = each.reshape(len(queries), len(cands), views)
-        for i, w in enumerate(wins if self.facing is not None else []):
-            each[:, i] = self.weighed(each[:, i], int(w[self.n // 2]))
+        if self.facing is not None:
+            for i, w in enumerate(wins):
+                each[:, i] = self.weighed(each[:, i], int(w[self.n // 2]))
         costs = each.min(axis=0)
         per_path = costs.min(axis=1)
         rank = per_path  # the costs reported stay DTW costs; the prior only ranks

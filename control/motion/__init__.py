@@ -31,7 +31,7 @@ from ._library import (
     read_labels,
 )
 from ._names import ROLE_ALIASES, find_role, mirror_map, role_point
-from ._ops import cut, mirror, resample, resample_positions
+from ._ops import cut, mirror, mirrored_rotations, resample, resample_positions
 from ._quat import (
     FloatArray,
     euler_to_q,
@@ -82,6 +82,7 @@ __all__ = [
     "load_spec",
     "mirror",
     "mirror_map",
+    "mirrored_rotations",
     "q_to_R",
     "q_to_euler",
     "qconj",

@@ -5,12 +5,13 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ._names import mirror_map
 from ._quat import FloatArray, slerp
 from ._types import Motion, Skeleton
 
-__all__ = ["cut", "mirror", "resample", "resample_positions"]
+__all__ = ["cut", "mirror", "mirrored_rotations", "resample", "resample_positions"]
 
 
 def resample_positions(n_frames: int, fps: float, target_fps: float) -> FloatArray:
@@ -59,6 +60,17 @@ def _reflect_q(q: FloatArray, axis: int) -> FloatArray:
     return out
 
 
+def mirrored_rotations(
+    motion: Motion, joints: NDArray[np.int64] | None = None, axis: int = 0
+) -> FloatArray:
+    """The rotations ``(F, len(joints), 4)`` of ``mirror(motion, axis)``'s ``joints``
+    (default all), without making the mirrored skeleton or copying the other joints."""
+    if axis not in (0, 1, 2):
+        raise ValueError("axis must be 0, 1 or 2")
+    partner = mirror_map(motion.skeleton)
+    return _reflect_q(motion.quats[:, partner if joints is None else partner[joints]], axis)
+
+
 def mirror(motion: Motion, axis: int = 0) -> Motion:
     """The clip reflected in the plane ``x[axis] = 0`` with left and right swapped.
 
@@ -93,7 +105,7 @@ def mirror(motion: Motion, axis: int = 0) -> Motion:
     return Motion(
         skeleton,
         motion.root_pos * flip,
-        _reflect_q(motion.quats[:, partner], axis),
+        mirrored_rotations(motion, axis=axis),
         motion.fps,
         name=f"{motion.name}_mirror" if not motion.name.endswith("_mirror") else motion.name[:-7],
         source=motion.source,

@@ -15,6 +15,7 @@ from control.motion import (
     forward_kinematics,
     mirror,
     mirror_map,
+    mirrored_rotations,
     qconj,
     qlog,
     qmul,
@@ -70,6 +71,9 @@ def test_mirroring_twice_is_identity_and_once_reflects(walk: Motion) -> None:
     p0 = forward_kinematics(walk).positions
     p1 = forward_kinematics(once).positions
     np.testing.assert_allclose(p1, p0[:, partner] * [-1, 1, 1], atol=1e-12)
+    # a few joints' mirrored rotations, without the rest of the mirrored clip
+    some = np.array([names.index("lfemur"), names.index("lowerback")])
+    np.testing.assert_array_equal(mirrored_rotations(walk, some), once.quats[:, some])
 
 
 def test_mirror_bvh_names(mocap: Path) -> None:

@@ -9,8 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from control.clusters import orientation_distance
 from control.graph import weighted_joints
-from control.motion import load_library, mirror, qconj, qlog, qmul
+from control.motion import load_library, mirrored_rotations, qmul
 from vision import MatchSettings, PerformSettings, RecordSettings, VideoSource, record_clip
 from vision._facing import STEP, Facing, clip_headings, clip_sides
 from vision._perform import Performance
@@ -86,11 +87,11 @@ def _own_side(decisions: list[dict], lib_motion, perf_motion, first: int) -> flo
     """Of the decisions where the avatar's pose is clearly nearer the performer's or its
     mirror image, the share nearer the performer's own side."""
     joints = weighted_joints(lib_motion.skeleton)
-    own, other = lib_motion.quats[:, joints], mirror(lib_motion).quats[:, joints]
+    own, other = lib_motion.quats[:, joints], mirrored_rotations(lib_motion, joints)
     truth = perf_motion.quats[:, joints]
 
     def dist(a: np.ndarray, b: np.ndarray) -> float:
-        return float(np.sum((np.linalg.norm(qlog(qmul(qconj(b), a)), axis=-1) / 2.0) ** 2))
+        return float(np.sum(orientation_distance(b, a) ** 2))
 
     hits = []
     for d in decisions:
