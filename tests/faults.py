@@ -38,7 +38,7 @@ from control.motion import (
     write_motion_arrays,
 )
 from silhouette_bank import BankFileError, BankSettings, CameraRing, ensure_bank
-from vision import IndexFileError, Matcher, MatchSettings, WindowTablesError
+from vision import IndexFileError, Matcher, MatchSettings, WindowTablesError, _tables
 
 GOOD = ("same", "rebuilt", "error")
 SMALL_BANK = BankSettings(CameraRing(n_views=4, width=64, height_px=48), descriptor="hu")
@@ -449,6 +449,14 @@ class Outcome:
     detail: str = ""
 
 
+def _settled() -> None:
+    """Wait for the background checks of window tables just written (they record the
+    tables as checked beside them, ``RACY_NS`` after the write): the pristine folder must
+    not change while the cases copy it."""
+    for thread in list(_tables.CHECKING):
+        thread.join(timeout=60)
+
+
 def run_case(
     artifact: Artifact,
     pristine_root: Path,
@@ -456,7 +464,8 @@ def run_case(
     damage: Callable[[Path], str],
 ) -> Outcome:
     """Copy the pristine artifacts, damage the artifact's file, load, and classify."""
-    with tempfile.TemporaryDirectory(prefix="mimic-fault-") as tmp:
+    # a case's own tables check may still write beside its copy when the copy goes
+    with tempfile.TemporaryDirectory(prefix="mimic-fault-", ignore_cleanup_errors=True) as tmp:
         work = Path(tmp) / "w"
         shutil.copytree(pristine_root, work)
         target = artifact.target(work)
@@ -497,6 +506,7 @@ def sweep(
     with tempfile.TemporaryDirectory(prefix="mimic-pristine-") as tmp:
         root = Path(tmp)
         found, pristine = artifacts(mocap, root)
+        _settled()
         for art in found:
             cases: list[Callable[[Path], str]] = []
             cases += [functools.partial(flip, rng=rng)] * flips
