@@ -65,6 +65,39 @@ def _summaries(
     return np.concatenate(parts, axis=-1).astype(np.float32)
 
 
+def _run_summaries(
+    shape: ShapeTable, centre: FloatArray, starts: IntArray, length: int, bounds: IntArray
+) -> NDArray[np.float32]:
+    """``_summaries`` of the windows at ``starts`` in every view, each run of
+    consecutive starts from prefix sums over its frames (a slice of the tables, not a
+    gather a frame: about ten times faster)."""
+    d = shape.shape[2]
+    out = np.empty((starts.size, shape.shape[1], (bounds.size - 1) * (d + 2)), np.float32)
+    for run in np.split(np.arange(starts.size), np.flatnonzero(np.diff(starts) != 1) + 1):
+        if not run.size:
+            continue
+        a, b = int(starts[run[0]]), int(starts[run[-1]]) + length
+        x = np.concatenate((shape[a:b], centre[a:b]), axis=-1, dtype=np.float64)
+        c = np.concatenate((np.zeros((1, *x.shape[1:])), np.cumsum(x, axis=0)))
+        rel = starts[run] - a
+        parts = []
+        for lo, hi in itertools.pairwise(bounds):
+            mean = (c[rel + hi] - c[rel + lo]) / float(hi - lo)
+            mean[..., d:] -= x[rel, :, d:]  # the centre relative to the window's start
+            parts.append(mean)
+        out[run] = np.concatenate(parts, axis=-1)
+    return out
+
+
+#: a search among flagged windows (``WindowIndex.search``'s ``only``: the voted action's)
+#: scans their own summaries exactly when an inverted-file index holds at most this many
+#: (rows: starts x views); in ``bench_accuracy``'s silhouette runs a decision that searched
+#: again among the voted action's windows took 1.5-2 ms more through the lists, at four
+#: times their usual number, than the first search
+SUBSET_FLAT = 20_000
+#: the flat indexes of flagged windows hold at most this many rows in all (26 MB of
+#: summaries at 32 numbers; bench_accuracy's folds hold 50,000-60,000 windows in all)
+FLAT_ROWS = 200_000
 #: starts summarised at a time while the index is filled (bounds the build's memory)
 _CHUNK = 4096
 
@@ -139,6 +172,8 @@ class WindowIndex:
         self._ok[starts] = True
         faiss.omp_set_num_threads(1)  # one core, and the same index on every run
         self._selected: dict[bytes, tuple[Any, Any, NDArray[np.uint8]]] = {}
+        self._flat: dict[bytes, tuple[Any, IntArray]] = {}  # (``_among``)
+        self._flat_rows = 0
         self.index: Any
         if built is not None:  # (mean, basis, faiss index, nprobe) of the same build
             self.mean, self.basis, self.index, self.nprobe = built
@@ -200,16 +235,45 @@ class WindowIndex:
         x = np.concatenate(parts).astype(np.float32)
         return np.ascontiguousarray(((x - self.mean) @ self.basis)[None], dtype=np.float32)
 
-    def _params(self, only: NDArray[np.bool_]) -> Any:
-        """faiss's search parameters for windows starting only where ``only`` (one flag a
-        table frame) is set: a bitmap of the index's rows, and four times the inverted
-        lists scanned (the nearest lists may hold few such windows; ``shortlisted`` takes
-        half as many of them). Kept for the last few masks asked for."""
+    def prepare(self, only: NDArray[np.bool_]) -> None:
+        """Make the search among the windows ``only`` flags (``search``'s ``only``) ready
+        now, not at the decision that first asks for it (``vision.Performance`` does this
+        for each of the library's actions at its start)."""
+        self._among(only)
+
+    def _among(self, only: NDArray[np.bool_]) -> tuple[Any, Any, IntArray | None]:
+        """How to search only the windows starting where ``only`` (one flag a table
+        frame) is set: ``(index, params, rows)``. At most ``SUBSET_FLAT`` of them, in an
+        inverted-file index: a flat index of their own summaries, scanned exactly
+        (``rows``: its rows' rows in the whole index), kept while such indexes hold at
+        most ``FLAT_ROWS`` rows in all. Else the whole index with faiss's search
+        parameters: a bitmap of its rows, and four times the inverted lists scanned (the
+        nearest lists may hold few such windows), kept for the last few masks."""
         import faiss
 
         key = hashlib.blake2b(np.packbits(only).tobytes(), digest_size=16).digest()
+        if key in self._flat:
+            sub, ids = self._flat[key]
+            return sub, None, ids
         if key not in self._selected:
             rows = np.repeat(only[self.starts], self.n_views)
+            n = int(rows.sum())
+            if self.nprobe and n <= SUBSET_FLAT and self._flat_rows + n <= FLAT_ROWS:
+                ids = np.flatnonzero(rows).astype(np.int64)  # (every view of each start)
+                v = self.n_views
+                x = _run_summaries(
+                    self.shape,
+                    self.centre,
+                    self.starts[ids[::v] // v],
+                    self.length,
+                    self.bounds,
+                ).reshape(n, -1)
+                sub = faiss.IndexFlatL2(self.basis.shape[1])
+                if ids.size:
+                    sub.add(np.ascontiguousarray((x - self.mean) @ self.basis, dtype=np.float32))
+                self._flat[key] = (sub, ids)
+                self._flat_rows += n
+                return sub, None, ids
             bitmap = np.packbits(rows, bitorder="little")
             sel = faiss.IDSelectorBitmap(rows.size, faiss.swig_ptr(bitmap))
             params: Any = faiss.SearchParametersIVF() if self.nprobe else faiss.SearchParameters()
@@ -219,7 +283,7 @@ class WindowIndex:
             if len(self._selected) >= 8:
                 self._selected.pop(next(iter(self._selected)))
             self._selected[key] = (params, sel, bitmap)  # (faiss keeps no reference)
-        return self._selected[key][0]
+        return self.index, self._selected[key][0], None
 
     def shortlisted(
         self, query: FloatArray, only: NDArray[np.bool_] | None = None, readings: int = 2
@@ -228,7 +292,7 @@ class WindowIndex:
         ``readings`` of the performer searched together, each with its neighbours one
         frame earlier and later (where those may start a window; with ``only``, only
         where it is set)."""
-        params = None if only is None else self._params(only)
+        index, params, rows = (self.index, None, None) if only is None else self._among(only)
         # flagged windows are fewer: half the short list (the same label agreement in all
         # 12 runs of bench_accuracy; a decision's p99 at worst 6.5 -> 6.0 ms)
         k = self.shortlist if only is None else max(1, self.shortlist // 2)
@@ -237,8 +301,10 @@ class WindowIndex:
         # bench_accuracy's 12 runs the same label agreement, the pose score within 0.004,
         # a decision's p99 4.5-8.2 -> 2.6-5.4 ms)
         k = max(1, k * 2 // max(2, readings))
-        _, ids = self.index.search(self.summary(query), k, params=params)
+        _, ids = index.search(self.summary(query), k, params=params)
         ids = ids[0][ids[0] >= 0]
+        if rows is not None:
+            ids = rows[ids]
         s = self.starts[ids // self.n_views]
         v = ids % self.n_views
         s = np.concatenate((s, s - 1, s + 1))

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import itertools
 from collections import Counter, deque
+from collections.abc import Iterator
 
 import numpy as np
 from numpy.typing import NDArray
@@ -96,6 +97,18 @@ class ActionVote:
             target = np.arange(self.actions.size, dtype=np.int64) + length
             self._starts = (key, self.gate(target))
         return self._starts[1]
+
+    def each_starts(self, length: int) -> Iterator[NDArray[np.bool_]]:
+        """``starts(length)`` for each of the library's actions in turn (as if it were
+        the one voted for; the one voted for stays)."""
+        assert self.actions is not None
+        voted = self.voted
+        try:
+            for action in np.unique(self.actions):
+                self.voted = int(action)
+                yield self.starts(length)
+        finally:
+            self.voted = voted
 
     def leaves(self, frame: int, ahead: int) -> bool:
         """Whether an avatar at ``frame``, which plays on to ``ahead`` (``span`` frames on,

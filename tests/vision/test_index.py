@@ -22,7 +22,8 @@ from vision import (
     best_window,
     cached_window_index,
 )
-from vision._index import best_of
+from vision import _index as index_module
+from vision._index import _bounds, _run_summaries, _summaries, best_of
 
 
 def _performer(bank) -> np.ndarray:
@@ -174,10 +175,18 @@ def test_the_principal_axes_are_the_svds(rng) -> None:
     np.testing.assert_array_equal(_principal_axes(-x, 8), axes)
 
 
-@pytest.mark.parametrize("flat_below", [100_000, 0])  # a flat scan; an inverted file
-def test_a_search_within_flagged_starts_finds_their_brute_force_best(setup, flat_below) -> None:
+@pytest.mark.parametrize(
+    ("flat_below", "subset_flat"),
+    # a flat scan; an inverted file, the flagged windows in a flat index of their own;
+    # an inverted file searched with a bitmap of them
+    [(100_000, 20_000), (0, 20_000), (0, 0)],
+)
+def test_a_search_within_flagged_starts_finds_their_brute_force_best(
+    setup, flat_below, subset_flat, monkeypatch
+) -> None:
     """``only``: the windows after which the library shows one action (the vote's gate),
     against brute force over just those."""
+    monkeypatch.setattr(index_module, "SUBSET_FLAT", subset_flat)
     lib, layer, bank = setup
     m = Matcher(layer, bank, MatchSettings())
     shape, centre, starts = m._global_tables()
@@ -203,8 +212,47 @@ def test_a_search_within_flagged_starts_finds_their_brute_force_best(setup, flat
         total += 1
         hits += got[0][2] <= b[2] + 1e-9
     assert total >= 40 and hits >= 0.95 * total, (hits, total)
+    assert bool(index._flat) == (flat_below == 0 and subset_flat > 0)
     with pytest.raises(ValueError, match="each of the"):
         index.search(queries, m.settings.band, only=only[:-1])
+
+
+def test_summaries_of_runs_of_starts_are_the_summaries(setup, rng) -> None:
+    """``_run_summaries`` (prefix sums over each run of starts) gives what ``_summaries``
+    (a gather a frame) gives, in every view, runs broken anywhere."""
+    _, layer, bank = setup
+    m = Matcher(layer, bank, MatchSettings())
+    shape, centre, starts = m._global_tables()
+    bounds = _bounds(m.n, 5)
+    pick = np.sort(rng.choice(starts, 40, replace=False))
+    pick = np.unique(np.concatenate((pick, starts[10:30])))  # one long run too
+    want = _summaries(shape, centre, pick, m.n, bounds)
+    np.testing.assert_allclose(_run_summaries(shape, centre, pick, m.n, bounds), want, atol=1e-5)
+
+
+def test_each_action_s_search_is_made_ready_at_once(setup) -> None:
+    """``ActionVote.each_starts`` gives every action's starts, the voted action kept;
+    ``WindowIndex.prepare`` makes each search ready before a decision asks for it."""
+    lib, layer, bank = setup
+    m = Matcher(layer, bank, MatchSettings())
+    shape, centre, starts = m._global_tables()
+    index = WindowIndex(shape, centre, starts, m.n, flat_below=0)
+    keys = action_keys(lib.clips)
+    assert keys is not None
+    vote = ActionVote(1, m.n // 2)
+    vote.actions = keys
+    vote.cast(np.array([m.n]))
+    voted = vote.voted
+    masks = list(vote.each_starts(m.n))
+    assert vote.voted == voted and len(masks) == np.unique(keys).size
+    assert sum(k.any() for k in masks) >= 5  # (ArmCircle, JumpJack, ...: other actions)
+    for only in masks:
+        index.prepare(only)
+    made = dict(index._flat)
+    assert len(made) == len(masks)  # one flat index an action
+    for only in masks:
+        index.prepare(only)
+    assert index._flat == made  # (kept, not made again)
 
 
 def test_the_best_flagged_windows_of_a_search_s_short_lists(setup) -> None:
