@@ -123,6 +123,15 @@ def perform(
     return run.run(log=log, tape=tape, on_frame=on_frame, on_decision=on_decision, stop=stop)
 
 
+def _ready_vote(matcher: Matcher) -> None:
+    """The vote's classifier, and the search among each action's windows (which a decision
+    makes when none of the best windows shows the action voted for: made there, it took
+    7-10 ms on bench_accuracy's folds), made now, not at the first decision."""
+    matcher.classifier()
+    for only in matcher.vote.each_starts(matcher.n):
+        matcher.index().prepare(only)
+
+
 class Performance:
     """One performance, a step a method: ``features`` of a frame, ``advance`` the buffer
     and the avatar's clock to it, ``decide`` at a decision point (``place_avatar`` where
@@ -168,12 +177,7 @@ class Performance:
         if actions is not None and actions.size == self.graph.n_frames:
             matcher.vote.actions = actions
             if jumps and settings.match.vote > 0:  # now, not at the first decision
-                matcher.classifier()
-                # and the search among each action's windows, which a decision makes when
-                # none of the best windows shows the action voted for (made there, it took
-                # 7-10 ms on bench_accuracy's folds)
-                for only in matcher.vote.each_starts(matcher.n):
-                    matcher.index().prepare(only)
+                _ready_vote(matcher)
         matcher.facing = Facing.of(clips, matcher, settings.decide_every)
         self.segmenter: Any = None
         self.landmarks = matcher.desc.kind == "pose"
