@@ -55,7 +55,7 @@ def _within_one_action(m: Matcher, clips: Any, perf: np.ndarray) -> dict[str, An
     shape, centre, starts = m._global_tables()
     allowed = starts[only[starts]]
     t = time.perf_counter()
-    m.index().prepare(only)  # (as a performance does for each action when it starts)
+    m.index().prepare(np.where(only, 0, -1))  # (as a performance does when it starts)
     made = (time.perf_counter() - t) * 1e3
     times, hits, total = [], 0, 0
     for end in range(m.n, perf.shape[0] + 1):

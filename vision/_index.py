@@ -235,11 +235,19 @@ class WindowIndex:
         x = np.concatenate(parts).astype(np.float32)
         return np.ascontiguousarray(((x - self.mean) @ self.basis)[None], dtype=np.float32)
 
-    def prepare(self, only: NDArray[np.bool_]) -> None:
-        """Make the search among the windows ``only`` flags (``search``'s ``only``) ready
-        now, not at the decision that first asks for it (``vision.Performance`` does this
-        for each of the library's actions at its start)."""
-        self._among(only)
+    def prepare(self, keys: IntArray) -> None:
+        """Make the searches among the windows of each value of ``keys`` (one a table
+        frame, -1 for none: ``search``'s ``only`` is ``keys == k``) ready now, not at the
+        decision that first asks for one: those that get a flat index of their own
+        (``_among``), while ``FLAT_ROWS`` allows (``vision.Performance`` does this for
+        the library's actions at its start)."""
+        if not self.nprobe:
+            return  # (a flat index: searched through a bitmap, made in no time)
+        k = keys[self.starts]
+        rows = np.bincount(k[k >= 0]) * self.n_views
+        for key in np.flatnonzero(rows):
+            if rows[key] <= SUBSET_FLAT and self._flat_rows + rows[key] <= FLAT_ROWS:
+                self._among(keys == key)
 
     def _among(self, only: NDArray[np.bool_]) -> tuple[Any, Any, IntArray | None]:
         """How to search only the windows starting where ``only`` (one flag a table

@@ -128,8 +128,7 @@ def _ready_vote(matcher: Matcher) -> None:
     makes when none of the best windows shows the action voted for: made there, it took
     7-10 ms on bench_accuracy's folds), made now, not at the first decision."""
     matcher.classifier()
-    for only in matcher.vote.each_starts(matcher.n):
-        matcher.index().prepare(only)
+    matcher.index().prepare(matcher.vote.window_actions(matcher.n))
 
 
 class Performance:

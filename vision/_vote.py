@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import itertools
 from collections import Counter, deque
-from collections.abc import Iterator
 
 import numpy as np
 from numpy.typing import NDArray
@@ -98,17 +97,16 @@ class ActionVote:
             self._starts = (key, self.gate(target))
         return self._starts[1]
 
-    def each_starts(self, length: int) -> Iterator[NDArray[np.bool_]]:
-        """``starts(length)`` for each of the library's actions in turn (as if it were
-        the one voted for; the one voted for stays)."""
+    def window_actions(self, length: int) -> IntArray:
+        """For each library frame, the action a window of ``length`` frames starting there
+        counts for (``gate`` of the frame after it), or -1: ``starts(length)`` with
+        ``voted`` the action ``a`` is ``window_actions(length) == a``."""
         assert self.actions is not None
-        voted = self.voted
-        try:
-            for action in np.unique(self.actions):
-                self.voted = int(action)
-                yield self.starts(length)
-        finally:
-            self.voted = voted
+        last = self.actions.size - 1
+        target = np.arange(self.actions.size, dtype=np.int64) + length
+        keys = self.actions[np.clip(target, 0, last)]
+        ahead = self.actions[np.clip(target + self.span, 0, last)]
+        return np.where(keys == ahead, keys, -1).astype(np.int64)
 
     def leaves(self, frame: int, ahead: int) -> bool:
         """Whether an avatar at ``frame``, which plays on to ``ahead`` (``span`` frames on,

@@ -230,9 +230,11 @@ def test_summaries_of_runs_of_starts_are_the_summaries(setup, rng) -> None:
     np.testing.assert_allclose(_run_summaries(shape, centre, pick, m.n, bounds), want, atol=1e-5)
 
 
-def test_each_action_s_search_is_made_ready_at_once(setup) -> None:
-    """``ActionVote.each_starts`` gives every action's starts, the voted action kept;
-    ``WindowIndex.prepare`` makes each search ready before a decision asks for it."""
+def test_each_action_s_search_is_made_ready_at_once(setup, monkeypatch) -> None:
+    """``ActionVote.window_actions`` names the action each window start counts for, as
+    ``starts`` flags them for the voted one; ``WindowIndex.prepare`` makes each action's
+    search ready before a decision asks for it, within ``FLAT_ROWS``, and the search a
+    decision then makes is the one made."""
     lib, layer, bank = setup
     m = Matcher(layer, bank, MatchSettings())
     shape, centre, starts = m._global_tables()
@@ -241,18 +243,25 @@ def test_each_action_s_search_is_made_ready_at_once(setup) -> None:
     assert keys is not None
     vote = ActionVote(1, m.n // 2)
     vote.actions = keys
-    vote.cast(np.array([m.n]))
-    voted = vote.voted
-    masks = list(vote.each_starts(m.n))
-    assert vote.voted == voted and len(masks) == np.unique(keys).size
-    assert sum(k.any() for k in masks) >= 5  # (ArmCircle, JumpJack, ...: other actions)
-    for only in masks:
-        index.prepare(only)
+    each = vote.window_actions(m.n)
+    for action in np.unique(keys):
+        vote.voted = int(action)
+        np.testing.assert_array_equal(vote.starts(m.n), each == action)
+    index.prepare(each)
+    present = np.unique(each[starts][each[starts] >= 0])
+    assert len(present) >= 5 and len(index._flat) == len(present)  # one flat index each
     made = dict(index._flat)
-    assert len(made) == len(masks)  # one flat index an action
-    for only in masks:
-        index.prepare(only)
-    assert index._flat == made  # (kept, not made again)
+    vote.voted = int(present[0])
+    perf = _performer(bank)
+    queries = m.queries(perf[: m.n])
+    assert queries is not None
+    index.search(queries, m.settings.band, only=vote.starts(m.n))
+    assert index._flat == made and not index._selected  # (the one made, not another)
+    # past the budget, nothing more is made beforehand (the bitmap search, when asked)
+    small = WindowIndex(shape, centre, starts, m.n, flat_below=0)
+    monkeypatch.setattr(index_module, "FLAT_ROWS", 0)
+    small.prepare(each)
+    assert not small._flat and not small._selected
 
 
 def test_the_best_flagged_windows_of_a_search_s_short_lists(setup) -> None:
