@@ -41,6 +41,17 @@ def _performer(bank) -> np.ndarray:
     return np.array(out)
 
 
+def _inverted_file(setup) -> tuple[Matcher, WindowIndex, np.ndarray]:
+    """The matcher of the test library, an inverted-file index of its windows, and the
+    action of each of its frames."""
+    lib, layer, bank = setup
+    m = Matcher(layer, bank, MatchSettings())
+    index = WindowIndex(*m._global_tables(), m.n, flat_below=0)
+    keys = action_keys(lib.clips)
+    assert keys is not None
+    return m, index, keys
+
+
 def test_dtw_windows_is_dtw_of_each_window(setup, rng) -> None:
     _, layer, bank = setup
     m = Matcher(layer, bank)
@@ -235,12 +246,8 @@ def test_each_action_s_search_is_made_ready_at_once(setup, monkeypatch) -> None:
     ``starts`` flags them for the voted one; ``WindowIndex.prepare`` makes each action's
     search ready before a decision asks for it, within ``FLAT_ROWS``, and the search a
     decision then makes is the one made."""
-    lib, layer, bank = setup
-    m = Matcher(layer, bank, MatchSettings())
-    shape, centre, starts = m._global_tables()
-    index = WindowIndex(shape, centre, starts, m.n, flat_below=0)
-    keys = action_keys(lib.clips)
-    assert keys is not None
+    m, index, keys = _inverted_file(setup)
+    bank, (shape, centre, starts) = setup[2], m._global_tables()
     vote = ActionVote(1, m.n // 2)
     vote.actions = keys
     each = vote.window_actions(m.n)
@@ -269,12 +276,8 @@ def test_the_best_flagged_windows_of_a_search_s_short_lists(setup) -> None:
     again, all (the search's own answer) or only the flagged ones (what the vote looks for
     before searching its action's windows alone): the cheapest flagged windows there,
     one per start, cheapest first."""
-    lib, layer, bank = setup
-    m = Matcher(layer, bank, MatchSettings())
-    shape, centre, starts = m._global_tables()
-    index = WindowIndex(shape, centre, starts, m.n, flat_below=0)
-    keys = action_keys(lib.clips)
-    assert keys is not None
+    m, index, keys = _inverted_file(setup)
+    bank = setup[2]
     perf = _performer(bank)
     queries = m.queries(perf[: m.n])
     assert queries is not None
