@@ -246,8 +246,13 @@ class WindowIndex:
         k = keys[self.starts]
         rows = np.bincount(k[k >= 0]) * self.n_views
         for key in np.flatnonzero(rows):
-            if rows[key] <= SUBSET_FLAT and self._flat_rows + rows[key] <= FLAT_ROWS:
+            if self._fits_flat(int(rows[key])):
                 self._among(keys == key)
+
+    def _fits_flat(self, rows: int) -> bool:
+        """Whether a search among ``rows`` flagged windows gets a flat index of its own
+        (``_among``)."""
+        return bool(self.nprobe) and rows <= SUBSET_FLAT and self._flat_rows + rows <= FLAT_ROWS
 
     def _among(self, only: NDArray[np.bool_]) -> tuple[Any, Any, IntArray | None]:
         """How to search only the windows starting where ``only`` (one flag a table
@@ -266,7 +271,7 @@ class WindowIndex:
         if key not in self._selected:
             rows = np.repeat(only[self.starts], self.n_views)
             n = int(rows.sum())
-            if self.nprobe and n <= SUBSET_FLAT and self._flat_rows + n <= FLAT_ROWS:
+            if self._fits_flat(n):
                 ids = np.flatnonzero(rows).astype(np.int64)  # (every view of each start)
                 v = self.n_views
                 x = _run_summaries(

@@ -81,11 +81,18 @@ class ActionVote:
     def gate(self, target: IntArray) -> NDArray[np.bool_]:
         """Which of ``target`` show the action voted for and still show it ``span``
         frames on (clipped to the library's last frame)."""
+        keys, ahead = self._shown(target)
+        return np.asarray((keys == self.voted) & (ahead == self.voted))
+
+    def _shown(self, target: IntArray) -> tuple[IntArray, IntArray]:
+        """The actions at ``target`` and ``span`` frames on (clipped to the library's last
+        frame)."""
         assert self.actions is not None
         last = self.actions.size - 1
-        keys = self.actions[np.clip(target, 0, last)]
-        ahead = self.actions[np.clip(target + self.span, 0, last)]
-        return np.asarray((keys == self.voted) & (ahead == self.voted))
+        return (
+            self.actions[np.clip(target, 0, last)],
+            self.actions[np.clip(target + self.span, 0, last)],
+        )
 
     def starts(self, length: int) -> NDArray[np.bool_]:
         """The frames a window of ``length`` frames may start at for the frame after it to
@@ -102,10 +109,7 @@ class ActionVote:
         counts for (``gate`` of the frame after it), or -1: ``starts(length)`` with
         ``voted`` the action ``a`` is ``window_actions(length) == a``."""
         assert self.actions is not None
-        last = self.actions.size - 1
-        target = np.arange(self.actions.size, dtype=np.int64) + length
-        keys = self.actions[np.clip(target, 0, last)]
-        ahead = self.actions[np.clip(target + self.span, 0, last)]
+        keys, ahead = self._shown(np.arange(self.actions.size, dtype=np.int64) + length)
         return np.where(keys == ahead, keys, -1).astype(np.int64)
 
     def leaves(self, frame: int, ahead: int) -> bool:
