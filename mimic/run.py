@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import fnmatch
 import json
+import math
 import sys
 import time
 from dataclasses import dataclass
@@ -147,6 +148,14 @@ def _add_jump_args(p: argparse.ArgumentParser) -> None:
         help="keep to the action the best windows of the last N decisions voted for (0: off)",
     )
     p.add_argument(
+        "--vote-margin",
+        type=float,
+        default=MatchSettings.vote_margin,
+        help="with the vote, a window of another action is taken when it fits better even "
+        "at 1 + M times its cost, and the avatar's own motion of another action costs as "
+        "much more (default %(default)s; inf: only the voted action)",
+    )
+    p.add_argument(
         "--no-classify",
         action="store_true",
         help="each decision votes for its best window's action alone, not settled by the "
@@ -200,6 +209,7 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
         lookahead=args.lookahead,
         jumps=not args.no_jumps,
         vote=args.vote,
+        vote_margin=args.vote_margin,
         classify=not args.no_classify,
     )
     clips = _clips(args)
@@ -245,6 +255,12 @@ def _say_vote(clips: list[Any], match: MatchSettings) -> None:
         print(
             f"actions: {len(names)} labelled ({', '.join(names)}); the avatar keeps to the "
             f"one the best windows of the last {match.vote} decisions voted for"
+            + (
+                f", or another whose window fits better at {1 + match.vote_margin:g} times "
+                "its cost (--vote-margin)"
+                if math.isfinite(match.vote_margin)
+                else ""
+            )
             + (
                 ", each vote settled by an action classifier learned from the library "
                 "(--no-classify: off)"

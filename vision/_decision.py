@@ -76,14 +76,26 @@ class MatchSettings:
     cluster_paths: bool = False
     #: with jumps, on a library whose clips are labelled (``Matcher.vote``; each
     #: unlabelled clip counts as an action of its own): the best window of each of the
-    #: last ``vote`` decisions votes for its action, and the avatar jumps only into
-    #: windows of the action most voted for (which changes only when another has more
-    #: votes; when none of the best windows shows it, the best that do are searched for),
-    #: at once when it shows another or will have played on into another within half a
-    #: window (0: no vote). 15 (1.5 s of decisions; 2026-12-03): label agreement 0.853
-    #: against 0.790 over 3 held-out takes x 4 recordings (10: 0.838, 20: 0.844 in an
-    #: earlier form), and 0.826 against 0.764 on 18 recordings not used to choose it
+    #: last ``vote`` decisions votes for its action, and the avatar keeps to the action
+    #: most voted for (which changes only when another has more votes; when none of the
+    #: best windows shows it, the best that do are searched for), leaving another when
+    #: it shows one or will have played on into one within half a window, unless
+    #: another fits far better (``vote_margin``) (0: no vote). 15 (1.5 s of decisions;
+    #: 2026-12-03): label agreement 0.853 against 0.790 over 3 held-out takes x 4
+    #: recordings (10: 0.838, 20: 0.844 in an earlier form), and 0.826 against 0.764 on
+    #: 18 recordings not used to choose it
     vote: int = 15
+    #: with the vote: windows of another action than the one voted for may be jumped
+    #: into too, at ``1 + vote_margin`` times their cost, and the avatar's own motion,
+    #: when it shows another action, costs as much more (``math.inf``: never, as until
+    #: 2026-12-04: the avatar jumps only into the voted action, and leaves another at
+    #: once). The library's labels are coarser than its poses: a window of another action
+    #: is sometimes far nearer the performer's pose. 0.2 (2026-12-04, bench_accuracy's 12
+    #: runs, margins inf / 0.3 / 0.2 / 0.1, see benchmarks/HISTORY.md): landmarks' label
+    #: agreement 0.932 / 0.898 / 0.882 / -, pose score 0.710 / 0.776 / 0.783 / -;
+    #: silhouettes' 0.909 / 0.900 / 0.883 / 0.854, 0.657 / 0.671 / 0.684 / 0.703; the
+    #: shared squat clip, the one real performer, 0.872 / 0.872 / 0.949 / 0.923
+    vote_margin: float = 0.2
     #: each decision's vote goes to the action the library's action classifier and the
     #: search's costs agree on (``vision._classify``), not the best window's alone
     classify: bool = True
@@ -128,6 +140,8 @@ class MatchSettings:
             raise ValueError(f"phase must be a number of frames >= 0 (0: off), got {self.phase}")
         if not self.facing >= 0:
             raise ValueError(f"facing must be >= 0 (0: off), got {self.facing}")
+        if not self.vote_margin >= 0:
+            raise ValueError(f"vote_margin must be >= 0 (inf: strict), got {self.vote_margin}")
         if self.vote < 0:
             raise ValueError(f"vote must be a number of decisions >= 0 (0: off), got {self.vote}")
         if self.reject is not None and not self.reject > 0:

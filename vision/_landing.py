@@ -1,10 +1,11 @@
 """Where the avatar goes next, for ``Matcher``: a direct jump lands on the frame after
 one of the search's best windows, placed by the performer's last frames
-(``phased_targets``), unless the avatar is there already; or, for a performer standing
-still, the avatar holds its frame (``held``)."""
+(``phased_targets``), unless the avatar is there already, weighed by the action vote
+(``_gated``); or, for a performer standing still, the avatar holds its frame (``held``)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -16,6 +17,8 @@ from control.graph import MotionGraph
 
 from ._decision import Decision, MatchSettings
 from ._facing import Facing
+from ._index import WindowIndex, best_of
+from ._vote import ActionVote
 from ._windows import phased_targets
 
 __all__ = ["Gate", "Landing"]
@@ -25,6 +28,9 @@ IntArray = NDArray[np.int64]
 #: ``(target, ok, there)``: the frames after the windows, which a jump may land on, and
 #: which the avatar is at already
 Gate = tuple[IntArray, NDArray[np.bool_], NDArray[np.bool_]]
+#: a decision's best windows ``(start, table view, cost)``
+Windows = list[tuple[int, int, float]]
+Ranked = list[tuple[IntArray, IntArray, FloatArray]]
 
 
 class Landing:
@@ -40,6 +46,8 @@ class Landing:
     _bank_sequences: Callable[[IntArray], FloatArray]
     ring_views: int
     last_own: float
+    vote: ActionVote
+    index: Callable[[], WindowIndex]
     #: the performer's facing, for silhouettes read both ways (set by the caller, who has
     #: the library's motion: ``Performance``)
     facing: Facing | None
@@ -87,6 +95,67 @@ class Landing:
             latency_ms=0.0,
             extra={"held": 1.0},
         )
+
+    def _gated(
+        self,
+        frame: int,
+        queries: list[FloatArray],
+        ranked: Ranked,
+        costs: JumpCosts,
+        found: tuple[Windows, IntArray, NDArray[np.bool_], NDArray[np.bool_]],
+        voted: NDArray[np.bool_] | None,
+    ) -> tuple[Windows, IntArray, NDArray[np.bool_], FloatArray, float]:
+        """The action vote's part in a jump from ``frame``: the best windows ``found``
+        (``(got, target, ok, there)``; ``voted``: which show the voted action), with those
+        of the voted action added when none does (``_voted_windows``), and ``(got,
+        target, ok, weight, own_weight)``: each window's cost is times ``weight`` (1 + the
+        settings' ``vote_margin`` for another action), the avatar's own times
+        ``own_weight`` (the same, where it shows another action). With the margin
+        infinite, windows of another action are not ``ok``, and ``own_weight`` is
+        infinite where the avatar must leave its action."""
+        got, target, ok, there = found
+        if voted is None:
+            return got, target, ok, np.ones(len(got)), 1.0
+        margin = self.settings.vote_margin
+        if not (ok & voted).any():
+            more = self._voted_windows(frame, queries, ranked, costs, there & voted)
+            if math.isinf(margin):
+                got, target, ok, voted = more
+            else:
+                got = [*got, *more[0]]
+                target = np.concatenate((target, more[1]))
+                ok, voted = np.concatenate((ok, more[2])), np.concatenate((voted, more[3]))
+        away = self.vote.leaves(frame, int(self._playback(frame)[: self.n // 2 + 1][-1]))
+        if math.isinf(margin):
+            return got, target, ok & voted, np.ones(len(got)), math.inf if away else 1.0
+        return got, target, ok, np.where(voted, 1.0, 1.0 + margin), 1.0 + margin if away else 1.0
+
+    def _voted_windows(
+        self,
+        frame: int,
+        queries: list[FloatArray],
+        ranked: Ranked,
+        costs: JumpCosts,
+        at_voted: NDArray[np.bool_],
+    ) -> tuple[Windows, IntArray, NDArray[np.bool_], NDArray[np.bool_]]:
+        """None of the best windows shows the voted action: the best that do, from the same short
+        lists ``ranked`` when they hold any, else by a search among those windows alone,
+        unless the avatar is already at one of them (``at_voted``): no search can beat its
+        own cost by much (in bench_accuracy's 13_29 base, 66 -> 30 second searches, every
+        decision the same). ``(got, target, ok, voted)`` as ``jump`` has them."""
+        st = self.settings
+        only = self.vote.starts(self.n)
+        got = best_of(ranked, st.top, only)
+        target, ok, _ = self._targets(frame, got, costs, queries)
+        voted = self.vote.gate(target)
+        if not (ok & voted).any() and not at_voted.any():
+            lists: Ranked = []
+            got = self.index().search(queries, st.band, st.top, only, lists)
+            if self.facing is not None:
+                got = best_of(self.facing.weigh(lists, observe=False), st.top, only)
+            target, ok, _ = self._targets(frame, got, costs, queries)
+            voted = self.vote.gate(target)
+        return got, target, ok, voted
 
     def _targets(
         self,

@@ -311,25 +311,21 @@ class Matcher(CandidatePaths, Landing):
         voted = self.vote.cast(target, self._choice(queries, ranked, performer))
         if there.any():  # the avatar does one of the best windows: its cost is its own
             self.last_own = min(g[2] for g, t in zip(got, there, strict=True) if t)
-        if voted is not None and not (ok & voted).any():
-            at = there & voted
-            got, target, ok, voted = self._voted_windows(frame, queries, ranked, costs, at)
+        gated = self._gated(frame, queries, ranked, costs, (got, target, ok, there), voted)
+        got, target, ok, weight, own_weight = gated
         # the avatar leaves an action the performer is not voted to do for one that is
-        leave = False
-        if voted is not None:
-            ok &= voted
-            leave = self.vote.leaves(frame, int(self._playback(frame)[: self.n // 2 + 1][-1]))
+        leave = math.isinf(own_weight)
         if not ok.any():  # no jump: holding still is weighed against playing on
             if not np.isfinite(self.last_own) and self.plays[frame]:
                 self.last_own = self.own_cost(queries, self.own_frames(frame, recent))
             return None
         idx = np.flatnonzero(ok)
-        match = np.array([got[i][2] for i in idx])
+        match = np.array([got[i][2] for i in idx]) * weight[idx]
         # at its clip's end the avatar must go somewhere: the best jump, whatever it costs;
         # and leaving for the voted action, any window of it beats staying, at once
         own = float("inf")
         if self.plays[frame] and not leave:
-            own = self.own_cost(queries, self.own_frames(frame, recent))
+            own = self.own_cost(queries, self.own_frames(frame, recent)) * own_weight
         self.last_own = own
         m, lead = self.hold_frames, self._lead_in(recent)
         # (a frame held still, as played on, lets it jump)
@@ -391,34 +387,6 @@ class Matcher(CandidatePaths, Landing):
         clf = self.classifier()
         n = self._classifier[1] if self._classifier else 0
         return voted_action(ranked, self.vote.actions, self.n, clf, queries + extra, n)
-
-    def _voted_windows(
-        self,
-        frame: int,
-        queries: list[FloatArray],
-        ranked: list[tuple[IntArray, IntArray, FloatArray]],
-        costs: JumpCosts,
-        at_voted: NDArray[np.bool_],
-    ) -> tuple[list[tuple[int, int, float]], IntArray, NDArray[np.bool_], NDArray[np.bool_]]:
-        """None of the best windows shows the voted action: the best that do (the avatar
-        never jumps into an action the performer is not voted to do), from the same short
-        lists ``ranked`` when they hold any, else by a search among those windows alone,
-        unless the avatar is already at one of them (``at_voted``): no search can beat its
-        own cost by much (in bench_accuracy's 13_29 base, 66 -> 30 second searches, every
-        decision the same). ``(got, target, ok, voted)`` as ``jump`` has them."""
-        st = self.settings
-        only = self.vote.starts(self.n)
-        got = best_of(ranked, st.top, only)
-        target, ok, _ = self._targets(frame, got, costs, queries)
-        voted = self.vote.gate(target)
-        if not (ok & voted).any() and not at_voted.any():
-            lists: list[tuple[IntArray, IntArray, FloatArray]] = []
-            got = self.index().search(queries, st.band, st.top, only, lists)
-            if self.facing is not None:
-                got = best_of(self.facing.weigh(lists, observe=False), st.top, only)
-            target, ok, _ = self._targets(frame, got, costs, queries)
-            voted = self.vote.gate(target)
-        return got, target, ok, voted
 
     def decide(
         self,

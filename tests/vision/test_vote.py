@@ -3,6 +3,7 @@ performer's action, and the avatar keeps to it."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -112,8 +113,9 @@ def test_a_decision_after_skipped_ones_votes_for_them_too() -> None:
 
 def test_the_avatar_leaves_an_action_the_performer_is_not_doing(setup) -> None:
     """The performer squats; the avatar jogs, and its jog window fits them nearly as well
-    as the best (a ``jump_ratio`` so low that no jump would win): with the vote it leaves
-    for a squat all the same, once it has played ``hold`` on."""
+    as the best (a ``jump_ratio`` so low that no jump would win): with the strict vote
+    (``vote_margin`` infinite) it leaves for a squat all the same, once it has played
+    ``hold`` on."""
     lib, layer, bank = setup
     clip = lib.clips[0]
     labels = [clip.label_at(f) for f in range(clip.motion.n_frames)]
@@ -125,7 +127,8 @@ def test_the_avatar_leaves_an_action_the_performer_is_not_doing(setup) -> None:
     assert keys is not None
 
     def decide(vote: int) -> tuple[int, bool] | None:
-        m = Matcher(layer, bank, MatchSettings(vote=vote, jump_ratio=0.01))
+        st = MatchSettings(vote=vote, jump_ratio=0.01, vote_margin=math.inf)
+        m = Matcher(layer, bank, st)
         m.vote.actions = keys
         s = squat[len(squat) // 2]
         performer = bank.features[m.to_bank[np.arange(s - m.n + 1, s + 1)], 0]
@@ -142,11 +145,16 @@ def test_the_avatar_leaves_an_action_the_performer_is_not_doing(setup) -> None:
     assert got[1]  # it leaves for the voted action (the decision log says `leaves`)
 
 
-def test_the_avatar_jumps_only_into_the_voted_action(setup) -> None:
+@pytest.mark.parametrize("margin", [math.inf, 0.2])
+def test_the_avatar_jumps_into_the_voted_action_unless_another_fits_far_better(
+    setup, margin: float
+) -> None:
     """The performer jogs, but the vote is still for a squat (one jog window among many
     squat votes): none of the best windows is a squat, so the avatar, jogging, looks
-    for the best squat windows and jumps into one of them, never into a jog (it used to
-    stay, or jump to the best jog window)."""
+    for the best squat windows. With the strict vote (``vote_margin`` infinite) it jumps
+    into one of them, never into a jog (before the vote it stayed, or jumped to the best
+    jog window); with a margin of 0.2 the best jog window, whose cost even 1.2 times is
+    far below the best squat window's, wins, at 1.2 times its cost."""
     lib, layer, bank = setup
     clip = lib.clips[0]
     labels = [clip.label_at(f) for f in range(clip.motion.n_frames)]
@@ -155,7 +163,7 @@ def test_the_avatar_jumps_only_into_the_voted_action(setup) -> None:
     keys = action_keys(lib.clips)
     assert keys is not None and squat and jog
     costs = JumpCosts(layer.graph, lib.clips, anywhere=True)
-    m = Matcher(layer, bank, MatchSettings(vote=15))
+    m = Matcher(layer, bank, MatchSettings(vote=15, vote_margin=margin))
     m.vote.actions = keys
     for _ in range(10):
         m.vote.cast(np.array([squat[len(squat) // 2]]))
@@ -169,13 +177,20 @@ def test_the_avatar_jumps_only_into_the_voted_action(setup) -> None:
     shown = np.arange(a - m.recent_frames + 1, a + 1)  # played on: settled
     d = m.decide(a, performer, shown, costs)
     assert d is not None and "jump" in d.extra
-    assert labels[int(d.extra["jump"])] == "Squat"
     assert m.vote.voted == keys[squat[0]]
+    if math.isinf(margin):
+        assert labels[int(d.extra["jump"])] == "Squat"
+        return
+    squats = m.index().search(queries, m.settings.band, m.settings.top, m.vote.starts(m.n))
+    assert labels[int(d.extra["jump"])] == "Jog" and not d.extra["leave"]
+    assert d.cost == pytest.approx(1.2 * best[0][2], rel=1e-6) and d.cost < squats[0][2]
 
 
 def test_a_negative_vote_is_refused(mocap: Path, capsys) -> None:
     with pytest.raises(ValueError, match="vote must be a number of decisions >= 0"):
         MatchSettings(vote=-1)
+    with pytest.raises(ValueError, match="vote_margin must be >= 0"):
+        MatchSettings(vote_margin=-0.1)
     argv = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "13_30", "--vote", "-2"]
     assert main(argv) != 0
     assert "vote must be a number of decisions >= 0 (0: off), got -2" in capsys.readouterr().err
