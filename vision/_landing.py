@@ -16,7 +16,7 @@ from control.dtw import ShapeTable, dtw_batch
 from control.graph import MotionGraph
 
 from ._decision import Decision, MatchSettings
-from ._facing import Facing
+from ._facing import Facing, Ranked
 from ._index import WindowIndex, best_of
 from ._vote import ActionVote
 from ._windows import phased_targets
@@ -30,7 +30,6 @@ IntArray = NDArray[np.int64]
 Gate = tuple[IntArray, NDArray[np.bool_], NDArray[np.bool_]]
 #: a decision's best windows ``(start, table view, cost)``
 Windows = list[tuple[int, int, float]]
-Ranked = list[tuple[IntArray, IntArray, FloatArray]]
 
 
 class Landing:

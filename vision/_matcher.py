@@ -313,7 +313,7 @@ class Matcher(CandidatePaths, Landing):
             self.last_own = min(g[2] for g, t in zip(got, there, strict=True) if t)
         gated = self._gated(frame, queries, ranked, costs, (got, target, ok, there), voted)
         got, target, ok, weight, own_weight = gated
-        # the avatar leaves an action the performer is not voted to do for one that is
+        # (strict vote) the avatar leaves an action the performer is not voted to do
         leave = math.isinf(own_weight)
         if not ok.any():  # no jump: holding still is weighed against playing on
             if not np.isfinite(self.last_own) and self.plays[frame]:
