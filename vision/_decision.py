@@ -87,7 +87,8 @@ class MatchSettings:
     vote: int = 15
     #: with the vote: windows of another action than the one voted for may be jumped
     #: into too, at ``1 + vote_margin`` times their cost, and the avatar's own motion,
-    #: when it shows another action, costs as much more (``math.inf``: never, as until
+    #: when it shows another action, costs as much more, played on or held still (since
+    #: 2026-12-04 20:00 weighed alike wherever it is taken) (``math.inf``: never, as until
     #: 2026-12-04: the avatar jumps only into the voted action, and leaves another at
     #: once). The library's labels are coarser than its poses: a window of another action
     #: is sometimes far nearer the performer's pose. 0.2 (2026-12-04, bench_accuracy's 12

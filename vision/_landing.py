@@ -65,7 +65,9 @@ class Landing:
         voted action) or, without one, than playing on; else ``None``. The library has no
         still second (its stillest windows still turn a joint 1.5-5 degrees a frame), so
         without it the avatar jumped about 4 times a second among near-still windows
-        while the performer stood still."""
+        while the performer stood still. With the vote's margin, a frame of another
+        action than the voted one costs 1 + ``vote_margin`` times as much held, as it
+        does played on."""
         if not self.settings.still or (rival is not None and rival.extra.get("leave")):
             return None
         against = rival.cost if rival is not None else self.last_own
@@ -80,6 +82,10 @@ class Landing:
         band = self.settings.band
         costs = self.weighed(np.array([dtw_batch(q, refs, window=band) for q in queries]), frame)
         cost = float(costs.min())
+        margin, actions = self.settings.vote_margin, self.vote.actions
+        voting = actions is not None and self.vote.size > 0 and math.isfinite(margin)
+        if voting and actions is not None and int(actions[frame]) != self.vote.voted:
+            cost *= 1.0 + margin  # (until 2026-12-04 held at its plain cost)
         if not cost < self.settings.jump_ratio * against:
             return None
         frames = np.full(self.n + 1, frame, dtype=np.int64)

@@ -309,15 +309,19 @@ class Matcher(CandidatePaths, Landing):
             got = best_of(ranked, st.top)
         target, ok, there = self._targets(frame, got, costs, queries)
         voted = self.vote.cast(target, self._choice(queries, ranked, performer))
-        if there.any():  # the avatar does one of the best windows: its cost is its own
-            self.last_own = min(g[2] for g, t in zip(got, there, strict=True) if t)
+        at = [g[2] for g, t in zip(got, there, strict=True) if t]
         gated = self._gated(frame, queries, ranked, costs, (got, target, ok, there), voted)
         got, target, ok, weight, own_weight = gated
         # (strict vote) the avatar leaves an action the performer is not voted to do
         leave = math.isinf(own_weight)
+        # the avatar's own cost, however it is taken, weighed alike (until 2026-12-04 these
+        # two were not weighed by the margin)
+        mine = 1.0 if leave else own_weight
+        if at:  # the avatar does one of the best windows: its cost is its own
+            self.last_own = mine * min(at)
         if not ok.any():  # no jump: holding still is weighed against playing on
             if not np.isfinite(self.last_own) and self.plays[frame]:
-                self.last_own = self.own_cost(queries, self.own_frames(frame, recent))
+                self.last_own = mine * self.own_cost(queries, self.own_frames(frame, recent))
             return None
         idx = np.flatnonzero(ok)
         match = np.array([got[i][2] for i in idx]) * weight[idx]

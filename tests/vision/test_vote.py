@@ -194,3 +194,32 @@ def test_a_negative_vote_is_refused(mocap: Path, capsys) -> None:
     argv = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "13_30", "--vote", "-2"]
     assert main(argv) != 0
     assert "vote must be a number of decisions >= 0 (0: off), got -2" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("margin", [math.inf, 0.2])
+def test_holding_still_in_another_action_costs_the_margin_too(setup, margin: float) -> None:
+    """A performer standing still; the avatar holds a jog frame. Held, a frame of another
+    action than the voted one costs 1 + ``vote_margin`` times as much, as it does played
+    on (with the strict vote the hold is not weighed: the avatar leaves that action)."""
+    lib, layer, bank = setup
+    clip = lib.clips[0]
+    labels = [clip.label_at(f) for f in range(clip.motion.n_frames)]
+    squat = [f for f in range(40, len(labels)) if labels[f - 20 : f + 1] == ["Squat"] * 21]
+    jog = [f for f in range(40, len(labels)) if labels[f - 20 : f + 1] == ["Jog"] * 21]
+    keys = action_keys(lib.clips)
+    assert keys is not None and squat and jog
+    m = Matcher(layer, bank, MatchSettings(vote=15, vote_margin=margin))
+    m.vote.actions = keys
+    j = jog[len(jog) // 2]
+    still = bank.features[m.to_bank[np.full(m.n, j + 3)], 0].astype(np.float64)
+    queries = m.queries(still)
+    assert queries is not None
+    m.last_own = 1e9  # (playing on, the rival, costs far more)
+    held = []
+    for voted in (keys[j], keys[squat[0]]):
+        m.vote.voted = int(voted)
+        d = m.held(j, queries, None)
+        assert d is not None and d.extra["held"]
+        held.append(d.cost)
+    assert held[0] > 0
+    assert held[1] == pytest.approx(held[0] * (1.0 if math.isinf(margin) else 1.2), rel=1e-9)
