@@ -10,10 +10,20 @@ import numpy as np
 import pytest
 
 from control.avatar import JumpCosts
-from control.motion import load_library
+from control.motion import Library, load_library
 from mimic.cli import main
 from tests.vision.conftest import RECORDING
 from vision import ActionVote, Matcher, MatchSettings, action_keys
+
+
+def _squats_and_jogs(lib: Library) -> tuple[list[str | None], list[int], list[int]]:
+    """The first clip's label of each frame, and its frames 20 or more into a squat and
+    into a jog (each of their last 21 frames so labelled)."""
+    clip = lib.clips[0]
+    labels = [clip.label_at(f) for f in range(clip.motion.n_frames)]
+    squat = [f for f in range(40, len(labels)) if labels[f - 20 : f + 1] == ["Squat"] * 21]
+    jog = [f for f in range(40, len(labels)) if labels[f - 20 : f + 1] == ["Jog"] * 21]
+    return labels, squat, jog
 
 
 def test_action_keys_share_labels_across_clips(mocap: Path) -> None:
@@ -117,10 +127,7 @@ def test_the_avatar_leaves_an_action_the_performer_is_not_doing(setup) -> None:
     (``vote_margin`` infinite) it leaves for a squat all the same, once it has played
     ``hold`` on."""
     lib, layer, bank = setup
-    clip = lib.clips[0]
-    labels = [clip.label_at(f) for f in range(clip.motion.n_frames)]
-    squat = [f for f in range(40, len(labels)) if labels[f - 20 : f + 1] == ["Squat"] * 21]
-    jog = [f for f in range(40, len(labels)) if labels[f - 20 : f + 1] == ["Jog"] * 21]
+    labels, squat, jog = _squats_and_jogs(lib)
     assert squat and jog
     costs = JumpCosts(layer.graph, lib.clips, anywhere=True)
     keys = action_keys(lib.clips)
@@ -156,10 +163,7 @@ def test_the_avatar_jumps_into_the_voted_action_unless_another_fits_far_better(
     jog window); with a margin of 0.2 the best jog window, whose cost even 1.2 times is
     far below the best squat window's, wins, at 1.2 times its cost."""
     lib, layer, bank = setup
-    clip = lib.clips[0]
-    labels = [clip.label_at(f) for f in range(clip.motion.n_frames)]
-    squat = [f for f in range(40, len(labels)) if labels[f - 20 : f + 1] == ["Squat"] * 21]
-    jog = [f for f in range(40, len(labels)) if labels[f - 20 : f + 1] == ["Jog"] * 21]
+    labels, squat, jog = _squats_and_jogs(lib)
     keys = action_keys(lib.clips)
     assert keys is not None and squat and jog
     costs = JumpCosts(layer.graph, lib.clips, anywhere=True)
@@ -202,10 +206,7 @@ def test_holding_still_in_another_action_costs_the_margin_too(setup, margin: flo
     action than the voted one costs 1 + ``vote_margin`` times as much, as it does played
     on (with the strict vote the hold is not weighed: the avatar leaves that action)."""
     lib, layer, bank = setup
-    clip = lib.clips[0]
-    labels = [clip.label_at(f) for f in range(clip.motion.n_frames)]
-    squat = [f for f in range(40, len(labels)) if labels[f - 20 : f + 1] == ["Squat"] * 21]
-    jog = [f for f in range(40, len(labels)) if labels[f - 20 : f + 1] == ["Jog"] * 21]
+    _, squat, jog = _squats_and_jogs(lib)
     keys = action_keys(lib.clips)
     assert keys is not None and squat and jog
     m = Matcher(layer, bank, MatchSettings(vote=15, vote_margin=margin))
