@@ -85,7 +85,7 @@ class Landing:
         margin, actions = self.settings.vote_margin, self.vote.actions
         voting = actions is not None and self.vote.size > 0 and math.isfinite(margin)
         if voting and actions is not None and int(actions[frame]) != self.vote.voted:
-            cost *= 1.0 + margin  # (until 2026-12-04 held at its plain cost)
+            cost *= 1.0 + margin  # (until 2026-12-04 20:00 held at its plain cost)
         if not cost < self.settings.jump_ratio * against:
             return None
         frames = np.full(self.n + 1, frame, dtype=np.int64)
