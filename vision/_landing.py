@@ -82,9 +82,9 @@ class Landing:
         band = self.settings.band
         costs = self.weighed(np.array([dtw_batch(q, refs, window=band) for q in queries]), frame)
         cost = float(costs.min())
-        margin, actions = self.settings.vote_margin, self.vote.actions
-        voting = actions is not None and self.vote.size > 0 and math.isfinite(margin)
-        if voting and actions is not None and int(actions[frame]) != self.vote.voted:
+        margin = self.settings.vote_margin
+        voting = self.vote.actions is not None and self.vote.size > 0 and math.isfinite(margin)
+        if voting and self.vote.leaves(frame, frame):  # (held: the frame shows no other)
             cost *= 1.0 + margin  # (until 2026-12-04 20:00 held at its plain cost)
         if not cost < self.settings.jump_ratio * against:
             return None
