@@ -182,7 +182,8 @@ def _recognition(
             rows = x[end - m.n : end]
             rows = rows[np.isfinite(rows).all(axis=1)]  # as locate does
             query = performer_sequence(rows, m.mean, m.proj, m.settings.centre_weight, m.desc)
-            s, _, _ = dtw_best_window(query, shape, centre, take, m.n, m.settings.band)
+            st = m.settings
+            s, _, _ = dtw_best_window(query, shape, centre, take, m.n, st.band, st.recent)
             hits.append(
                 (
                     lib_labels[got[0] + m.n - 1] == truth,

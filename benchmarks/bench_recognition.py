@@ -72,6 +72,7 @@ from silhouette_bank import (
 )
 from vision import (
     ActionClassifier,
+    MatchSettings,
     PersonSegmenter,
     PoseReader,
     RecordSettings,
@@ -87,6 +88,8 @@ from vision import (
 HERE = Path(__file__).resolve().parent
 CENTRE_WEIGHT = 3.0
 BAND = 4
+#: the matcher's weighing of the window's last frames (``MatchSettings.recent``)
+RECENT = MatchSettings().recent
 
 VARIATIONS: dict[str, dict[str, Any]] = {
     "base": {"rs": RecordSettings()},
@@ -172,13 +175,13 @@ class Search:
         if ok.sum() < max(2, self.n // 2):  # as the matcher
             return None
         qs = performer_queries(feats[ok], self.desc, self.mean, self.proj, CENTRE_WEIGHT)
-        s, _, cost = best_window(qs, self.shape, self.centre, self.starts, self.n, BAND)
+        s, _, cost = best_window(qs, self.shape, self.centre, self.starts, self.n, BAND, RECENT)
         self.nearest = str(self.lib_labels[s + self.n - 1])
         label = self.nearest
         if self.classifier is not None:
             costs = np.array(
                 [
-                    best_window(qs, self.shape, self.centre, st, self.n, BAND)[2]
+                    best_window(qs, self.shape, self.centre, st, self.n, BAND, RECENT)[2]
                     if st.size
                     else np.inf
                     for st in self.by_action

@@ -62,10 +62,11 @@ def _within_one_action(m: Matcher, clips: Any, perf: np.ndarray) -> dict[str, An
         queries = m.queries(perf[end - m.n : end])
         assert queries is not None
         t = time.perf_counter()
-        got = m.index().search(queries, m.settings.band, m.settings.top, only)
+        st = m.settings
+        got = m.index().search(queries, st.band, st.top, only, recent=st.recent)
         times.append((time.perf_counter() - t) * 1e3)
         if end % 4 == 0:
-            b = best_window(queries, shape, centre, allowed, m.n, m.settings.band)
+            b = best_window(queries, shape, centre, allowed, m.n, st.band, st.recent)
             hits += bool(got and got[0][2] <= b[2] + 1e-9)
             total += 1
     return {

@@ -7,6 +7,12 @@ dtaidistance's ``dtw_ndim.distance``, optionally inside its Sakoe-Chiba band: wi
 ``i - max(0, n - m) - w < j < i + max(0, m - n) + w``, i.e. ``|i - j| < w`` for sequences
 of the same length, widened towards the longer one by the difference in length.
 
+With ``recent`` r > 0 the query's rows weigh unequally: row i of n costs
+``w_i = (1 + r i / (n - 1)) / (1 + r / 2)`` times its squared distance, from ``1 / (1 + r/2)``
+at the first row to ``(1 + r) / (1 + r/2)`` at the last, 1 on average: the query's last
+frames (what a performer is doing now) count for more than its first (what they did a
+window ago), so a window that fits the end wins over one that fits the start equally well.
+
 The batched kernel keeps the two best costs found so far over *groups* (a group is a
 candidate path, its members the 18 views) and abandons a reference as soon as every cell
 of a row exceeds the second-best group cost: such a reference cannot change the best or
@@ -47,11 +53,26 @@ ShapeTable = NDArray[np.floating[Any]]
 #: the distance's sum may be reordered (vectorised): 2x faster, the same costs to within
 #: 4e-16 relative (``tests/test_dtw.py`` checks them against dtaidistance); the
 #: band's infinities and the early abandon's comparisons keep IEEE semantics
+@numba.njit(cache=True, nogil=True)
+def _row_weight(i: int, n: int, recent: float) -> float:
+    """The weight of row ``i`` (0-based) of a query of ``n`` rows (the module's ``w_i``)."""
+    if recent == 0.0 or n < 2:
+        return 1.0
+    return (1.0 + recent * i / (n - 1)) / (1.0 + 0.5 * recent)
+
+
 @numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
 def _dtw_sq(
-    a: np.ndarray, b: np.ndarray, window: int, limit: float, row: np.ndarray, prev: np.ndarray
+    a: np.ndarray,
+    b: np.ndarray,
+    window: int,
+    limit: float,
+    row: np.ndarray,
+    prev: np.ndarray,
+    recent: float,
 ) -> float:
-    """Squared DTW cost, or ``inf`` once it must exceed ``limit`` (squared)."""
+    """Squared DTW cost, or ``inf`` once it must exceed ``limit`` (squared); ``a``'s rows
+    weighed by ``recent`` (the module's ``w_i``)."""
     n, m, d = a.shape[0], b.shape[0], a.shape[1]
     inf = np.inf
     for j in range(m + 1):
@@ -59,6 +80,7 @@ def _dtw_sq(
     prev[0] = 0.0
     shrink, grow = max(0, n - m), max(0, m - n)
     for i in range(1, n + 1):
+        w = _row_weight(i - 1, n, recent)
         # the band: i - shrink - window < j < i + grow + window (dtaidistance's)
         lo = max(1, i - shrink - window + 1) if window > 0 else 1
         hi = min(m, i + grow + window - 1) if window > 0 else m
@@ -75,7 +97,7 @@ def _dtw_sq(
                 c = prev[j]
             if row[j - 1] < c:
                 c = row[j - 1]
-            v = s + c
+            v = s * w + c
             row[j] = v
             if v < best_row:
                 best_row = v
@@ -94,6 +116,7 @@ def _batch_kernel(
     n_groups: int,
     window: int,
     out: np.ndarray,
+    recent: float,
 ) -> None:
     m = refs.shape[1]
     row = np.empty(m + 1)
@@ -106,7 +129,7 @@ def _batch_kernel(
         g = group[r]
         # what this reference must beat to change the best or the runner-up group
         limit = gbest[g] if g == top else min(gbest[g], best2)
-        c = _dtw_sq(query, refs[r], window, limit, row, prev)
+        c = _dtw_sq(query, refs[r], window, limit, row, prev, recent)
         out[r] = c
         if c < gbest[g]:
             gbest[g] = c
@@ -128,6 +151,7 @@ def _best_window_kernel(
     starts: np.ndarray,
     m: int,
     window: int,
+    recent: float,
 ) -> tuple[int, int, float]:
     n_views = shape.shape[1]
     n_shape = shape.shape[2]
@@ -145,7 +169,7 @@ def _best_window_kernel(
                     b[i, k] = shape[s + i, v, k]
                 for k in range(d - n_shape):
                     b[i, n_shape + k] = centre[s + i, v, k] - centre[s, v, k]
-            c = _dtw_sq(query, b, window, best, row, prev)
+            c = _dtw_sq(query, b, window, best, row, prev, recent)
             if c < best:
                 best = c
                 best_s = s
@@ -160,6 +184,7 @@ def dtw_best_window(
     starts: NDArray[np.int64],
     length: int,
     window: int = 0,
+    recent: float = 0.0,
 ) -> tuple[int, int, float]:
     """The window of a long multi-view sequence nearest ``query (n, S + 2)`` by DTW:
     ``(start, view, cost)`` over ``starts``, every view, windows of ``length`` frames.
@@ -167,7 +192,7 @@ def dtw_best_window(
     A window's features are ``shape[s:s+length, v]`` (``S`` columns: the silhouette's
     shape numbers) beside ``centre[s:s+length, v] - centre[s, v]`` (2 columns).
     References that cannot beat the best so far are abandoned early, so the result is
-    exact.
+    exact. ``recent``: the query's last rows weigh more (the module's ``w_i``).
     """
     q = np.ascontiguousarray(query, dtype=np.float64)
     h = np.ascontiguousarray(shape, dtype=SHAPE_DTYPE)
@@ -185,7 +210,9 @@ def dtw_best_window(
     if st.size and (st.min() < 0 or st.max() + length > h.shape[0]):
         raise ValueError("every window must lie inside the sequence")
     # the tables read-only, stored or made: one compiled signature (control.kernels)
-    s, v, cost = _best_window_kernel(q, read_only(h), read_only(c), st, int(length), int(window))
+    s, v, cost = _best_window_kernel(
+        q, read_only(h), read_only(c), st, int(length), int(window), _recent(recent)
+    )
     return int(s), int(v), math.sqrt(cost)
 
 
@@ -199,6 +226,7 @@ def _windows_kernel(
     m: int,
     window: int,
     out: np.ndarray,
+    recent: float,
 ) -> None:
     n_shape = shape.shape[2]
     d = query.shape[1]
@@ -213,7 +241,7 @@ def _windows_kernel(
                 b[i, k] = shape[s + i, v, k]
             for k in range(d - n_shape):
                 b[i, n_shape + k] = centre[s + i, v, k] - centre[s, v, k]
-        out[r] = _dtw_sq(query, b, window, np.inf, row, prev)
+        out[r] = _dtw_sq(query, b, window, np.inf, row, prev, recent)
 
 
 def dtw_windows(
@@ -224,9 +252,11 @@ def dtw_windows(
     views: NDArray[np.int64],
     length: int,
     window: int = 0,
+    recent: float = 0.0,
 ) -> FloatArray:
     """Exact DTW costs ``(K,)`` of ``query (n, S + 2)`` against the windows
-    ``(starts[k], views[k])`` of the tables ``dtw_best_window`` takes."""
+    ``(starts[k], views[k])`` of the tables ``dtw_best_window`` takes (``recent`` as
+    there)."""
     q = np.ascontiguousarray(query, dtype=np.float64)
     st = np.ascontiguousarray(starts, dtype=np.int64)
     vw = np.ascontiguousarray(views, dtype=np.int64)
@@ -241,12 +271,22 @@ def dtw_windows(
     out = np.empty(st.size)
     h = np.ascontiguousarray(shape, dtype=SHAPE_DTYPE)
     c = np.ascontiguousarray(centre, dtype=np.float64)
-    _windows_kernel(q, read_only(h), read_only(c), st, vw, int(length), int(window), out)
+    _windows_kernel(
+        q, read_only(h), read_only(c), st, vw, int(length), int(window), out, _recent(recent)
+    )
     return np.sqrt(out)
 
 
-def dtw(a: FloatArray, b: FloatArray, window: int = 0) -> float:
-    """DTW cost of two sequences ``(n, d)`` and ``(m, d)``; ``window`` 0 means no band."""
+def _recent(recent: float) -> float:
+    r = float(recent)
+    if not (math.isfinite(r) and r >= 0.0):
+        raise ValueError(f"recent must be a finite number >= 0, not {recent!r}")
+    return r
+
+
+def dtw(a: FloatArray, b: FloatArray, window: int = 0, recent: float = 0.0) -> float:
+    """DTW cost of two sequences ``(n, d)`` and ``(m, d)``; ``window`` 0 means no band;
+    ``recent``: ``a``'s last rows weigh more (the module's ``w_i``)."""
     a = np.ascontiguousarray(a, dtype=np.float64)
     b = np.ascontiguousarray(b, dtype=np.float64)
     if a.ndim != 2 or b.ndim != 2 or a.shape[1] != b.shape[1]:
@@ -254,7 +294,7 @@ def dtw(a: FloatArray, b: FloatArray, window: int = 0) -> float:
     if a.shape[0] == 0 or b.shape[0] == 0:
         raise ValueError("sequences must not be empty")
     m = b.shape[0]
-    c = _dtw_sq(a, b, int(window), np.inf, np.empty(m + 1), np.empty(m + 1))
+    c = _dtw_sq(a, b, int(window), np.inf, np.empty(m + 1), np.empty(m + 1), _recent(recent))
     return math.sqrt(c)
 
 
@@ -263,18 +303,21 @@ def dtw_batch(
     refs: FloatArray,
     group: NDArray[np.int64] | None = None,
     window: int = 0,
+    recent: float = 0.0,
 ) -> FloatArray:
     """DTW costs ``(B,)`` of ``query (n, d)`` against ``refs (B, m, d)``.
 
     With ``group`` (B,) ints (e.g. the candidate path of each view's sequence), costs of
     references that can beat neither the best nor the second-best group are ``inf``
     (abandoned early); the best cost of every group that could rank first or second is
-    exact. Without ``group`` every cost is exact.
+    exact. Without ``group`` every cost is exact. ``recent``: the query's last rows
+    weigh more (the module's ``w_i``).
     """
     q = np.ascontiguousarray(query, dtype=np.float64)
     r = np.ascontiguousarray(refs, dtype=np.float64)
     if q.ndim != 2 or r.ndim != 3 or r.shape[2] != q.shape[1]:
         raise ValueError("query must be (n, d) and refs (B, m, d) with the same d")
+    rc = _recent(recent)
     out = np.empty(r.shape[0])
     if r.shape[0] == 0:
         return out
@@ -282,18 +325,21 @@ def dtw_batch(
         row = np.empty(r.shape[1] + 1)
         prev = np.empty(r.shape[1] + 1)
         for i in range(r.shape[0]):
-            out[i] = _dtw_sq(q, r[i], int(window), np.inf, row, prev)
+            out[i] = _dtw_sq(q, r[i], int(window), np.inf, row, prev, rc)
         return np.sqrt(out)
     grp = np.ascontiguousarray(group, dtype=np.int64)
     if grp.shape != (r.shape[0],) or grp.min() < 0:
         raise ValueError("group must give a non-negative group per reference")
-    _batch_kernel(read_only(q), read_only(r), read_only(grp), int(grp.max()) + 1, int(window), out)
+    _batch_kernel(
+        read_only(q), read_only(r), read_only(grp), int(grp.max()) + 1, int(window), out, rc
+    )
     return np.sqrt(out)
 
 
-def dtw_reference(a: FloatArray, b: FloatArray, window: int = 0) -> float:
+def dtw_reference(a: FloatArray, b: FloatArray, window: int = 0, recent: float = 0.0) -> float:
     """Plain-Python DTW (the definition, for tests)."""
     n, m = len(a), len(b)
+    w = [1.0 if n < 2 else (1.0 + recent * i / (n - 1)) / (1.0 + recent / 2) for i in range(n)]
     cost = [[math.inf] * (m + 1) for _ in range(n + 1)]
     cost[0][0] = 0.0
     shrink, grow = max(0, n - m), max(0, m - n)
@@ -301,6 +347,6 @@ def dtw_reference(a: FloatArray, b: FloatArray, window: int = 0) -> float:
         for j in range(1, m + 1):
             if window > 0 and not (i - shrink - window < j < i + grow + window):
                 continue
-            d = float(np.sum((np.asarray(a[i - 1]) - np.asarray(b[j - 1])) ** 2))
+            d = w[i - 1] * float(np.sum((np.asarray(a[i - 1]) - np.asarray(b[j - 1])) ** 2))
             cost[i][j] = d + min(cost[i - 1][j - 1], cost[i - 1][j], cost[i][j - 1])
     return math.sqrt(cost[n][m])

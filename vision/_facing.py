@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -138,20 +138,32 @@ class Facing:
         front = 1 if toward else -1
         return zones == (-front if reading % 2 == 0 else front)
 
-    def weigh(self, ranked: Ranked, observe: bool = True) -> Ranked:
+    def weigh(
+        self,
+        ranked: Ranked,
+        observe: bool = True,
+        recost: Callable[[int, int, int], float] | None = None,
+    ) -> Ranked:
         """The short lists ``ranked`` (one per reading, in ``Descriptor.variants``'
         order: as seen, mirrored, ...) with the windows the favoured hypothesis does not
         explain costing ``1 + penalty`` times as much; with ``observe``, their costs then
-        add to the evidence."""
+        add to the evidence: each hypothesis's best window's, or ``recost(reading, start,
+        view)`` of it (the matcher's: DTW with every frame alike, ``MatchSettings.recent``
+        0, the evidence over the whole window)."""
         best = {True: math.inf, False: math.inf}
+        at: dict[bool, tuple[int, int, int]] = {}
         toward, out = self.toward, []
         for r, (s, v, c) in enumerate(ranked):
             z = self._zones(s + self.half, v)
             masks = {hyp: self._unexplained(r, z, hyp) for hyp in (True, False)}
             for hyp, m in masks.items():
                 if m.any():
-                    best[hyp] = min(best[hyp], float(c[m].min()))
+                    k = int(np.flatnonzero(m)[np.argmin(c[m])])
+                    if c[k] < best[hyp]:
+                        best[hyp], at[hyp] = float(c[k]), (r, int(s[k]), int(v[k]))
             out.append((s, v, np.where(masks[toward], c * (1 + self.penalty), c)))
+        if observe and recost is not None and len(at) == 2:
+            best = {hyp: recost(*at[hyp]) for hyp in (True, False)}
         if observe and 0.0 < best[False] < math.inf and 0.0 < best[True] < math.inf:
             # facing the camera explains its windows better when those it does not
             # explain cost more; by at most ``STEP`` a decision (a run of windows of

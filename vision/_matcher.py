@@ -23,13 +23,14 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
 
 from control.avatar import JUMP, JumpCosts
 from control.clusters import HigherLayer
-from control.dtw import ShapeTable, dtw_batch
+from control.dtw import ShapeTable, dtw_batch, dtw_windows
 from silhouette_bank import Bank
 
 from ._classify import ActionClassifier, cached_action_classifier, voted_action
@@ -226,15 +227,31 @@ class Matcher(CandidatePaths, Landing):
         span = min(performer.shape[0], self.n)
         # a window not yet whole (the first second) by brute force too, over windows of
         # its own length: the index holds whole windows
+        st = self.settings
         if exact or span < self.n:
             length = min(span, self.n)
-            got = [best_window(queries, shape, centre, starts, length, self.settings.band)]
+            got = [best_window(queries, shape, centre, starts, length, st.band, st.recent)]
         else:
-            got = self.index().search(queries, self.settings.band, top)
+            got = self.index().search(queries, st.band, top, recent=st.recent)
         if not got or self._rejected(got[0][2], queries[0]):
             return []
         self.why = ""
         return got
+
+    def _plain_cost(self, queries: list[FloatArray]) -> Callable[[int, int, int], float] | None:
+        """The cost of the window at ``(start, view)`` of the index against
+        ``queries[reading]`` by DTW with every frame alike, for the facing's evidence
+        (``None`` when the matcher's DTW already weighs them so: ``recent`` 0)."""
+        if self.settings.recent == 0:
+            return None
+        idx, band = self.index(), self.settings.band
+
+        def cost(reading: int, start: int, view: int) -> float:
+            s, v = np.array([start], dtype=np.int64), np.array([view], dtype=np.int64)
+            q = queries[reading]
+            return float(dtw_windows(q, idx.shape, idx.centre, s, v, idx.length, band)[0])
+
+        return cost
 
     def _bank_sequences(self, frames: IntArray) -> FloatArray:
         """DTW features ``(V, n, F)`` of graph ``frames`` in every view."""
@@ -248,13 +265,13 @@ class Matcher(CandidatePaths, Landing):
         w = self._lead_in(recent)[-self.n :]
         if w.size < self.n:
             return float("inf")
-        band = self.settings.band
+        band, r = self.settings.band, self.settings.recent
         if np.all(np.diff(w) == 1) and self._same_run(int(w[0]), w[-1:])[0]:
             shape, centre, _ = self._global_tables()  # a library window: as the search costs it
-            costs = window_costs(queries, shape, centre, int(w[0]), self.n, band)
+            costs = window_costs(queries, shape, centre, int(w[0]), self.n, band, r)
         else:
             refs = self._bank_sequences(w)
-            costs = np.array([dtw_batch(q, refs, window=band) for q in queries])
+            costs = np.array([dtw_batch(q, refs, window=band, recent=r) for q in queries])
         return float(self.weighed(costs, int(w[self.n // 2])).min())
 
     def own_frames(self, frame: int, recent: IntArray) -> IntArray:
@@ -299,13 +316,13 @@ class Matcher(CandidatePaths, Landing):
             if queries is None:
                 return None
         ranked: list[tuple[IntArray, IntArray, FloatArray]] = []
-        got = self.index().search(queries, st.band, st.top, ranked=ranked)
+        got = self.index().search(queries, st.band, st.top, ranked=ranked, recent=st.recent)
         self.last_own = float("inf")
         if not got or self._rejected(got[0][2], queries[0]):
             return None  # (why says so when the best was rejected)
         self.why = ""
         if self.facing is not None:
-            ranked[:] = self.facing.weigh(ranked)
+            ranked[:] = self.facing.weigh(ranked, recost=self._plain_cost(queries))
             got = best_of(ranked, st.top)
         target, ok, there = self._targets(frame, got, costs, queries)
         voted = self.vote.cast(target, self._choice(queries, ranked, performer))
@@ -387,7 +404,7 @@ class Matcher(CandidatePaths, Landing):
         extra = tempo_readings(performer, self.n, st.tempos, queries[0].shape[0], *args)
         if extra:
             ranked = list(ranked)
-            self.index().search(extra, st.band, st.top, ranked=ranked)
+            self.index().search(extra, st.band, st.top, ranked=ranked, recent=st.recent)
         clf = self.classifier()
         n = self._classifier[1] if self._classifier else 0
         return voted_action(ranked, self.vote.actions, self.n, clf, queries + extra, n)
@@ -438,7 +455,8 @@ class Matcher(CandidatePaths, Landing):
         wins = [self._window_frames(f) for _, f, _ in cands]
         refs = np.concatenate([self._bank_sequences(w) for w in wins])
         group = np.repeat(np.arange(len(cands)), views)
-        each = np.array([dtw_batch(q, refs, group, window=self.settings.band) for q in queries])
+        st = self.settings
+        each = np.array([dtw_batch(q, refs, group, st.band, st.recent) for q in queries])
         each = each.reshape(len(queries), len(cands), views)
         if self.facing is not None:
             for i, w in enumerate(wins):

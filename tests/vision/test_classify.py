@@ -132,7 +132,9 @@ def test_the_matchers_vote_goes_to_the_classifiers_choice(setup) -> None:
     queries = m.queries(x)
     assert queries is not None
     ranked: list = []
-    m.index().search(queries, m.settings.band, m.settings.top, ranked=ranked)
+    m.index().search(
+        queries, m.settings.band, m.settings.top, ranked=ranked, recent=m.settings.recent
+    )
     choice = m._choice(queries, ranked, x)
     assert choice is not None and choice == int(keys[100 + m.n - 1])
     assert list(Path(bank.path).glob("actions-*.npz"))

@@ -175,7 +175,8 @@ def test_the_avatar_jumps_into_the_voted_action_unless_another_fits_far_better(
     performer = bank.features[m.to_bank[np.arange(j - m.n + 1, j + 1)], 0].astype(np.float64)
     queries = m.queries(performer)
     assert queries is not None
-    best = m.index().search(queries, m.settings.band, m.settings.top)
+    st = m.settings
+    best = m.index().search(queries, st.band, st.top, recent=st.recent)
     assert all(labels[s + m.n] != "Squat" for s, _, _ in best)  # the best windows jog
     a = jog[2 * len(jog) // 3]
     shown = np.arange(a - m.recent_frames + 1, a + 1)  # played on: settled
@@ -185,7 +186,7 @@ def test_the_avatar_jumps_into_the_voted_action_unless_another_fits_far_better(
     if math.isinf(margin):
         assert labels[int(d.extra["jump"])] == "Squat"
         return
-    squats = m.index().search(queries, m.settings.band, m.settings.top, m.vote.starts(m.n))
+    squats = m.index().search(queries, st.band, st.top, m.vote.starts(m.n), recent=st.recent)
     assert labels[int(d.extra["jump"])] == "Jog" and not d.extra["leave"]
     assert d.cost == pytest.approx(1.2 * best[0][2], rel=1e-6) and d.cost < squats[0][2]
 
