@@ -29,6 +29,7 @@ Usage: python -m benchmarks.bench_real_video [--videos DIR] [--labels CSV]
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -159,7 +160,9 @@ def agreement(
     options: GraphOptions,
     variants: bool,
     descriptor: str = DEFAULT_DESCRIPTOR,
+    match: MatchSettings | None = None,
 ) -> dict[str, Any]:
+    match = match or MatchSettings()
     rows = read_labels(labels)
     lib = load_library(root, clips=list(clips) if clips else None)
     # as mimic perform does by default: the clips that stay on the floor
@@ -185,7 +188,8 @@ def agreement(
         spans = [(a, b, lab.lower()) for f, a, b, lab in rows if f == name]
         source = VideoSource(path)
         t0 = time.perf_counter()
-        result = perform(source, layer, bank, train, PerformSettings(segmentation=segmentation))
+        settings = PerformSettings(segmentation=segmentation, match=match)
+        result = perform(source, layer, bank, train, settings)
         wall = time.perf_counter() - t0
         source.close()
         # the loop as a camera runs it: relocation's search in a thread (the agreement
@@ -197,7 +201,7 @@ def agreement(
             layer,
             bank,
             train,
-            PerformSettings(segmentation=segmentation, background_search=True),
+            dataclasses.replace(settings, background_search=True),
         )
         live_wall = time.perf_counter() - t0
         source.close()
@@ -266,6 +270,12 @@ def main() -> None:
         choices=("auto", *DESCRIPTORS),
         help="auto (default, as mimic perform): pose with MediaPipe, else multigrid",
     )
+    ap.add_argument(
+        "--recent",
+        type=float,
+        default=MatchSettings.recent,
+        help="the matcher's weighing of the window's last frames (as mimic perform's)",
+    )
     ap.add_argument("--out", default="benchmarks/results/real_video.json")
     args = ap.parse_args()
     videos = Path(args.videos)
@@ -281,6 +291,7 @@ def main() -> None:
         options,
         args.variants,
         args.descriptor,
+        MatchSettings(recent=args.recent),
     )
     save(result, args.out)
 

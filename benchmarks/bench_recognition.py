@@ -137,9 +137,15 @@ class Search:
     (``vision._classify``); ``nearest`` keeps the best window's label alone."""
 
     def __init__(
-        self, bank: Any, n: int, lib_labels: np.ndarray, actions: np.ndarray | None = None
+        self,
+        bank: Any,
+        n: int,
+        lib_labels: np.ndarray,
+        actions: np.ndarray | None = None,
+        recent: float = RECENT,
     ) -> None:
         self.bank = bank
+        self.recent = recent
         self.desc = bank.settings.features
         self.n = n
         self.mean, self.proj = shape_stats(bank)
@@ -175,13 +181,14 @@ class Search:
         if ok.sum() < max(2, self.n // 2):  # as the matcher
             return None
         qs = performer_queries(feats[ok], self.desc, self.mean, self.proj, CENTRE_WEIGHT)
-        s, _, cost = best_window(qs, self.shape, self.centre, self.starts, self.n, BAND, RECENT)
+        r = self.recent
+        s, _, cost = best_window(qs, self.shape, self.centre, self.starts, self.n, BAND, r)
         self.nearest = str(self.lib_labels[s + self.n - 1])
         label = self.nearest
         if self.classifier is not None:
             costs = np.array(
                 [
-                    best_window(qs, self.shape, self.centre, st, self.n, BAND, RECENT)[2]
+                    best_window(qs, self.shape, self.centre, st, self.n, BAND, r)[2]
                     if st.size
                     else np.inf
                     for st in self.by_action
@@ -266,6 +273,7 @@ def folds(
     window: float,
     variants: bool,
     classify: bool = True,
+    recent: float = RECENT,
 ) -> dict[str, Any]:
     lib = load_library(root, clips=takes)
     rate = float(lib.fps or 15.0)
@@ -284,7 +292,8 @@ def folds(
             bank, _ = ensure_bank(train, settings)
             lib_labels = np.concatenate([_labels(c) for c in train])
             n = max(2, round(window * rate))
-            search = Search(bank, n, lib_labels, action_keys(train) if classify else None)
+            keys = action_keys(train) if classify else None
+            search = Search(bank, n, lib_labels, keys, recent)
             step = max(1, round(0.5 * rate))
             rows: dict[str, Any] = {}
             for var, kw in VARIATIONS.items():
@@ -360,7 +369,13 @@ def folds(
 
 
 def real_clips(
-    root: Path, takes: list[str], videos: Path, labels: Path, window: float, classify: bool = True
+    root: Path,
+    takes: list[str],
+    videos: Path,
+    labels: Path,
+    window: float,
+    classify: bool = True,
+    recent: float = RECENT,
 ) -> dict[str, Any]:
     """The pose descriptor on the shared real clips: MediaPipe landmarks, a pose bank of
     all the takes, the label of the best window against ours; beside it the default
@@ -372,8 +387,8 @@ def real_clips(
     lib_labels = np.concatenate([_labels(c) for c in lib.clips])
     n = max(2, round(window * rate))
     actions = action_keys(list(lib.clips)) if classify else None
-    search = Search(bank, n, lib_labels, actions)
-    sil_search = Search(sil_bank, n, lib_labels, actions)
+    search = Search(bank, n, lib_labels, actions, recent)
+    sil_search = Search(sil_bank, n, lib_labels, actions, recent)
     names = {a.lower(): a for a in set(lib_labels) - {""}}
     out: dict[str, Any] = {}
     spans: dict[str, list[tuple[float, float, str]]] = {}
@@ -460,6 +475,12 @@ def main() -> None:
         action="store_true",
         help="the best window's label alone, without the action classifier",
     )
+    ap.add_argument(
+        "--recent",
+        type=float,
+        default=RECENT,
+        help="DTW's weighing of the window's last frames (the matcher's --recent)",
+    )
     ap.add_argument("--out", default="benchmarks/results/recognition.json")
     args = ap.parse_args()
     root = Path(args.root)
@@ -482,11 +503,19 @@ def main() -> None:
             args.window,
             args.variants,
             not args.nearest,
+            args.recent,
         ),
+        "recent": args.recent,
     }
     if not args.no_video:
         result["real_clips_pose"] = real_clips(
-            root, takes, Path(args.videos), Path(args.labels), args.window, not args.nearest
+            root,
+            takes,
+            Path(args.videos),
+            Path(args.labels),
+            args.window,
+            not args.nearest,
+            args.recent,
         )
     save(result, args.out)
 

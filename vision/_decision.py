@@ -132,13 +132,18 @@ class MatchSettings:
     facing: float = 0.3
     #: DTW weighs the performer's last frames more than the first of the window
     #: (``control.dtw``'s ``recent``: the last frame ``1 + recent`` times the first,
-    #: linearly between, 1 on average; 0: every frame alike, as until 2026-12-04), so
-    #: the window whose end fits what the performer does now wins over one whose start
-    #: fits what they did a second ago, and the avatar lands nearer their pose.
-    #: 2 (2026-12-04, ``bench_accuracy``'s 12 runs, recent 0 / 1 / 2 / 4): silhouettes'
-    #: pose score 0.686 / 0.701 / 0.707 / 0.707, label agreement 0.889 / 0.886 / 0.886 /
-    #: 0.884; landmarks' 0.784 / 0.797 / 0.804 / 0.808 and 0.883 / 0.885 / 0.888 / 0.890
-    recent: float = 2.0
+    #: linearly between, 1 on average; 0: every frame alike), so that the window whose
+    #: end fits what the performer does now wins over one whose start fits what they did
+    #: a second ago. Off by default: measured 2026-12-04 (``bench_accuracy``, recent 0 /
+    #: 1 / 2 / 4 on the 12 runs) it lifted the pose score (silhouettes 0.686 / 0.701 /
+    #: 0.708 / 0.707, landmarks 0.784 / 0.797 / 0.804 / 0.808, and at 2 on every other
+    #: set but the silhouettes' mirrored takes), but the one real performer
+    #: (``bench_real_video``, the shared squat clip) lost decisions at any value from 1
+    #: (landmarks 37 -> 34 of 39, silhouettes 24 -> 22) and switched action 61 times a
+    #: minute instead of 38; the silhouettes' label agreement fell on every set (by
+    #: 0.003-0.016). Our folds are takes of the library's own performer; the gain did not
+    #: carry over to another.
+    recent: float = 0.0
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.stay < 1.0:

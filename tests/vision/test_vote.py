@@ -191,6 +191,15 @@ def test_the_avatar_jumps_into_the_voted_action_unless_another_fits_far_better(
     assert d.cost == pytest.approx(1.2 * best[0][2], rel=1e-6) and d.cost < squats[0][2]
 
 
+def test_a_negative_or_infinite_recent_weighing_is_refused(mocap: Path, capsys) -> None:
+    for bad in (-1.0, math.inf, math.nan):
+        with pytest.raises(ValueError, match="recent must be a finite number >= 0"):
+            MatchSettings(recent=bad)
+    argv = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "13_30", "--recent", "-2"]
+    assert main(argv) != 0
+    assert "recent must be a finite number >= 0 (0: off), got -2" in capsys.readouterr().err
+
+
 def test_a_negative_vote_is_refused(mocap: Path, capsys) -> None:
     with pytest.raises(ValueError, match="vote must be a number of decisions >= 0"):
         MatchSettings(vote=-1)
