@@ -183,7 +183,7 @@ def _recognition(
             rows = rows[np.isfinite(rows).all(axis=1)]  # as locate does
             query = performer_sequence(rows, m.mean, m.proj, m.settings.centre_weight, m.desc)
             st = m.settings
-            s, _, _ = dtw_best_window(query, shape, centre, take, m.n, st.band, st.recent)
+            s, _, _ = dtw_best_window(query, shape, centre, take, m.n, st.band, st.recency)
             hits.append(
                 (
                     lib_labels[got[0] + m.n - 1] == truth,

@@ -271,9 +271,9 @@ def main() -> None:
         help="auto (default, as mimic perform): pose with MediaPipe, else multigrid",
     )
     ap.add_argument(
-        "--recent",
+        "--recency",
         type=float,
-        default=MatchSettings.recent,
+        default=MatchSettings.recency,
         help="the matcher's weighing of the window's last frames (as mimic perform's)",
     )
     ap.add_argument("--out", default="benchmarks/results/real_video.json")
@@ -291,7 +291,7 @@ def main() -> None:
         options,
         args.variants,
         args.descriptor,
-        MatchSettings(recent=args.recent),
+        MatchSettings(recency=args.recency),
     )
     save(result, args.out)
 

@@ -88,8 +88,8 @@ from vision import (
 HERE = Path(__file__).resolve().parent
 CENTRE_WEIGHT = 3.0
 BAND = 4
-#: the matcher's weighing of the window's last frames (``MatchSettings.recent``)
-RECENT = MatchSettings().recent
+#: the matcher's weighing of the window's last frames (``MatchSettings.recency``)
+RECENCY = MatchSettings().recency
 
 VARIATIONS: dict[str, dict[str, Any]] = {
     "base": {"rs": RecordSettings()},
@@ -142,10 +142,10 @@ class Search:
         n: int,
         lib_labels: np.ndarray,
         actions: np.ndarray | None = None,
-        recent: float = RECENT,
+        recency: float = RECENCY,
     ) -> None:
         self.bank = bank
-        self.recent = recent
+        self.recency = recency
         self.desc = bank.settings.features
         self.n = n
         self.mean, self.proj = shape_stats(bank)
@@ -181,7 +181,7 @@ class Search:
         if ok.sum() < max(2, self.n // 2):  # as the matcher
             return None
         qs = performer_queries(feats[ok], self.desc, self.mean, self.proj, CENTRE_WEIGHT)
-        r = self.recent
+        r = self.recency
         s, _, cost = best_window(qs, self.shape, self.centre, self.starts, self.n, BAND, r)
         self.nearest = str(self.lib_labels[s + self.n - 1])
         label = self.nearest
@@ -273,7 +273,7 @@ def folds(
     window: float,
     variants: bool,
     classify: bool = True,
-    recent: float = RECENT,
+    recency: float = RECENCY,
 ) -> dict[str, Any]:
     lib = load_library(root, clips=takes)
     rate = float(lib.fps or 15.0)
@@ -293,7 +293,7 @@ def folds(
             lib_labels = np.concatenate([_labels(c) for c in train])
             n = max(2, round(window * rate))
             keys = action_keys(train) if classify else None
-            search = Search(bank, n, lib_labels, keys, recent)
+            search = Search(bank, n, lib_labels, keys, recency)
             step = max(1, round(0.5 * rate))
             rows: dict[str, Any] = {}
             for var, kw in VARIATIONS.items():
@@ -375,7 +375,7 @@ def real_clips(
     labels: Path,
     window: float,
     classify: bool = True,
-    recent: float = RECENT,
+    recency: float = RECENCY,
 ) -> dict[str, Any]:
     """The pose descriptor on the shared real clips: MediaPipe landmarks, a pose bank of
     all the takes, the label of the best window against ours; beside it the default
@@ -387,8 +387,8 @@ def real_clips(
     lib_labels = np.concatenate([_labels(c) for c in lib.clips])
     n = max(2, round(window * rate))
     actions = action_keys(list(lib.clips)) if classify else None
-    search = Search(bank, n, lib_labels, actions, recent)
-    sil_search = Search(sil_bank, n, lib_labels, actions, recent)
+    search = Search(bank, n, lib_labels, actions, recency)
+    sil_search = Search(sil_bank, n, lib_labels, actions, recency)
     names = {a.lower(): a for a in set(lib_labels) - {""}}
     out: dict[str, Any] = {}
     spans: dict[str, list[tuple[float, float, str]]] = {}
@@ -476,10 +476,10 @@ def main() -> None:
         help="the best window's label alone, without the action classifier",
     )
     ap.add_argument(
-        "--recent",
+        "--recency",
         type=float,
-        default=RECENT,
-        help="DTW's weighing of the window's last frames (the matcher's --recent)",
+        default=RECENCY,
+        help="DTW's weighing of the window's last frames (the matcher's --recency)",
     )
     ap.add_argument("--out", default="benchmarks/results/recognition.json")
     args = ap.parse_args()
@@ -503,9 +503,9 @@ def main() -> None:
             args.window,
             args.variants,
             not args.nearest,
-            args.recent,
+            args.recency,
         ),
-        "recent": args.recent,
+        "recency": args.recency,
     }
     if not args.no_video:
         result["real_clips_pose"] = real_clips(
@@ -515,7 +515,7 @@ def main() -> None:
             Path(args.labels),
             args.window,
             not args.nearest,
-            args.recent,
+            args.recency,
         )
     save(result, args.out)
 

@@ -63,10 +63,10 @@ def _within_one_action(m: Matcher, clips: Any, perf: np.ndarray) -> dict[str, An
         assert queries is not None
         t = time.perf_counter()
         st = m.settings
-        got = m.index().search(queries, st.band, st.top, only, recent=st.recent)
+        got = m.index().search(queries, st.band, st.top, only, recency=st.recency)
         times.append((time.perf_counter() - t) * 1e3)
         if end % 4 == 0:
-            b = best_window(queries, shape, centre, allowed, m.n, st.band, st.recent)
+            b = best_window(queries, shape, centre, allowed, m.n, st.band, st.recency)
             hits += bool(got and got[0][2] <= b[2] + 1e-9)
             total += 1
     return {

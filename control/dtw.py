@@ -7,7 +7,7 @@ dtaidistance's ``dtw_ndim.distance``, optionally inside its Sakoe-Chiba band: wi
 ``i - max(0, n - m) - w < j < i + max(0, m - n) + w``, i.e. ``|i - j| < w`` for sequences
 of the same length, widened towards the longer one by the difference in length.
 
-With ``recent`` r > 0 the query's rows weigh unequally: row i of n costs
+With ``recency`` r > 0 the query's rows weigh unequally: row i of n costs
 ``w_i = (1 + r i / (n - 1)) / (1 + r / 2)`` times its squared distance, from ``1 / (1 + r/2)``
 at the first row to ``(1 + r) / (1 + r/2)`` at the last, 1 on average: the query's last
 frames (what a performer is doing now) count for more than its first (what they did a
@@ -51,11 +51,11 @@ ShapeTable = NDArray[np.floating[Any]]
 
 
 @numba.njit(cache=True, nogil=True)
-def _row_weight(i: int, n: int, recent: float) -> float:
+def _row_weight(i: int, n: int, recency: float) -> float:
     """The weight of row ``i`` (0-based) of a query of ``n`` rows (the module's ``w_i``)."""
-    if recent == 0.0 or n < 2:
+    if recency == 0.0 or n < 2:
         return 1.0
-    return (1.0 + recent * i / (n - 1)) / (1.0 + 0.5 * recent)
+    return (1.0 + recency * i / (n - 1)) / (1.0 + 0.5 * recency)
 
 
 #: the distance's sum may be reordered (vectorised): 2x faster, the same costs to within
@@ -69,10 +69,10 @@ def _dtw_sq(
     limit: float,
     row: np.ndarray,
     prev: np.ndarray,
-    recent: float,
+    recency: float,
 ) -> float:
     """Squared DTW cost, or ``inf`` once it must exceed ``limit`` (squared); ``a``'s rows
-    weighed by ``recent`` (the module's ``w_i``)."""
+    weighed by ``recency`` (the module's ``w_i``)."""
     n, m, d = a.shape[0], b.shape[0], a.shape[1]
     inf = np.inf
     for j in range(m + 1):
@@ -80,7 +80,7 @@ def _dtw_sq(
     prev[0] = 0.0
     shrink, grow = max(0, n - m), max(0, m - n)
     for i in range(1, n + 1):
-        w = _row_weight(i - 1, n, recent)
+        w = _row_weight(i - 1, n, recency)
         # the band: i - shrink - window < j < i + grow + window (dtaidistance's)
         lo = max(1, i - shrink - window + 1) if window > 0 else 1
         hi = min(m, i + grow + window - 1) if window > 0 else m
@@ -116,7 +116,7 @@ def _batch_kernel(
     n_groups: int,
     window: int,
     out: np.ndarray,
-    recent: float,
+    recency: float,
 ) -> None:
     m = refs.shape[1]
     row = np.empty(m + 1)
@@ -129,7 +129,7 @@ def _batch_kernel(
         g = group[r]
         # what this reference must beat to change the best or the runner-up group
         limit = gbest[g] if g == top else min(gbest[g], best2)
-        c = _dtw_sq(query, refs[r], window, limit, row, prev, recent)
+        c = _dtw_sq(query, refs[r], window, limit, row, prev, recency)
         out[r] = c
         if c < gbest[g]:
             gbest[g] = c
@@ -151,7 +151,7 @@ def _best_window_kernel(
     starts: np.ndarray,
     m: int,
     window: int,
-    recent: float,
+    recency: float,
 ) -> tuple[int, int, float]:
     n_views = shape.shape[1]
     n_shape = shape.shape[2]
@@ -169,7 +169,7 @@ def _best_window_kernel(
                     b[i, k] = shape[s + i, v, k]
                 for k in range(d - n_shape):
                     b[i, n_shape + k] = centre[s + i, v, k] - centre[s, v, k]
-            c = _dtw_sq(query, b, window, best, row, prev, recent)
+            c = _dtw_sq(query, b, window, best, row, prev, recency)
             if c < best:
                 best = c
                 best_s = s
@@ -184,7 +184,7 @@ def dtw_best_window(
     starts: NDArray[np.int64],
     length: int,
     window: int = 0,
-    recent: float = 0.0,
+    recency: float = 0.0,
 ) -> tuple[int, int, float]:
     """The window of a long multi-view sequence nearest ``query (n, S + 2)`` by DTW:
     ``(start, view, cost)`` over ``starts``, every view, windows of ``length`` frames.
@@ -192,7 +192,7 @@ def dtw_best_window(
     A window's features are ``shape[s:s+length, v]`` (``S`` columns: the silhouette's
     shape numbers) beside ``centre[s:s+length, v] - centre[s, v]`` (2 columns).
     References that cannot beat the best so far are abandoned early, so the result is
-    exact. ``recent``: the query's last rows weigh more (the module's ``w_i``).
+    exact. ``recency``: the query's last rows weigh more (the module's ``w_i``).
     """
     q = np.ascontiguousarray(query, dtype=np.float64)
     h = np.ascontiguousarray(shape, dtype=SHAPE_DTYPE)
@@ -211,7 +211,7 @@ def dtw_best_window(
         raise ValueError("every window must lie inside the sequence")
     # the tables read-only, stored or made: one compiled signature (control.kernels)
     s, v, cost = _best_window_kernel(
-        q, read_only(h), read_only(c), st, int(length), int(window), _recent(recent)
+        q, read_only(h), read_only(c), st, int(length), int(window), _recency(recency)
     )
     return int(s), int(v), math.sqrt(cost)
 
@@ -226,7 +226,7 @@ def _windows_kernel(
     m: int,
     window: int,
     out: np.ndarray,
-    recent: float,
+    recency: float,
 ) -> None:
     n_shape = shape.shape[2]
     d = query.shape[1]
@@ -241,7 +241,7 @@ def _windows_kernel(
                 b[i, k] = shape[s + i, v, k]
             for k in range(d - n_shape):
                 b[i, n_shape + k] = centre[s + i, v, k] - centre[s, v, k]
-        out[r] = _dtw_sq(query, b, window, np.inf, row, prev, recent)
+        out[r] = _dtw_sq(query, b, window, np.inf, row, prev, recency)
 
 
 def dtw_windows(
@@ -252,10 +252,10 @@ def dtw_windows(
     views: NDArray[np.int64],
     length: int,
     window: int = 0,
-    recent: float = 0.0,
+    recency: float = 0.0,
 ) -> FloatArray:
     """Exact DTW costs ``(K,)`` of ``query (n, S + 2)`` against the windows
-    ``(starts[k], views[k])`` of the tables ``dtw_best_window`` takes (``recent`` as
+    ``(starts[k], views[k])`` of the tables ``dtw_best_window`` takes (``recency`` as
     there)."""
     q = np.ascontiguousarray(query, dtype=np.float64)
     st = np.ascontiguousarray(starts, dtype=np.int64)
@@ -272,22 +272,22 @@ def dtw_windows(
     h = np.ascontiguousarray(shape, dtype=SHAPE_DTYPE)
     c = np.ascontiguousarray(centre, dtype=np.float64)
     _windows_kernel(
-        q, read_only(h), read_only(c), st, vw, int(length), int(window), out, _recent(recent)
+        q, read_only(h), read_only(c), st, vw, int(length), int(window), out, _recency(recency)
     )
     return np.sqrt(out)
 
 
-def _recent(recent: float) -> float:
-    """``recent`` checked: a finite number >= 0 (a clear error otherwise)."""
-    r = float(recent)
+def _recency(recency: float) -> float:
+    """``recency`` checked: a finite number >= 0 (a clear error otherwise)."""
+    r = float(recency)
     if not (math.isfinite(r) and r >= 0.0):
-        raise ValueError(f"recent must be a finite number >= 0, not {recent!r}")
+        raise ValueError(f"recency must be a finite number >= 0, not {recency!r}")
     return r
 
 
-def dtw(a: FloatArray, b: FloatArray, window: int = 0, recent: float = 0.0) -> float:
+def dtw(a: FloatArray, b: FloatArray, window: int = 0, recency: float = 0.0) -> float:
     """DTW cost of two sequences ``(n, d)`` and ``(m, d)``; ``window`` 0 means no band;
-    ``recent``: ``a``'s last rows weigh more (the module's ``w_i``)."""
+    ``recency``: ``a``'s last rows weigh more (the module's ``w_i``)."""
     a = np.ascontiguousarray(a, dtype=np.float64)
     b = np.ascontiguousarray(b, dtype=np.float64)
     if a.ndim != 2 or b.ndim != 2 or a.shape[1] != b.shape[1]:
@@ -295,7 +295,7 @@ def dtw(a: FloatArray, b: FloatArray, window: int = 0, recent: float = 0.0) -> f
     if a.shape[0] == 0 or b.shape[0] == 0:
         raise ValueError("sequences must not be empty")
     m = b.shape[0]
-    c = _dtw_sq(a, b, int(window), np.inf, np.empty(m + 1), np.empty(m + 1), _recent(recent))
+    c = _dtw_sq(a, b, int(window), np.inf, np.empty(m + 1), np.empty(m + 1), _recency(recency))
     return math.sqrt(c)
 
 
@@ -304,21 +304,21 @@ def dtw_batch(
     refs: FloatArray,
     group: NDArray[np.int64] | None = None,
     window: int = 0,
-    recent: float = 0.0,
+    recency: float = 0.0,
 ) -> FloatArray:
     """DTW costs ``(B,)`` of ``query (n, d)`` against ``refs (B, m, d)``.
 
     With ``group`` (B,) ints (e.g. the candidate path of each view's sequence), costs of
     references that can beat neither the best nor the second-best group are ``inf``
     (abandoned early); the best cost of every group that could rank first or second is
-    exact. Without ``group`` every cost is exact. ``recent``: the query's last rows
+    exact. Without ``group`` every cost is exact. ``recency``: the query's last rows
     weigh more (the module's ``w_i``).
     """
     q = np.ascontiguousarray(query, dtype=np.float64)
     r = np.ascontiguousarray(refs, dtype=np.float64)
     if q.ndim != 2 or r.ndim != 3 or r.shape[2] != q.shape[1]:
         raise ValueError("query must be (n, d) and refs (B, m, d) with the same d")
-    rc = _recent(recent)
+    rc = _recency(recency)
     out = np.empty(r.shape[0])
     if r.shape[0] == 0:
         return out
@@ -337,10 +337,10 @@ def dtw_batch(
     return np.sqrt(out)
 
 
-def dtw_reference(a: FloatArray, b: FloatArray, window: int = 0, recent: float = 0.0) -> float:
+def dtw_reference(a: FloatArray, b: FloatArray, window: int = 0, recency: float = 0.0) -> float:
     """Plain-Python DTW (the definition, for tests)."""
     n, m = len(a), len(b)
-    w = [1.0 if n < 2 else (1.0 + recent * i / (n - 1)) / (1.0 + recent / 2) for i in range(n)]
+    w = [1.0 if n < 2 else (1.0 + recency * i / (n - 1)) / (1.0 + recency / 2) for i in range(n)]
     cost = [[math.inf] * (m + 1) for _ in range(n + 1)]
     cost[0][0] = 0.0
     shrink, grow = max(0, n - m), max(0, m - n)

@@ -156,9 +156,9 @@ def _add_jump_args(p: argparse.ArgumentParser) -> None:
         "much more (default %(default)s; inf: only the voted action)",
     )
     p.add_argument(
-        "--recent",
+        "--recency",
         type=float,
-        default=MatchSettings.recent,
+        default=MatchSettings.recency,
         help="the matcher's DTW weighs the performer's last frame 1 + R times the first of "
         "the window, linearly between (default %(default)s; 0: every frame alike)",
     )
@@ -217,7 +217,7 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
         jumps=not args.no_jumps,
         vote=args.vote,
         vote_margin=args.vote_margin,
-        recent=args.recent,
+        recency=args.recency,
         classify=not args.no_classify,
     )
     clips = _clips(args)

@@ -119,33 +119,33 @@ def test_a_wider_band_never_costs_more_and_the_band_is_symmetric(
         assert dtw(a, b, w) == pytest.approx(dtw_reference(a, b, w), rel=1e-12, abs=1e-12)
 
 
-@pytest.mark.parametrize("recent", [0.5, 2.0])
+@pytest.mark.parametrize("recency", [0.5, 2.0])
 def test_recent_weighs_the_last_rows_and_every_kernel_agrees(
-    rng: np.random.Generator, recent: float
+    rng: np.random.Generator, recency: float
 ) -> None:
     # the definition: row i of n costs (1 + r i / (n - 1)) / (1 + r / 2) times its distance
     for n, m, band in ((15, 15, 4), (12, 17, 3), (20, 9, 0)):
         a, b = rng.normal(size=(n, 5)), rng.normal(size=(m, 5))
-        ours = dtw(a, b, band, recent)
-        assert ours == pytest.approx(dtw_reference(a, b, band, recent), rel=1e-12)
+        ours = dtw(a, b, band, recency)
+        assert ours == pytest.approx(dtw_reference(a, b, band, recency), rel=1e-12)
         assert ours != pytest.approx(dtw(a, b, band), rel=1e-6)
     # 1 on average: a constant distance costs the same whatever the weighing
     a = np.zeros((10, 3))
-    assert dtw(a, a + 1.0, 0, recent) == pytest.approx(dtw(a, a + 1.0), rel=1e-12)
+    assert dtw(a, a + 1.0, 0, recency) == pytest.approx(dtw(a, a + 1.0), rel=1e-12)
     # the last rows count more: b that fits a's end beats c that fits its start as well
     a = np.zeros((10, 2))
     b, c = a.copy(), a.copy()
     b[:3] += 1.0
     c[-3:] += 1.0
     assert dtw(a, b) == pytest.approx(dtw(a, c), rel=1e-12)
-    assert dtw(a, b, 0, recent) < dtw(a, c, 0, recent)
+    assert dtw(a, b, 0, recency) < dtw(a, c, 0, recency)
     # the batched, grouped and window kernels weigh alike
     q = rng.normal(size=(12, 9))
     refs = rng.normal(size=(30, 12, 9))
-    one = np.array([dtw(q, r, 4, recent) for r in refs])
-    np.testing.assert_allclose(dtw_batch(q, refs, window=4, recent=recent), one, rtol=1e-12)
+    one = np.array([dtw(q, r, 4, recency) for r in refs])
+    np.testing.assert_allclose(dtw_batch(q, refs, window=4, recency=recency), one, rtol=1e-12)
     group = np.arange(30) // 3
-    got = dtw_batch(q, refs, group, 4, recent)
+    got = dtw_batch(q, refs, group, 4, recency)
     assert np.nanmin(got) == pytest.approx(one.min(), rel=1e-12)
     hu = rng.normal(size=(40, 2, 7))
     centre = np.cumsum(rng.normal(size=(40, 2, 2)), axis=0)
@@ -155,13 +155,13 @@ def test_recent_weighs_the_last_rows_and_every_kernel_agrees(
     def window(s: int, v: int) -> np.ndarray:
         return np.concatenate((hu[s : s + 10, v], centre[s : s + 10, v] - centre[s, v]), axis=1)
 
-    costs = {(s, v): dtw(query, window(s, v), 3, recent) for s in starts for v in range(2)}
-    s, v, c = dtw_best_window(query, hu, centre, starts, 10, 3, recent)
+    costs = {(s, v): dtw(query, window(s, v), 3, recency) for s in starts for v in range(2)}
+    s, v, c = dtw_best_window(query, hu, centre, starts, 10, 3, recency)
     assert c == pytest.approx(min(costs.values()), rel=1e-6)  # (tables in float32)
     assert costs[(s, v)] == pytest.approx(c, rel=1e-6)
     views = np.zeros(starts.size, dtype=np.int64)
     np.testing.assert_allclose(
-        dtw_windows(query, hu, centre, starts, views, 10, 3, recent),
+        dtw_windows(query, hu, centre, starts, views, 10, 3, recency),
         [costs[(int(s), 0)] for s in starts],
         rtol=1e-6,
     )
@@ -170,7 +170,7 @@ def test_recent_weighs_the_last_rows_and_every_kernel_agrees(
 def test_recent_must_be_a_finite_number_not_below_zero() -> None:
     a = np.zeros((4, 2))
     for bad in (-0.5, float("inf"), float("nan")):
-        with pytest.raises(ValueError, match="recent"):
+        with pytest.raises(ValueError, match="recency"):
             dtw(a, a, 0, bad)
-        with pytest.raises(ValueError, match="recent"):
-            dtw_batch(a, a[None], recent=bad)
+        with pytest.raises(ValueError, match="recency"):
+            dtw_batch(a, a[None], recency=bad)

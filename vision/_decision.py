@@ -131,10 +131,10 @@ class MatchSettings:
     #: 0.911 and 0.659 at 0.3, 0.908 and 0.649 at 0.1, 0.911 and 0.659 at 1.0)
     facing: float = 0.3
     #: DTW weighs the performer's last frames more than the first of the window
-    #: (``control.dtw``'s ``recent``: the last frame ``1 + recent`` times the first,
+    #: (``control.dtw``'s ``recency``: the last frame ``1 + recency`` times the first,
     #: linearly between, 1 on average; 0: every frame alike), so that the window whose
     #: end fits what the performer does now wins over one whose start fits what they did
-    #: a second ago. Off by default: measured 2026-12-04 (``bench_accuracy``, recent 0 /
+    #: a second ago. Off by default: measured 2026-12-04 (``bench_accuracy``, recency 0 /
     #: 1 / 2 / 4 on the 12 runs) it lifted the pose score (silhouettes 0.686 / 0.701 /
     #: 0.708 / 0.707, landmarks 0.784 / 0.797 / 0.804 / 0.808, and at 2 on every other
     #: set but the silhouettes' mirrored takes), but the one real performer
@@ -143,7 +143,7 @@ class MatchSettings:
     #: minute instead of 38; the silhouettes' label agreement fell on every set (by
     #: 0.003-0.016). Our folds are takes of the library's own performer; the gain did not
     #: carry over to another.
-    recent: float = 0.0
+    recency: float = 0.0
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.stay < 1.0:
@@ -156,8 +156,8 @@ class MatchSettings:
             raise ValueError(f"phase must be a number of frames >= 0 (0: off), got {self.phase}")
         if not self.facing >= 0:
             raise ValueError(f"facing must be >= 0 (0: off), got {self.facing}")
-        if not (math.isfinite(self.recent) and self.recent >= 0):
-            raise ValueError(f"recent must be a finite number >= 0 (0: off), got {self.recent}")
+        if not (math.isfinite(self.recency) and self.recency >= 0):
+            raise ValueError(f"recency must be a finite number >= 0 (0: off), got {self.recency}")
         if not self.vote_margin >= 0:
             raise ValueError(f"vote_margin must be >= 0 (inf: strict), got {self.vote_margin}")
         if self.vote < 0:

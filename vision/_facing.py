@@ -148,7 +148,7 @@ class Facing:
         order: as seen, mirrored, ...) with the windows the favoured hypothesis does not
         explain costing ``1 + penalty`` times as much; with ``observe``, their costs then
         add to the evidence: each hypothesis's best window's, or ``recost(reading, start,
-        view)`` of it (the matcher's: DTW with every frame alike, ``MatchSettings.recent``
+        view)`` of it (the matcher's: DTW with every frame alike, ``MatchSettings.recency``
         0, the evidence over the whole window)."""
         best = {True: math.inf, False: math.inf}
         at: dict[bool, tuple[int, int, int]] = {}

@@ -335,14 +335,14 @@ class WindowIndex:
         top: int = 1,
         only: NDArray[np.bool_] | None = None,
         ranked: list[tuple[IntArray, IntArray, FloatArray]] | None = None,
-        recent: float = 0.0,
+        recency: float = 0.0,
     ) -> list[tuple[int, int, float]]:
         """The ``top`` windows ``(start, view, cost)`` nearest any of ``queries`` by
         exact DTW (band ``band``) among the broad phase's short lists, cheapest first,
         at most one per start; with ``only`` (a flag for each table frame), only windows
         that start where it is set. ``ranked`` (a list) gets each query's short list and
         its costs, ``(starts, views, costs)``, for ``best_of``: one a query, in order.
-        ``recent``: the queries' last frames weigh more in DTW (``control.dtw``; the
+        ``recency``: the queries' last frames weigh more in DTW (``control.dtw``; the
         broad phase's summaries weigh every frame alike)."""
         if only is not None and only.shape != self._ok.shape:
             raise ValueError(f"only must flag each of the {self._ok.size} table frames")
@@ -351,7 +351,7 @@ class WindowIndex:
             q = np.ascontiguousarray(q, dtype=np.float64)
             s, v = self.shortlisted(q, only, len(queries))
             cost = (  # (one list a query, empty or not: ``ranked`` keeps the readings' order)
-                dtw_windows(q, self.shape, self.centre, s, v, self.length, band, recent)
+                dtw_windows(q, self.shape, self.centre, s, v, self.length, band, recency)
                 if s.size
                 else np.zeros(0)
             )

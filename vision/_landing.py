@@ -80,9 +80,9 @@ class Landing:
         one = self._bank_sequences(np.array([frame], dtype=np.int64))  # (V, 1, F)
         refs = np.repeat(one, self.n, axis=1)  # (one frame: its centre does not move)
         band = self.settings.band
-        r = self.settings.recent
+        r = self.settings.recency
         costs = self.weighed(
-            np.array([dtw_batch(q, refs, window=band, recent=r) for q in queries]), frame
+            np.array([dtw_batch(q, refs, window=band, recency=r) for q in queries]), frame
         )
         cost = float(costs.min())
         margin = self.settings.vote_margin
@@ -158,7 +158,7 @@ class Landing:
         voted = self.vote.gate(target)
         if not (ok & voted).any() and not at_voted.any():
             lists: Ranked = []
-            got = self.index().search(queries, st.band, st.top, only, lists, st.recent)
+            got = self.index().search(queries, st.band, st.top, only, lists, st.recency)
             if self.facing is not None:
                 got = best_of(self.facing.weigh(lists, observe=False), st.top, only)
             target, ok, _ = self._targets(frame, got, costs, queries)

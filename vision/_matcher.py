@@ -230,9 +230,9 @@ class Matcher(CandidatePaths, Landing):
         st = self.settings
         if exact or span < self.n:
             length = min(span, self.n)
-            got = [best_window(queries, shape, centre, starts, length, st.band, st.recent)]
+            got = [best_window(queries, shape, centre, starts, length, st.band, st.recency)]
         else:
-            got = self.index().search(queries, st.band, top, recent=st.recent)
+            got = self.index().search(queries, st.band, top, recency=st.recency)
         if not got or self._rejected(got[0][2], queries[0]):
             return []
         self.why = ""
@@ -241,8 +241,8 @@ class Matcher(CandidatePaths, Landing):
     def _plain_cost(self, queries: list[FloatArray]) -> Callable[[int, int, int], float] | None:
         """The cost of the window at ``(start, view)`` of the index against
         ``queries[reading]`` by DTW with every frame alike, for the facing's evidence
-        (``None`` when the matcher's DTW already weighs them so: ``recent`` 0)."""
-        if self.settings.recent == 0:
+        (``None`` when the matcher's DTW already weighs them so: ``recency`` 0)."""
+        if self.settings.recency == 0:
             return None
         idx, band = self.index(), self.settings.band
 
@@ -265,13 +265,13 @@ class Matcher(CandidatePaths, Landing):
         w = self._lead_in(recent)[-self.n :]
         if w.size < self.n:
             return float("inf")
-        band, r = self.settings.band, self.settings.recent
+        band, r = self.settings.band, self.settings.recency
         if np.all(np.diff(w) == 1) and self._same_run(int(w[0]), w[-1:])[0]:
             shape, centre, _ = self._global_tables()  # a library window: as the search costs it
             costs = window_costs(queries, shape, centre, int(w[0]), self.n, band, r)
         else:
             refs = self._bank_sequences(w)
-            costs = np.array([dtw_batch(q, refs, window=band, recent=r) for q in queries])
+            costs = np.array([dtw_batch(q, refs, window=band, recency=r) for q in queries])
         return float(self.weighed(costs, int(w[self.n // 2])).min())
 
     def own_frames(self, frame: int, recent: IntArray) -> IntArray:
@@ -316,7 +316,7 @@ class Matcher(CandidatePaths, Landing):
             if queries is None:
                 return None
         ranked: list[tuple[IntArray, IntArray, FloatArray]] = []
-        got = self.index().search(queries, st.band, st.top, ranked=ranked, recent=st.recent)
+        got = self.index().search(queries, st.band, st.top, ranked=ranked, recency=st.recency)
         self.last_own = float("inf")
         if not got or self._rejected(got[0][2], queries[0]):
             return None  # (why says so when the best was rejected)
@@ -404,7 +404,7 @@ class Matcher(CandidatePaths, Landing):
         extra = tempo_readings(performer, self.n, st.tempos, queries[0].shape[0], *args)
         if extra:
             ranked = list(ranked)
-            self.index().search(extra, st.band, st.top, ranked=ranked, recent=st.recent)
+            self.index().search(extra, st.band, st.top, ranked=ranked, recency=st.recency)
         clf = self.classifier()
         n = self._classifier[1] if self._classifier else 0
         return voted_action(ranked, self.vote.actions, self.n, clf, queries + extra, n)
@@ -456,7 +456,7 @@ class Matcher(CandidatePaths, Landing):
         refs = np.concatenate([self._bank_sequences(w) for w in wins])
         group = np.repeat(np.arange(len(cands)), views)
         st = self.settings
-        each = np.array([dtw_batch(q, refs, group, st.band, st.recent) for q in queries])
+        each = np.array([dtw_batch(q, refs, group, st.band, st.recency) for q in queries])
         each = each.reshape(len(queries), len(cands), views)
         if self.facing is not None:
             for i, w in enumerate(wins):

@@ -145,14 +145,14 @@ def window_costs(
     start: int,
     length: int,
     band: int,
-    recent: float = 0.0,
+    recency: float = 0.0,
 ) -> FloatArray:
     """DTW costs ``(len(queries), V)`` of the window of the tables at ``start`` against
-    each of ``queries``, in every view (``recent``: ``control.dtw``'s)."""
+    each of ``queries``, in every view (``recency``: ``control.dtw``'s)."""
     views = np.arange(shape.shape[1], dtype=np.int64)
     at = np.full(views.size, start, dtype=np.int64)
     return np.array(
-        [dtw_windows(q, shape, centre, at, views, length, band, recent) for q in queries]
+        [dtw_windows(q, shape, centre, at, views, length, band, recency) for q in queries]
     )
 
 
@@ -169,13 +169,13 @@ def best_window(
     starts: IntArray,
     length: int,
     band: int,
-    recent: float = 0.0,
+    recency: float = 0.0,
 ) -> tuple[int, int, float]:
     """``(start, view, cost)`` of the window nearest any of ``queries`` by DTW
     (``control.dtw.dtw_best_window``), over ``starts``, every view."""
     best = (-1, -1, float("inf"))
     for q in queries:
-        got = dtw_best_window(q, shape, centre, starts, length, band, recent)
+        got = dtw_best_window(q, shape, centre, starts, length, band, recency)
         if got[2] < best[2]:
             best = got
     return best

@@ -133,7 +133,7 @@ def test_the_matchers_vote_goes_to_the_classifiers_choice(setup) -> None:
     assert queries is not None
     ranked: list = []
     m.index().search(
-        queries, m.settings.band, m.settings.top, ranked=ranked, recent=m.settings.recent
+        queries, m.settings.band, m.settings.top, ranked=ranked, recency=m.settings.recency
     )
     choice = m._choice(queries, ranked, x)
     assert choice is not None and choice == int(keys[100 + m.n - 1])

@@ -106,16 +106,16 @@ def _own_side(decisions: list[dict], lib_motion, perf_motion, first: int) -> flo
 
 
 @pytest.mark.parametrize(
-    "azimuth, toward, recent", [(10.0, True, 0.0), (190.0, False, 0.0), (190.0, False, 2.0)]
+    "azimuth, toward, recency", [(10.0, True, 0.0), (190.0, False, 0.0), (190.0, False, 2.0)]
 )
 def test_the_avatar_raises_the_knee_the_performer_raises(
-    setup, mocap: Path, tmp_path: Path, azimuth: float, toward: bool, recent: float
+    setup, mocap: Path, tmp_path: Path, azimuth: float, toward: bool, recency: float
 ) -> None:
     """13_29's knee raises (another take) filmed from the front and from behind, the
     library 13_30: the avatar raises the performer's knee, not the other, at most
     decisions where the two differ, and learns that the performer faces the camera or
     away; without weighing the facing it does so about half the time. With DTW weighing
-    the last frames more (``recent``) the evidence is still read over the whole window
+    the last frames more (``recency``) the evidence is still read over the whole window
     (from behind it settled on the camera side without that)."""
     lib, layer, bank = setup
     perf = load_library(mocap, fps=30, clips=["13_29"]).clip("13_29")
@@ -125,7 +125,7 @@ def test_the_avatar_raises_the_knee_the_performer_raises(
     record_clip(perf, video, rs, first, first + 285)
     shares = []
     for facing in (0.3, 0.0):
-        settings = PerformSettings(match=MatchSettings(facing=facing, recent=recent))
+        settings = PerformSettings(match=MatchSettings(facing=facing, recency=recency))
         run = Performance(VideoSource(video, silhouette=True), layer, bank, lib.clips, settings)
         r = run.run()
         shares.append(_own_side(r.decisions, lib.clips[0].motion, perf.motion, first))

@@ -167,7 +167,7 @@ def test_right_after_a_jump_the_own_cost_is_the_window_played_into(setup) -> Non
         q += 0.05 * np.random.default_rng(1).normal(size=q.shape)  # not the window itself
     st = m.settings
     by_bank = min(
-        dtw_batch(q, m._bank_sequences(window), None, st.band, st.recent).min() for q in queries
+        dtw_batch(q, m._bank_sequences(window), None, st.band, st.recency).min() for q in queries
     )
     assert m.own_cost(queries, window) == pytest.approx(by_bank, rel=1e-5)
     # the frames shown, as before 2026-12-02; and at a clip's first frames, which have no
@@ -206,7 +206,7 @@ def test_a_jump_is_scored_by_its_match_and_with_a_blend_weight_by_its_blend_too(
         performer += 0.02 * np.random.default_rng(0).normal(size=performer.shape)
         queries = m.queries(performer)
         assert queries is not None
-        got = m.index().search(queries, m.settings.band, m.settings.top, recent=m.settings.recent)
+        got = m.index().search(queries, m.settings.band, m.settings.top, recency=m.settings.recency)
         target, ok, _ = m._targets(frame, got, costs, queries)
         assert ok.sum() >= 3
         costs.near = int(target[ok][2])  # the third best match

@@ -90,10 +90,10 @@ def test_index_finds_the_brute_force_best(setup) -> None:
             window[rng.choice(m.n, 4, replace=False)] = np.nan
         queries = m.queries(window)
         assert queries is not None
-        b = best_window(queries, shape, centre, starts, m.n, m.settings.band, m.settings.recent)
+        b = best_window(queries, shape, centre, starts, m.n, m.settings.band, m.settings.recency)
         total += 1
         for k, index in enumerate(indexes):
-            c = index.search(queries, m.settings.band, recent=m.settings.recent)[0][2]
+            c = index.search(queries, m.settings.band, recency=m.settings.recency)[0][2]
             hits[k] += c <= b[2] + 1e-9
             assert c >= b[2] - 1e-9  # never better than the exact best: the cost is exact DTW
     assert total >= 80 and min(hits) >= 0.99 * total, hits
@@ -123,10 +123,10 @@ def test_the_pose_descriptors_readings_find_the_brute_force_best(
     for end in range(m.n, perf.shape[0] + 1, 2):
         queries = m.queries(perf[end - m.n : end])
         assert queries is not None and len(queries) == readings
-        b = best_window(queries, shape, centre, starts, m.n, m.settings.band, m.settings.recent)
+        b = best_window(queries, shape, centre, starts, m.n, m.settings.band, m.settings.recency)
         total += 1
         hits += (
-            index.search(queries, m.settings.band, recent=m.settings.recent)[0][2] <= b[2] + 1e-9
+            index.search(queries, m.settings.band, recency=m.settings.recency)[0][2] <= b[2] + 1e-9
         )
     assert total >= 100 and hits >= 0.99 * total, (hits, total)
 
@@ -219,9 +219,9 @@ def test_a_search_within_flagged_starts_finds_their_brute_force_best(
     for end in range(m.n, perf.shape[0] + 1, 4):
         queries = m.queries(perf[end - m.n : end])
         assert queries is not None
-        got = index.search(queries, m.settings.band, top=4, only=only, recent=m.settings.recent)
+        got = index.search(queries, m.settings.band, top=4, only=only, recency=m.settings.recency)
         assert got and all(only[g[0]] for g in got)
-        b = best_window(queries, shape, centre, allowed, m.n, m.settings.band, m.settings.recent)
+        b = best_window(queries, shape, centre, allowed, m.n, m.settings.band, m.settings.recency)
         total += 1
         hits += got[0][2] <= b[2] + 1e-9
     assert total >= 40 and hits >= 0.95 * total, (hits, total)
@@ -284,7 +284,7 @@ def test_the_best_flagged_windows_of_a_search_s_short_lists(setup) -> None:
     queries = m.queries(perf[: m.n])
     assert queries is not None
     ranked: list = []
-    got = index.search(queries, m.settings.band, top=8, ranked=ranked, recent=m.settings.recent)
+    got = index.search(queries, m.settings.band, top=8, ranked=ranked, recency=m.settings.recency)
     assert len(ranked) == len(queries) and best_of(ranked, 8) == got
     only = np.zeros(keys.size, dtype=bool)
     only[np.unique(np.concatenate([s for s, _, _ in ranked]))[1::3]] = True  # a third

@@ -176,7 +176,7 @@ def test_the_avatar_jumps_into_the_voted_action_unless_another_fits_far_better(
     queries = m.queries(performer)
     assert queries is not None
     st = m.settings
-    best = m.index().search(queries, st.band, st.top, recent=st.recent)
+    best = m.index().search(queries, st.band, st.top, recency=st.recency)
     assert all(labels[s + m.n] != "Squat" for s, _, _ in best)  # the best windows jog
     a = jog[2 * len(jog) // 3]
     shown = np.arange(a - m.recent_frames + 1, a + 1)  # played on: settled
@@ -186,18 +186,18 @@ def test_the_avatar_jumps_into_the_voted_action_unless_another_fits_far_better(
     if math.isinf(margin):
         assert labels[int(d.extra["jump"])] == "Squat"
         return
-    squats = m.index().search(queries, st.band, st.top, m.vote.starts(m.n), recent=st.recent)
+    squats = m.index().search(queries, st.band, st.top, m.vote.starts(m.n), recency=st.recency)
     assert labels[int(d.extra["jump"])] == "Jog" and not d.extra["leave"]
     assert d.cost == pytest.approx(1.2 * best[0][2], rel=1e-6) and d.cost < squats[0][2]
 
 
-def test_a_negative_or_infinite_recent_weighing_is_refused(mocap: Path, capsys) -> None:
+def test_a_negative_or_infinite_recency_weighing_is_refused(mocap: Path, capsys) -> None:
     for bad in (-1.0, math.inf, math.nan):
-        with pytest.raises(ValueError, match="recent must be a finite number >= 0"):
-            MatchSettings(recent=bad)
-    argv = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "13_30", "--recent", "-2"]
+        with pytest.raises(ValueError, match="recency must be a finite number >= 0"):
+            MatchSettings(recency=bad)
+    argv = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "13_30", "--recency", "-2"]
     assert main(argv) != 0
-    assert "recent must be a finite number >= 0 (0: off), got -2" in capsys.readouterr().err
+    assert "recency must be a finite number >= 0 (0: off), got -2" in capsys.readouterr().err
 
 
 def test_a_negative_vote_is_refused(mocap: Path, capsys) -> None:
