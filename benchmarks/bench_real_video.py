@@ -62,6 +62,7 @@ from vision import (
     on_the_floor,
     perform,
     person_segmentation_available,
+    resolve_segmentation,
 )
 from vision._truth import read_span_labels as read_labels
 
@@ -177,7 +178,10 @@ def agreement(
     base = BankSettings(descriptor=descriptor)
     use_variants = variants and descriptor != "pose"
     bank, _ = ensure_bank(train, robust_settings(base) if use_variants else base)
-    segmentation = "auto" if descriptor == "pose" else "selfie"
+    # as mimic perform chooses for a colour video file: the pose model (its landmarks,
+    # or its person mask for silhouettes; until 2026-12-04 23:45 the silhouettes here
+    # came from the selfie model, which perform does not choose)
+    segmentation = resolve_segmentation("auto", live=False, landmarks=descriptor == "pose")
     names = sorted({r[0] for r in rows})
     per_video: dict[str, Any] = {}
     pooled: dict[float, list[tuple[float, int]]] = {lag: [] for lag in LAGS}

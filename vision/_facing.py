@@ -26,7 +26,8 @@ those from the side worse; ``MARGIN`` 0, 15 and 30 gave the avatar's own-side po
 0.456-0.49 against 0.568 unweighed, the label the same within 0.005), nor in windows
 that show no side (``clip_sides``: a squat is its own mirror image, and weighing its
 views only cost the shared real squat clip, filmed by another camera than the bank's,
-4 of its 39 decisions, 0.641 -> 0.538 with silhouettes; with sides only, 0.641).
+4 of its 39 decisions, 0.641 -> 0.538 with silhouettes, the selfie model's masks; with sides
+only, 0.641).
 """
 
 from __future__ import annotations
