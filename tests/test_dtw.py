@@ -120,7 +120,7 @@ def test_a_wider_band_never_costs_more_and_the_band_is_symmetric(
 
 
 @pytest.mark.parametrize("recency", [0.5, 2.0])
-def test_recent_weighs_the_last_rows_and_every_kernel_agrees(
+def test_recency_weighs_the_last_rows_and_every_kernel_agrees(
     rng: np.random.Generator, recency: float
 ) -> None:
     # the definition: row i of n costs (1 + r i / (n - 1)) / (1 + r / 2) times its distance
@@ -167,7 +167,7 @@ def test_recent_weighs_the_last_rows_and_every_kernel_agrees(
     )
 
 
-def test_recent_must_be_a_finite_number_not_below_zero() -> None:
+def test_recency_must_be_a_finite_number_not_below_zero() -> None:
     a = np.zeros((4, 2))
     for bad in (-0.5, float("inf"), float("nan")):
         with pytest.raises(ValueError, match="recency"):
