@@ -24,11 +24,17 @@ loop's 36. The landmarks are image fractions, so they mean the same; the mask is
 model's size and scaled back to the frame's (nearest pixel). On ``bench_real_video``
 (2026-12-04, the shared clips; the squats are 720x1280) every decision was the same with
 either descriptor, and the squats' loop ran at 28-33 frames/s against 23-29.
+
+The pose model smooths its mask from frame to frame and, given a frame of another size
+than the last (a camera reconfigured, files played one after another), fails on that
+frame and every later one. A change of size starts the model again, with a warning:
+its tracking begins afresh, nothing else is lost.
 """
 
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import sys
 import warnings
@@ -49,6 +55,8 @@ __all__ = [
     "person_segmentation_available",
     "resolve_segmentation",
 ]
+
+log = logging.getLogger(__name__)
 
 PERSON_METHODS = ("selfie", "pose")
 
@@ -139,14 +147,22 @@ class PersonSegmenter:
         #: the pose model's 33 landmarks ``(33, 3)`` (x, y as image fractions,
         #: visibility) of the last frame, ``None`` when nobody was found (pose only)
         self.landmarks: NDArray[np.float64] | None = None
+        #: the size ``(w, h)`` the model was last given: the pose model's tracking (its
+        #: segmentation smoothing) fails for good on a frame of another size, so a
+        #: change of size starts it afresh (``restarts`` counts them)
+        self._size: tuple[int, int] | None = None
+        self.restarts = 0
+        self._model = self._open(mp)
+
+    def _open(self, mp: Any) -> Any:
+        """A new model (its graph started quietly on the first frames)."""
         self._quiet_calls = 2  # the first frames start the graph and the TFLite delegate
         with quiet_native_stderr():
-            if method == "selfie":
-                self._model = mp.solutions.selfie_segmentation.SelfieSegmentation(model_selection=0)
-            else:
-                self._model = mp.solutions.pose.Pose(
-                    static_image_mode=False, model_complexity=1, enable_segmentation=True
-                )
+            if self.method == "selfie":
+                return mp.solutions.selfie_segmentation.SelfieSegmentation(model_selection=0)
+            return mp.solutions.pose.Pose(
+                static_image_mode=False, model_complexity=1, enable_segmentation=True
+            )
 
     def probability(self, image: NDArray[np.uint8]) -> NDArray[np.float32] | None:
         """The model's person probability per pixel ``(H, W)``, or ``None`` (the pose
@@ -167,6 +183,17 @@ class PersonSegmenter:
             f = self.max_side / max(h, w)
             size = (max(1, round(w * f)), max(1, round(h * f)))
             image = np.asarray(cv2.resize(image, size, interpolation=cv2.INTER_AREA), np.uint8)
+        size = (image.shape[1], image.shape[0])
+        if self.method == "pose" and self._size is not None and size != self._size:
+            log.warning(
+                "the frames changed size (%dx%d to %dx%d): the pose model starts again",
+                *self._size,
+                *size,
+            )
+            self._model.close()
+            self._model = self._open(_mediapipe())
+            self.restarts += 1
+        self._size = size
         quiet = quiet_native_stderr() if self._quiet_calls > 0 else contextlib.nullcontext()
         self._quiet_calls -= 1
         with warnings.catch_warnings(), quiet:  # MediaPipe 0.10.14 on a newer protobuf

@@ -92,7 +92,7 @@ def test_a_large_frame_is_scaled_down_for_the_model_and_its_mask_back_up(
     assert np.median(ious) > 0.9 and min(ious) > 0.85, ious
     assert np.median(moved) < 0.02, moved  # of the image's width or height
     small = squats[0][::4, ::4].copy()  # 180x320: given to the model as it is
-    fresh = PersonSegmenter("pose")  # (a stream's frames keep one size)
+    fresh = PersonSegmenter("pose")
     got = fresh.apply(small)
     assert got is not None and got.shape == small.shape[:2]
     fresh.close()
@@ -100,6 +100,34 @@ def test_a_large_frame_is_scaled_down_for_the_model_and_its_mask_back_up(
         PersonSegmenter("selfie", max_side=32)
     scaled.close()
     full.close()
+
+
+def test_frames_that_change_size_start_the_pose_model_again(
+    squats: list[np.ndarray], caplog: pytest.LogCaptureFixture
+) -> None:
+    """MediaPipe's pose model smooths its mask from frame to frame and fails for good
+    (RuntimeError on every later frame) when a stream's frame size changes (a camera
+    reconfigured, videos played one after another). The segmenter starts it again, with
+    a warning naming the sizes, and the masks and landmarks carry on."""
+    seg = PersonSegmenter("pose")
+    small = [cv2.resize(img, (270, 480), interpolation=cv2.INTER_AREA) for img in squats[:3]]
+    with caplog.at_level("WARNING", logger="vision._person"):
+        for img in [*squats[:3], *small, squats[3]]:  # 360x640 (scaled), 270x480, back
+            mask = seg.apply(img)
+            assert mask is not None and mask.shape == img.shape[:2]
+            assert seg.landmarks is not None
+    assert seg.restarts == 2
+    said = [r.getMessage() for r in caplog.records if "changed size" in r.getMessage()]
+    assert said == [
+        "the frames changed size (360x640 to 270x480): the pose model starts again",
+        "the frames changed size (270x480 to 360x640): the pose model starts again",
+    ]
+    seg.close()
+    selfie = PersonSegmenter("selfie")  # no smoothing across frames: nothing to restart
+    for img in (squats[0], small[0]):
+        assert selfie.apply(img) is not None
+    assert selfie.restarts == 0
+    selfie.close()
 
 
 def test_a_plate_subtractor_loses_a_person_who_is_there_from_the_start(mocap: Path) -> None:
