@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 
 from control.avatar import Avatar, JumpCosts
 from control.clusters import HigherLayer
+from control.kernels import one_thread
 from control.motion import Clip
 from silhouette_bank import Bank, silhouette_features
 
@@ -450,33 +451,41 @@ class Performance:
         n_read = n_media = 0
         t = 0.0
         stopped = ""
-        try:
-            while True:
-                if stop is not None and (stopped := stop()):
-                    break
-                frame = self.source.read()
-                if frame is None:
-                    break
-                n_read += 1
-                t = frame.t
-                if self.settings.seconds is not None and t > self.settings.seconds:
-                    break
-                mask = self.features(frame)
-                if frame.image is not None or frame.mask is not None or frame.landmarks is not None:
-                    n_media += 1
-                if on_frame is not None:
-                    on_frame(t, mask, self.avatar)
-                self.advance(t)
-                if self.next_decision <= t + 1e-9:
-                    entry = self.decide(t)
-                    self.decisions.append(entry)
-                    if on_decision is not None:
-                        on_decision(entry)
-                    if log is not None:
-                        log.write(json.dumps(entry) + "\n")
-        finally:
-            if self.searcher is not None:  # a search still running is left to finish alone
-                self.searcher.shutdown(wait=False, cancel_futures=True)
+        # the numeric libraries on one thread: a decision's small matrix products spread
+        # over threads waited on one another (bench_accuracy, 2026-12-05: decision p99
+        # 2.7-5.8 ms alone and 7.6-15 ms beside another process, against 1.3-1.9 ms)
+        with one_thread():
+            try:
+                while True:
+                    if stop is not None and (stopped := stop()):
+                        break
+                    frame = self.source.read()
+                    if frame is None:
+                        break
+                    n_read += 1
+                    t = frame.t
+                    if self.settings.seconds is not None and t > self.settings.seconds:
+                        break
+                    mask = self.features(frame)
+                    if (
+                        frame.image is not None
+                        or frame.mask is not None
+                        or frame.landmarks is not None
+                    ):
+                        n_media += 1
+                    if on_frame is not None:
+                        on_frame(t, mask, self.avatar)
+                    self.advance(t)
+                    if self.next_decision <= t + 1e-9:
+                        entry = self.decide(t)
+                        self.decisions.append(entry)
+                        if on_decision is not None:
+                            on_decision(entry)
+                        if log is not None:
+                            log.write(json.dumps(entry) + "\n")
+            finally:
+                if self.searcher is not None:  # a search still running is left to finish alone
+                    self.searcher.shutdown(wait=False, cancel_futures=True)
         return PerformResult(
             self.avatar, self.decisions, self.views, t, n_read, stopped, n_media, self.t_start
         )

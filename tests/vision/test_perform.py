@@ -156,6 +156,38 @@ def test_replaying_a_recording_is_deterministic(setup) -> None:
     assert a.avatar.history()[0][0] == a.decisions[4]["frame"]
 
 
+def test_the_loop_holds_the_numeric_libraries_to_one_thread(setup) -> None:
+    """A decision's small matrix products spread over BLAS threads waited on one another
+    (decision p99 7.6-15 ms beside another process, 1.3-1.9 ms on one thread): the loop
+    runs with BLAS, OpenMP and numba on one thread each, and leaves the limits as it found
+    them."""
+    import numba
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    def threads(api: str | None = None) -> dict[str, int]:
+        got = [p for p in threadpool_info() if api in (None, p["user_api"])]
+        if api:  # (a BLAS on OpenMP's threads follows faiss's setting, below)
+            got = [p for p in got if p.get("threading_layer") != "openmp"]
+        return {p["filepath"]: p["num_threads"] for p in got}
+
+    seen: list[dict[str, int]] = []
+    lib, layer, bank = setup
+    with threadpool_limits(limits=2):  # as on a machine of two cores or more
+        before, pools = threads("blas"), threads()
+        source = VideoSource(RECORDING, silhouette=True)
+        on_frame = lambda *_: seen.append({**threads(), "numba": numba.get_num_threads()})  # noqa: E731
+        perform(source, layer, bank, lib.clips, PerformSettings(seconds=1.0), on_frame=on_frame)
+        after = threads("blas")
+    # (OpenMP stays at 1 after: the faiss index sets it so, vision._index; a library
+    # first loaded during the loop, as numba's OpenMP layer, is not limited: numba's
+    # own limit covers its kernels)
+    assert before and set(before.values()) == {2}  # (numpy's BLAS at least)
+    assert {k: after[k] for k in before} == before
+    known = set(pools) | {"numba"}
+    assert seen and all({v for k, v in s.items() if k in known} == {1} for s in seen), seen[0]
+    assert numba.get_num_threads() == numba.config.NUMBA_NUM_THREADS
+
+
 def test_a_library_too_large_to_search_by_brute_force_waits_for_a_whole_window(
     setup, monkeypatch: pytest.MonkeyPatch
 ) -> None:
