@@ -283,6 +283,12 @@ def _summary(
             + (f"{args.out}.json says so for the BVH" if args.out else "the MP4 shows them")
             + ")"
         )
+    crowded = sum(1 for c in result.decisions if c.get("people_in_view", 1) > 1)
+    if crowded:
+        print(
+            f"{crowded} decision points saw more than one person in view: the avatar followed the "
+            "largest silhouette (the log's people_in_view)"
+        )
     print_actions(result.decisions, clips)
     if truth is not None:
         _print_agreement(result.decisions, clips, truth)

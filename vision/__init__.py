@@ -68,6 +68,7 @@ from ._segment import (
     METHODS,
     Segmenter,
     clean_mask,
+    clean_mask_others,
 )
 from ._sources import (
     CameraSource,
@@ -164,6 +165,7 @@ __all__ = [
     "cached_window_tables",
     "choose_action",
     "clean_mask",
+    "clean_mask_others",
     "evaluation",
     "floor_level",
     "library_actions",

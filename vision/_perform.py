@@ -40,7 +40,7 @@ from ._landmarks import PoseReader
 from ._library import action_keys
 from ._matcher import Matcher
 from ._person import make_segmenter, resolve_segmentation
-from ._segment import clean_mask
+from ._segment import clean_mask_others
 from ._sources import CameraSource, Frame, Source
 from ._video import MaskTape
 
@@ -183,6 +183,9 @@ class Performance:
         self.landmarks = matcher.desc.kind == "pose"
         self.reader = PoseReader() if self.landmarks else None
         self.why_blank = ""  # why the latest frame has no features
+        #: other people in view in the latest frame's mask, beside the one followed (the
+        #: largest blob: ``clean_mask_others``); the decisions' log says so
+        self.others = 0
         self.period = 1.0 / self.graph.fps
         #: the performer's features at the library's rate: the last window (``window``)
         #: and before it as many as the matcher's tempos read
@@ -251,7 +254,7 @@ class Performance:
                     "colour frames, and this source gives silhouettes (use a silhouette "
                     "descriptor: --descriptor outline)"
                 )
-            mask = clean_mask(frame.mask)
+            mask, others = clean_mask_others(frame.mask)
         elif frame.image is not None:
             if self.segmenter is None:
                 method = resolve_segmentation(
@@ -261,13 +264,15 @@ class Performance:
                 )
                 self.segmenter = make_segmenter(method, self.settings.learn_frames)
             mask = self.segmenter.apply(frame.image)
+            others = int(getattr(self.segmenter, "others", 0))
         else:
-            mask = None
+            mask, others = None, 0
         problem = frame.problem  # e.g. an unreadable mask file: no silhouette, said why
         cover = float(mask.mean()) if mask is not None and mask.size else 0.0
         if not self.landmarks and cover > MAX_COVER:
             # a lighting change, a white frame, a bad mask: no performer looks so
             mask, problem = None, f"the mask covers {cover:.0%} of the frame"
+        self.others = others if mask is not None else 0
         if self.reader is not None:
             lm = getattr(self.segmenter, "landmarks", None) if frame.image is not None else None
             h_px, w_px = frame.image.shape[:2] if frame.image is not None else (1, 1)
@@ -373,6 +378,8 @@ class Performance:
         }
         if missed:
             entry["skipped"] = missed
+        if self.others:  # the largest is followed, the log says so
+            entry["people_in_view"] = 1 + self.others
         filled = min(len(self.history), matcher.n)
         full = filled == matcher.n
         # the avatar is placed as soon as half a window is in (then played on until the

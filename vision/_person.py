@@ -45,7 +45,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from ._segment import Segmenter, clean_mask
+from ._segment import Segmenter, clean_mask_others
 
 __all__ = [
     "INSTALL",
@@ -152,6 +152,9 @@ class PersonSegmenter:
         #: change of size starts it afresh (``restarts`` counts them)
         self._size: tuple[int, int] | None = None
         self.restarts = 0
+        #: blobs of the last mask at least ``RIVAL`` times the kept one's area (the
+        #: selfie model's other people; the pose model follows one person)
+        self.others = 0
         self._model = self._open(mp)
 
     def _open(self, mp: Any) -> Any:
@@ -212,8 +215,9 @@ class PersonSegmenter:
     def apply(self, image: NDArray[np.uint8]) -> NDArray[np.bool_] | None:
         prob = self._model_probability(image)
         if prob is None:
+            self.others = 0
             return None
-        mask = clean_mask(prob > self.threshold, self.min_area)
+        mask, self.others = clean_mask_others(prob > self.threshold, self.min_area)
         if mask is None or mask.shape == image.shape[:2]:
             return mask
         size = (image.shape[1], image.shape[0])

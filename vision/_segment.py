@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["METHODS", "Segmenter", "clean_mask"]
+__all__ = ["METHODS", "RIVAL", "Segmenter", "clean_mask", "clean_mask_others"]
 
 METHODS = ("mog2", "knn", "cnt", "gsoc", "lsbp", "gmg", "mog")
 
@@ -34,21 +34,33 @@ def clean_mask(mask: NDArray[np.generic], min_area: float = 0.003) -> NDArray[np
     when it covers less than ``min_area`` of the image. Worked on the box around what is
     set, with a margin of zeros wider than the smoothing reaches (the same result as on
     the whole image, tested; a person fills a fraction of a camera's frame)."""
+    return clean_mask_others(mask, min_area)[0]
+
+
+def clean_mask_others(
+    mask: NDArray[np.generic], min_area: float = 0.003
+) -> tuple[NDArray[np.bool_] | None, int]:
+    """``clean_mask``, and how many other blobs are at least ``RIVAL`` times the kept
+    one's area (other people in view: the largest is the one followed)."""
     m: np.ndarray = (np.asarray(mask) > 0).astype(np.uint8)
     if m.ndim != 2:
         raise ValueError(f"mask must be 2-D, got shape {m.shape}")
     x, y, w, h = cv2.boundingRect(m)
     if w == 0:
-        return None
+        return None, 0
     r = _MARGIN
     y0, y1 = max(y - r, 0), min(y + h + r, m.shape[0])
     x0, x1 = max(x - r, 0), min(x + w + r, m.shape[1])
     out = np.zeros(m.shape, dtype=bool)
-    blob = _largest_blob(m[y0:y1, x0:x1], min_area * m.size)
+    blob, others = _largest_blob(m[y0:y1, x0:x1], min_area * m.size)
     if blob is None:
-        return None
+        return None, 0
     out[y0:y1, x0:x1] = blob
-    return out
+    return out, others
+
+
+#: a blob at least this share of the largest's area counts as another person in view
+RIVAL = 0.5
 
 
 #: zeros around the box that ``clean_mask`` works on: more than the smoothing's kernel
@@ -56,7 +68,7 @@ def clean_mask(mask: NDArray[np.generic], min_area: float = 0.003) -> NDArray[np
 _MARGIN = 4 * math.ceil(SMOOTH) + 2
 
 
-def _largest_blob(m: NDArray[np.uint8], min_pixels: float) -> NDArray[np.bool_] | None:
+def _largest_blob(m: NDArray[np.uint8], min_pixels: float) -> tuple[NDArray[np.bool_] | None, int]:
     # a vote of each pixel's neighbourhood (a Gaussian of 1 pixel, kept where more than
     # half): ragged edges smoothed, speckle and pinholes gone, and limbs a few pixels
     # wide kept (a 3x3 opening, before 2026-12-02, cut them where the edge was ragged:
@@ -65,17 +77,19 @@ def _largest_blob(m: NDArray[np.uint8], min_pixels: float) -> NDArray[np.bool_] 
     m = (cv2.GaussianBlur(m * 255, (0, 0), SMOOTH) > 127).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
     if n <= 1:
-        return None
-    k = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+        return None, 0
+    area = stats[1:, cv2.CC_STAT_AREA]
+    k = 1 + int(np.argmax(area))
     if stats[k, cv2.CC_STAT_AREA] < min_pixels:
-        return None
+        return None, 0
+    others = int(np.count_nonzero(area >= max(RIVAL * area[k - 1], min_pixels))) - 1
     blob = (labels == k).astype(np.uint8)
     # fill holes: flood the background from the border; what it cannot reach is a hole
     pad = np.pad(blob, 1)
     flood = pad.copy()
     cv2.floodFill(flood, None, (0, 0), 1)
     holes = (flood == 0)[1:-1, 1:-1]
-    return (blob > 0) | holes
+    return (blob > 0) | holes, others
 
 
 class Segmenter:
@@ -97,6 +111,9 @@ class Segmenter:
         self.adapt = adapt
         self._sub = self._make(method)
         self._n = 0
+        #: blobs of the last mask at least ``RIVAL`` times the kept one's area: other
+        #: people in view (the largest is followed)
+        self.others = 0
 
     @staticmethod
     def _make(method: str) -> cv2.BackgroundSubtractor:
@@ -125,4 +142,5 @@ class Segmenter:
         self._n += 1
         if self.learning:
             return None
-        return clean_mask(fg >= 200, self.min_area)  # 127 marks shadows in MOG2/KNN
+        mask, self.others = clean_mask_others(fg >= 200, self.min_area)  # 127: shadows
+        return mask

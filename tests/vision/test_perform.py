@@ -19,6 +19,7 @@ from silhouette_bank import Bank, BankSettings, CameraRing, build_bank, silhouet
 from tests.vision.conftest import RECORDING
 from vision import (
     CameraSource,
+    Frame,
     MaskFolderSource,
     Matcher,
     MatchSettings,
@@ -186,6 +187,49 @@ def test_the_loop_holds_the_numeric_libraries_to_one_thread(setup) -> None:
     known = set(pools) | {"numba"}
     assert seen and all({v for k, v in s.items() if k in known} == {1} for s in seen), seen[0]
     assert numba.get_num_threads() == numba.config.NUMBA_NUM_THREADS
+
+
+class _TwoPeople:
+    """A silhouette source with a second person beside the performer: each mask beside
+    a copy of itself a little smaller (``share`` of its height and width)."""
+
+    def __init__(self, share: float) -> None:
+        self.inner = VideoSource(RECORDING, silhouette=True)
+        self.fps, self.name, self.share = self.inner.fps, "two people", share
+
+    def read(self) -> Frame | None:
+        f = self.inner.read()
+        if f is None or f.mask is None:
+            return f
+        h, w = f.mask.shape
+        small = cv2.resize(f.mask.astype(np.uint8), None, fx=self.share, fy=self.share)
+        other = np.zeros((h, w), dtype=np.uint8)
+        other[h - small.shape[0] :, : small.shape[1]] = small
+        return dataclasses.replace(f, mask=np.hstack([f.mask, other > 0]))
+
+    def close(self) -> None:
+        self.inner.close()
+
+
+def test_another_person_in_view_is_said_and_the_largest_followed(setup) -> None:
+    """Two people in a silhouette video: the avatar follows the larger, as it follows
+    one person alone, and the log says at each decision that more than one was in view;
+    someone much smaller (less than half the area) is not counted."""
+    lib, layer, bank = setup
+    settings = PerformSettings(seconds=6.0)
+    alone = perform(VideoSource(RECORDING, silhouette=True), layer, bank, lib.clips, settings)
+    two = perform(_TwoPeople(0.9), layer, bank, lib.clips, settings)
+    made = [d for d in two.decisions if d.get("decision") is not None]
+    assert made and all(d.get("people_in_view") == 2 for d in made)
+    assert not any("people_in_view" in d for d in alone.decisions)
+    far = perform(_TwoPeople(0.6), layer, bank, lib.clips, settings)  # 0.36 of the area
+    assert not any("people_in_view" in d for d in far.decisions)
+    # the larger is the performer: the avatar does what it does alone, decision for decision
+    same = sum(
+        a.get("frame") == b.get("frame")
+        for a, b in zip(alone.decisions, two.decisions, strict=True)
+    )
+    assert same == len(alone.decisions), same  # (its silhouette is the same: all 60)
 
 
 def test_a_library_too_large_to_search_by_brute_force_waits_for_a_whole_window(

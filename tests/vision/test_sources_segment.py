@@ -17,6 +17,7 @@ from vision import (
     VideoSource,
     add_mask_noise,
     clean_mask,
+    clean_mask_others,
     open_source,
 )
 
@@ -142,6 +143,22 @@ def test_clean_mask_keeps_the_largest_blob_and_fills_holes() -> None:
     assert clean_mask(np.pad(np.ones((2, 2)), 29)) is None  # too small
 
 
+def test_clean_mask_counts_other_people_in_view() -> None:
+    """A second blob at least ``RIVAL`` times the kept one's area is another person in
+    view; a smaller one (a hand, a chair) is not; the largest is the one kept."""
+    m = np.zeros((100, 200), dtype=bool)
+    m[20:90, 20:50] = True  # 2100 pixels: the performer
+    m[30:90, 120:150] = True  # 1800: someone beside them
+    m[5:10, 180:190] = True  # 50: a speck
+    out, others = clean_mask_others(m)
+    assert others == 1 and out is not None and out[50, 35] and not out[50, 135]
+    assert np.array_equal(out, clean_mask(m))
+    m[30:90, 120:150] = False
+    m[60:90, 120:140] = True  # 600 pixels: less than half the performer's
+    assert clean_mask_others(m)[1] == 0
+    assert clean_mask_others(np.zeros((60, 60))) == (None, 0)
+
+
 def test_clean_mask_on_its_box_is_clean_mask_on_the_whole_image() -> None:
     """clean_mask works on the box around the mask with a margin: the same pixels as the
     smoothing, largest blob and hole filling on the whole image, with blobs inside,
@@ -156,9 +173,10 @@ def test_clean_mask_on_its_box_is_clean_mask_on_the_whole_image() -> None:
             m[max(y, 0) : y + rng.integers(3, 30), max(x, 0) : x + rng.integers(3, 30)] = 1
         m = add_mask_noise(m, rng, edge=1.0, holes=3)
         m[rng.random(m.shape) < 0.01] = 1  # speckle
-        whole = _largest_blob(m, 0.003 * m.size)
-        got = clean_mask(m)
+        whole, others_whole = _largest_blob(m, 0.003 * m.size)
+        got, others = clean_mask_others(m)
         assert (got is None) == (whole is None), trial
+        assert others == others_whole, trial
         if got is not None and whole is not None:
             assert np.array_equal(got, whole), trial
 
