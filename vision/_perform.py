@@ -360,6 +360,16 @@ class Performance:
             cluster_path=np.zeros(0, dtype=np.int64),
         )
 
+    def _entry(self, t: float, missed: int) -> dict[str, Any]:
+        """A decision point's log entry before the decision: where the avatar is."""
+        clip, f = self.graph.locate(self.avatar.frame)
+        entry = {"t": round(t, 3), "frame": self.avatar.frame, "clip": clip, "clip_frame": f}
+        if missed:
+            entry["skipped"] = missed
+        if self.others:  # the largest is followed, the log says so
+            entry["people_in_view"] = 1 + self.others
+        return entry
+
     def decide(self, t: float) -> dict[str, Any]:
         """The decision at media time ``t``: its log entry, the avatar told."""
         settings, matcher, avatar = self.settings, self.matcher, self.avatar
@@ -369,17 +379,7 @@ class Performance:
         missed = int((t + 1e-9 - self.next_decision) // settings.decide_every)
         self.next_decision += (missed + 1) * settings.decide_every
         matcher.vote.missed = missed  # (the next vote stands for those points too)
-        clip, f = self.graph.locate(avatar.frame)
-        entry: dict[str, Any] = {
-            "t": round(t, 3),
-            "frame": avatar.frame,
-            "clip": clip,
-            "clip_frame": f,
-        }
-        if missed:
-            entry["skipped"] = missed
-        if self.others:  # the largest is followed, the log says so
-            entry["people_in_view"] = 1 + self.others
+        entry = self._entry(t, missed)
         filled = min(len(self.history), matcher.n)
         full = filled == matcher.n
         # the avatar is placed as soon as half a window is in (then played on until the
