@@ -73,7 +73,8 @@ def _largest_blob(m: NDArray[np.uint8], min_pixels: float) -> tuple[NDArray[np.b
     # half): ragged edges smoothed, speckle and pinholes gone, and limbs a few pixels
     # wide kept (a 3x3 opening, before 2026-12-02, cut them where the edge was ragged:
     # following a performer 90 pixels tall fell to 0.30-0.62)
-    # (in 8 bits: as fast as the opening, five times faster than in floats)
+    # (in 8 bits: as fast as the opening, five times faster than in floats); with the
+    # largest blob, how many others are at least RIVAL times its area
     m = (cv2.GaussianBlur(m * 255, (0, 0), SMOOTH) > 127).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
     if n <= 1:
