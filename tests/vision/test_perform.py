@@ -159,7 +159,7 @@ def test_replaying_a_recording_is_deterministic(setup) -> None:
 
 def test_the_loop_holds_the_numeric_libraries_to_one_thread(setup) -> None:
     """A decision's small matrix products spread over BLAS threads waited on one another
-    (decision p99 7.6-15 ms beside another process, 1.3-1.9 ms on one thread): the loop
+    (decision p99 2.1-6.1 ms alone, 1.3-2.6 ms on one thread): the loop
     runs with BLAS, OpenMP and numba on one thread each, and leaves the limits as it found
     them."""
     import numba
