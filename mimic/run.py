@@ -224,6 +224,7 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
     t0 = time.perf_counter()
     with step("motion graph"):
         graph, _, _ = cached_graph(clips, graph_options(args), rebuild=args.rebuild)
+    clips = _graph_clips(graph, clips)
     _say_unreachable(graph, args.no_jumps)
     # the matcher looks no further ahead than the look-ahead: trees that reach that far
     # (the paper's 15 s trees of a dense graph are truncated, and slow to build)
@@ -303,6 +304,22 @@ def _clips(args: argparse.Namespace) -> list[Any]:
         if not clips:
             raise SystemExit("mimic perform: every clip leaves the floor (use --off-floor)")
     return clips
+
+
+def _graph_clips(graph: Any, clips: list[Any]) -> list[Any]:
+    """The clips the graph joins (one skeleton: ``control.graph.select_clips``), saying on
+    stderr, at every run, which clips of another skeleton it left out: the avatar can
+    neither play nor be matched against them, so the bank leaves them out too."""
+    kept = set(graph.clip_names)
+    other = sorted(c.name for c in clips if c.name not in kept)
+    if other:
+        print(
+            f"left out {len(other)} clip{'s' if len(other) > 1 else ''} of another skeleton "
+            "(the graph joins the "
+            f"library's largest group of clips with the same joints): {', '.join(other)}",
+            file=sys.stderr,
+        )
+    return list(graph.clips_of(clips))
 
 
 def _say_unreachable(graph: Any, no_jumps: bool) -> None:

@@ -148,9 +148,10 @@ class Performance:
         start: int | None = None,
         seed: int = 0,
     ) -> None:
+        # the graph's clips, in its order (one of another skeleton would misalign the vote)
+        self.graph, clips = layer.graph, layer.graph.clips_of(clips)
         self.source, self.clips, self.start, self.seed = source, clips, start, seed
         self.settings = settings = settings or PerformSettings()
-        self.graph = layer.graph
         self.matcher = matcher = Matcher(layer, bank, settings.match)
         self.jumps = jumps = settings.match.jumps  # motion matching: relocation at every
         # decision. One set of jump costs for every avatar of the run, its frame features
@@ -174,7 +175,7 @@ class Performance:
             matcher.why, matcher.last_own = "", float("inf")
         # the library's actions, for the vote (after the probe: it votes for nothing)
         actions = action_keys(clips)
-        if actions is not None and actions.size == self.graph.n_frames:
+        if actions is not None:
             matcher.vote.actions = actions
             if jumps and settings.match.vote > 0:  # now, not at the first decision
                 _ready_vote(matcher)

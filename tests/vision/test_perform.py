@@ -189,6 +189,46 @@ def test_the_loop_holds_the_numeric_libraries_to_one_thread(setup) -> None:
     assert numba.get_num_threads() == numba.config.NUMBA_NUM_THREADS
 
 
+def test_a_clip_of_another_skeleton_in_the_library_leaves_the_vote_on(
+    setup, mocap: Path, tmp_path: Path, capsys, monkeypatch
+) -> None:
+    """The shared library holds a BVH of another skeleton (09_01), which the graph leaves
+    out. Given to the loop beside the graph's clips, it put the vote's per-frame actions
+    out of line with the graph's frames, and the vote went off without a word: `mimic
+    perform` on ../shared/mocap ran without it until 2026-12-05."""
+    from vision._perform import Performance
+
+    lib, layer, bank = setup
+    other = load_library(mocap, clips=["09_01"]).clips[0]
+    assert other.motion.skeleton.names != lib.clips[0].motion.skeleton.names
+    settings = PerformSettings(seconds=4.0)
+    alone = perform(VideoSource(RECORDING, silhouette=True), layer, bank, lib.clips, settings)
+    source = VideoSource(RECORDING, silhouette=True)
+    run = Performance(source, layer, bank, [other, *lib.clips], settings, None, 0)
+    actions = run.matcher.vote.actions
+    assert actions is not None and actions.size == layer.graph.n_frames
+    got = run.run()
+    strip = lambda r: [{k: v for k, v in d.items() if k != "latency_ms"} for d in r.decisions]  # noqa: E731
+    assert strip(got) == strip(alone)
+    # the command line says which clips it left out, at every run, and builds its bank
+    # of the graph's clips only
+    argv = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "13_30"]
+    argv += ["--clips", "09_01", "--k", "12", "--seconds", "1", "--out", str(tmp_path / "a.bvh")]
+    import mimic.run
+
+    banked: list[list[str]] = []
+    real = mimic.run.ensure_bank
+    monkeypatch.setattr(
+        mimic.run,
+        "ensure_bank",
+        lambda c, *a, **k: banked.append([x.name for x in c]) or real(c, *a, **k),
+    )
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "left out 1 clip of another skeleton" in err and "joints): 09_01" in err
+    assert banked == [["13_30"]]
+
+
 class _TwoPeople:
     """A silhouette source with a second person beside the performer: each mask beside
     a copy of itself a little smaller (``share`` of its height and width)."""
