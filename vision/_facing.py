@@ -188,7 +188,8 @@ class Facing:
         """The facing for ``matcher`` (a ``Matcher`` of the graph made of ``clips``, one
         decision every ``period`` seconds): ``None`` unless it reads silhouettes as seen
         and mirrored with ``settings.facing`` on, or when the clips' skeleton has no
-        hips (a warning says so) or their frames are not the graph's."""
+        hips (a warning says so). ``ValueError`` when the clips' frames are not the
+        graph's (pass ``graph.clips_of(clips)``)."""
         st = matcher.settings
         both = st.mirror if st.mirror is not None else matcher.desc.reads_mirrored
         if matcher.desc.kind != "silhouette" or not both or st.facing <= 0:
@@ -199,7 +200,9 @@ class Facing:
             log.warning("the performer's facing is not weighed: %s", exc)
             return None
         if headings.size != matcher.graph.n_frames:
-            return None
+            raise ValueError(
+                f"{headings.size} frames of clips against the graph's {matcher.graph.n_frames}"
+            )
         ring = matcher.bank.settings.ring
         memory = math.exp(-period / MEMORY_S)
         return cls(headings, ring.azimuths(), matcher.n // 2, st.facing, memory, sided=sided)

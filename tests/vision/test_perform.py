@@ -194,8 +194,8 @@ def test_a_clip_of_another_skeleton_in_the_library_leaves_the_vote_on(
 ) -> None:
     """The shared library holds a BVH of another skeleton (09_01), which the graph leaves
     out. Given to the loop beside the graph's clips, it put the vote's per-frame actions
-    out of line with the graph's frames, and the vote went off without a word: `mimic
-    perform` on ../shared/mocap ran without it until 2026-12-05."""
+    (and the facing's headings) out of line with the graph's frames, and both went off
+    without a word: `mimic perform` on ../shared/mocap ran without them until 2026-12-05."""
     from vision._perform import Performance
 
     lib, layer, bank = setup
@@ -207,6 +207,7 @@ def test_a_clip_of_another_skeleton_in_the_library_leaves_the_vote_on(
     run = Performance(source, layer, bank, [other, *lib.clips], settings, None, 0)
     actions = run.matcher.vote.actions
     assert actions is not None and actions.size == layer.graph.n_frames
+    assert run.matcher.facing is not None  # (the facing's per-frame headings too)
     got = run.run()
     strip = lambda r: [{k: v for k, v in d.items() if k != "latency_ms"} for d in r.decisions]  # noqa: E731
     assert strip(got) == strip(alone)
