@@ -68,6 +68,7 @@ from control.graph import (
     joint_jumps,
     lowest_foot,
     random_walk,
+    select_clips,
     weighted_joints,
 )
 from control.motion import default_library_path, load_library, mirror, qconj, qlog, qmul
@@ -386,10 +387,11 @@ def fold(
     recordings: tuple[str, ...] = ("base",),
 ) -> dict[str, Any]:
     everything = load_library(root, clips=list(clips) if clips else None)
-    train = [c for c in everything.clips if c.name != test and c.motion.skeleton.n_joints == 31]
+    train = [c for c in everything.clips if c.name != test]
     dropped: dict[str, float] = {}
     if not off_floor:  # as mimic perform does by default
         train, dropped = on_the_floor(train)
+    train = select_clips(train)[0]  # the clips of the skeleton the graph joins, as perform
     g = build_graph(train, options)
     # trees need reach no further than the longest look-ahead (dense graphs make 15 s
     # trees slow to build)

@@ -40,7 +40,7 @@ import numpy as np
 
 from benchmarks._report import machine, save
 from control.clusters import cached_higher_layer
-from control.graph import GraphOptions, build_graph
+from control.graph import GraphOptions, build_graph, select_clips
 from control.motion import default_library_path, load_library
 from silhouette_bank import (
     DEFAULT_DESCRIPTOR,
@@ -166,8 +166,9 @@ def agreement(
     match = match or MatchSettings()
     rows = read_labels(labels)
     lib = load_library(root, clips=list(clips) if clips else None)
-    # as mimic perform does by default: the clips that stay on the floor
-    train, _ = on_the_floor([c for c in lib.clips if c.motion.skeleton.n_joints == 31])
+    # as mimic perform does by default: the clips that stay on the floor, of the skeleton
+    # the graph joins (the largest group of clips with the same joints)
+    train = select_clips(on_the_floor(list(lib.clips))[0])[0]
     graph = build_graph(train, options)
     # trees need reach no further than the matcher's look-ahead (as perform builds them)
     layer, _, _ = cached_higher_layer(
