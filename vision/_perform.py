@@ -124,12 +124,17 @@ def perform(
     return run.run(log=log, tape=tape, on_frame=on_frame, on_decision=on_decision, stop=stop)
 
 
-def _ready_vote(matcher: Matcher) -> None:
-    """The vote's classifier, and the search among each action's windows (which a decision
-    makes when none of the best windows shows the action voted for: made there, it took
-    7-10 ms on bench_accuracy's folds), made now, not at the first decision."""
-    matcher.classifier()
-    matcher.index().prepare(matcher.vote.window_actions(matcher.n))
+def ready_matcher(matcher: Matcher, clips: Sequence[Clip], period: float) -> None:
+    """The vote's actions (``clips``: the graph's), its classifier and each action's
+    search made now (at a first decision they took 7-10 ms), and the facing for decisions
+    every ``period`` seconds: the loop's matcher, beyond the graph and the bank."""
+    actions = action_keys(clips)
+    if actions is not None:
+        matcher.vote.actions = actions
+        if matcher.settings.jumps and matcher.settings.vote > 0:
+            matcher.classifier()
+            matcher.index().prepare(matcher.vote.window_actions(matcher.n))
+    matcher.facing = Facing.of(clips, matcher, period)
 
 
 class Performance:
@@ -173,13 +178,7 @@ class Performance:
             avatar = self.avatar
             matcher.decide(avatar.frame, probe, avatar.recent(matcher.recent_frames), self.costs)
             matcher.why, matcher.last_own = "", float("inf")
-        # the library's actions, for the vote (after the probe: it votes for nothing)
-        actions = action_keys(clips)
-        if actions is not None:
-            matcher.vote.actions = actions
-            if jumps and settings.match.vote > 0:  # now, not at the first decision
-                _ready_vote(matcher)
-        matcher.facing = Facing.of(clips, matcher, settings.decide_every)
+        ready_matcher(matcher, clips, settings.decide_every)  # (after the probe: no vote)
         self.segmenter: Any = None
         self.landmarks = matcher.desc.kind == "pose"
         self.reader = PoseReader() if self.landmarks else None
