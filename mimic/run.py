@@ -315,8 +315,8 @@ def _graph_clips(graph: Any, clips: list[Any]) -> list[Any]:
     if other:
         print(
             f"left out {len(other)} clip{'s' if len(other) > 1 else ''} of another skeleton "
-            "(the graph joins the "
-            f"library's largest group of clips with the same joints): {', '.join(other)}",
+            "(the graph joins the library's largest group of clips with the same joints): "
+            f"{', '.join(other)}",
             file=sys.stderr,
         )
     return list(graph.clips_of(clips))
