@@ -183,10 +183,7 @@ def matcher_latency(
     matcher.index()
     # perform's throwaway decision, so that no timed one compiles a kernel (one took 443
     # ms on a copy of the code without numba's cache, 2026-12-05), then the vote
-    probe = np.asarray(bank.features[: matcher.n, 0], dtype=np.float64)
-    at = next(f for f in range(matcher.n, g.n_frames) if matcher.plays[f - matcher.n : f].all())
-    matcher.decide(at, probe, np.arange(at - matcher.n + 1, at + 1), avatar.jump_costs)
-    matcher.why, matcher.last_own = "", float("inf")
+    matcher.warm_up(avatar.frame, avatar.recent(matcher.recent_frames), avatar.jump_costs)
     ready_matcher(matcher, g.clips_of(lib.clips), PerformSettings().decide_every)
     out["vote"] = matcher.vote.actions is not None
     out["decision_warm_up_s"] = round(time.perf_counter() - t0, 3)

@@ -409,6 +409,16 @@ class Matcher(CandidatePaths, Landing):
         n = self._classifier[1] if self._classifier else 0
         return voted_action(ranked, self.vote.actions, self.n, clf, queries + extra, n)
 
+    def warm_up(self, frame: int, recent: IntArray, jump_costs: JumpCosts) -> None:
+        """One throwaway decision from the avatar at ``frame`` on a window of the library
+        itself, so that the first real one does not pay for loading or compiling the
+        search and DTW kernels (0.5 s on a fresh install: a stall a performer would see).
+        Before the vote is given its actions: it votes for nothing."""
+        if self.bank.features.shape[0] >= self.n:
+            probe = np.asarray(self.bank.features[: self.n, 0], dtype=np.float64)
+            self.decide(frame, probe, recent, jump_costs)
+            self.why, self.last_own = "", float("inf")
+
     def decide(
         self,
         frame: int,

@@ -170,15 +170,10 @@ class Performance:
                 matcher.index()
                 computing.result()
         self.avatar = self.new_avatar(start)
-        if jumps and bank.features.shape[0] >= matcher.n:
-            # one throwaway decision on a window of the library itself, so that the first
-            # real one does not pay for loading or compiling the search and DTW kernels
-            # (0.5 s on a fresh install: a stall a performer would see)
-            probe = np.asarray(bank.features[: matcher.n, 0], dtype=np.float64)
+        if jumps:
             avatar = self.avatar
-            matcher.decide(avatar.frame, probe, avatar.recent(matcher.recent_frames), self.costs)
-            matcher.why, matcher.last_own = "", float("inf")
-        ready_matcher(matcher, clips, settings.decide_every)  # (after the probe: no vote)
+            matcher.warm_up(avatar.frame, avatar.recent(matcher.recent_frames), self.costs)
+        ready_matcher(matcher, clips, settings.decide_every)  # (after the warm-up: no vote)
         self.segmenter: Any = None
         self.landmarks = matcher.desc.kind == "pose"
         self.reader = PoseReader() if self.landmarks else None
