@@ -3,8 +3,8 @@ on labelled footage.
 
 Usage: python -m benchmarks.bench_real_video [--videos DIR] [--labels CSV]
        [--library DIR] [--clips PATTERN]... [--coords C] [--sigma-scale S] [--variants]
-       [--descriptor multigrid|grid|hu]
-       [--no-segmentation] [--out FILE]
+       [--descriptor auto|pose|outline|multigrid|grid|hu] [--recency R]
+       [--perform-args "MORE FLAGS"] [--no-segmentation] [--out FILE]
 
 - Segmentation, for every video in ``--videos`` (default ``../shared/video``), with a
   plate subtractor (MOG2 learning the first 30 frames, as a camera would: here the
@@ -16,7 +16,8 @@ Usage: python -m benchmarks.bench_real_video [--videos DIR] [--labels CSV]
 - Label agreement, for every row of ``--labels`` (a CSV ``file,start,end,label`` with
   times in seconds; ``file`` relative to ``--videos``; default
   ``benchmarks/videos/shared_labels.csv``, our own labels of the shared clips): each
-  video is replayed through ``mimic perform``'s loop (person segmentation) against the
+  video is replayed through ``mimic evaluate``'s loop, prepared by the command line's
+  own code (``mimic.run.prepare``, the flags given here passed on to it) against the
   library (default: every shared clip that stays on the floor, as ``mimic perform``
   takes it, with its defaults: the pose descriptor with MediaPipe), and at every
   decision the avatar's current frame's label is compared with the video's label
@@ -30,6 +31,9 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
+import os
+import shlex
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -39,30 +43,23 @@ import cv2
 import numpy as np
 
 from benchmarks._report import machine, save
-from control.clusters import cached_higher_layer
-from control.graph import GraphOptions, build_graph, select_clips
-from control.motion import default_library_path, load_library
+from control.graph import GraphOptions
+from control.motion import default_library_path
+from mimic.cli import build_parser
+from mimic.run import prepare, silhouette_flag
 from silhouette_bank import (
-    DEFAULT_DESCRIPTOR,
     DESCRIPTORS,
-    BankSettings,
-    ensure_bank,
-    robust_settings,
 )
 from vision import (
     LAGS,
     LabelFileError,
     MatchSettings,
-    PerformSettings,
     PersonSegmenter,
     Segmenter,
     Truth,
-    VideoSource,
     evaluation,
-    on_the_floor,
+    open_source,
     perform,
-    person_segmentation_available,
-    resolve_segmentation,
 )
 from vision._truth import read_span_labels as read_labels
 
@@ -153,66 +150,63 @@ def segmentation(videos: Path, results: Path) -> dict[str, Any]:
     return out
 
 
+def _run_args(
+    clips: Sequence[str] | None,
+    options: GraphOptions,
+    variants: bool,
+    descriptor: str,
+    recency: float,
+    extra: Sequence[str] = (),
+) -> list[str]:
+    """This benchmark's options as ``mimic evaluate``'s flags (``extra``: any more)."""
+    out = [f"--clips={c}" for c in clips or ()]
+    out += [f"--coords={options.coords}", f"--sigma-scale={options.sigma_scale!r}"]
+    out += ["--variants"] * variants + [f"--descriptor={descriptor}", f"--recency={recency!r}"]
+    return [*out, *extra]
+
+
 def agreement(
     videos: Path,
     labels: Path,
     root: Path,
-    clips: Sequence[str] | None,
-    options: GraphOptions,
-    variants: bool,
-    descriptor: str = DEFAULT_DESCRIPTOR,
-    match: MatchSettings | None = None,
+    run_args: Sequence[str] = (),
 ) -> dict[str, Any]:
-    match = match or MatchSettings()
+    """Each labelled video replayed through ``mimic evaluate``'s own preparation
+    (``mimic.run.prepare``: the library, graph, higher layer, bank, descriptor and
+    settings it chooses, with ``run_args``, its flags), so that these figures are what a
+    user gets. Until 2026-12-05 this benchmark prepared its own, and the two drifted
+    apart (the command line ran without the vote on ``../shared/mocap`` while this gave
+    the figures with it)."""
     rows = read_labels(labels)
-    lib = load_library(root, clips=list(clips) if clips else None)
-    # as mimic perform does by default: the clips that stay on the floor, of the skeleton
-    # the graph joins (the largest group of clips with the same joints)
-    train = select_clips(on_the_floor(list(lib.clips))[0])[0]
-    graph = build_graph(train, options)
-    # trees need reach no further than the matcher's look-ahead (as perform builds them)
-    layer, _, _ = cached_higher_layer(
-        graph, train, bound_seconds=max(2.0, MatchSettings().lookahead + 0.5)
-    )
-    if descriptor == "auto":
-        descriptor = "pose" if person_segmentation_available() else DEFAULT_DESCRIPTOR
-    base = BankSettings(descriptor=descriptor)
-    use_variants = variants and descriptor != "pose"
-    bank, _ = ensure_bank(train, robust_settings(base) if use_variants else base)
-    # as mimic perform chooses for a colour video file: the pose model (its landmarks,
-    # or its person mask for silhouettes; until 2026-12-04 23:45 the silhouettes here
-    # came from the selfie model, which perform does not choose)
-    segmentation = resolve_segmentation("auto", live=False, landmarks=descriptor == "pose")
     names = sorted({r[0] for r in rows})
     per_video: dict[str, Any] = {}
     pooled: dict[float, list[tuple[float, int]]] = {lag: [] for lag in LAGS}
+    ready = None
     for name in names:
         path = videos / name
         if not path.is_file():
             raise LabelFileError(f"{labels}: no video {path}")
         spans = [(a, b, lab.lower()) for f, a, b, lab in rows if f == name]
-        source = VideoSource(path)
+        argv = ["evaluate", str(path), "--labels", str(labels), "--json", os.devnull]
+        args = build_parser().parse_args([*argv, "--library", str(root), *run_args])
+        source = open_source(None, str(path), None, silhouette=silhouette_flag(args))
+        ready = prepare(args, source)
+        run = functools.partial(perform, start=ready.start, seed=args.seed)
         t0 = time.perf_counter()
-        settings = PerformSettings(segmentation=segmentation, match=match)
-        result = perform(source, layer, bank, train, settings)
+        result = run(source, ready.layer, ready.bank, ready.clips, ready.settings)
         wall = time.perf_counter() - t0
         source.close()
         # the loop as a camera runs it: relocation's search in a thread (the agreement
         # above comes from the deterministic replay, which waits for every search)
-        source = VideoSource(path)
+        source = open_source(None, str(path), None, silhouette=silhouette_flag(args))
+        live_settings = dataclasses.replace(ready.settings, background_search=True)
         t0 = time.perf_counter()
-        live = perform(
-            source,
-            layer,
-            bank,
-            train,
-            dataclasses.replace(settings, background_search=True),
-        )
+        live = run(source, ready.layer, ready.bank, ready.clips, live_settings)
         live_wall = time.perf_counter() - t0
         source.close()
         # mimic evaluate's figures (vision._evaluate) for this video
         truth = Truth(tuple(spans), str(labels))
-        report = evaluation(result.decisions, train, truth, result.media_seconds, LAGS)
+        report = evaluation(result.decisions, ready.clips, truth, result.media_seconds, LAGS)
         curve = report["agreement_by_lag_s"]
         per_video[name] = {
             "agreement_by_lag_s": curve,
@@ -232,22 +226,27 @@ def agreement(
             if curve[k] is not None:
                 pooled[lag].append((curve[k], report["decisions_by_lag_s"][k]))
         print(name, per_video[name])
+    if ready is None:
+        raise LabelFileError(f"{labels}: no labelled video")
     overall = {
         f"{lag:g}": round(sum(r * n for r, n in h) / sum(n for _, n in h), 3) if h else None
         for lag, h in pooled.items()
     }
+    graph = ready.graph
     return {
         "labels": str(labels),
-        "library": [c.name for c in train],
+        "mimic_evaluate_flags": list(run_args),
+        "library": [c.name for c in ready.clips],
         "frames": graph.n_frames,
         "graph": {
-            "coords": options.coords,
-            "sigma_scale": options.sigma_scale,
+            "coords": graph.options.coords,
+            "sigma_scale": graph.options.sigma_scale,
             "edges": graph.n_edges,
             "scc_frames": int(graph.in_scc.sum()),
         },
-        "bank_views": bank.features.shape[1],
-        "descriptor": descriptor,
+        "bank_views": ready.bank.features.shape[1],
+        "descriptor": ready.descriptor,
+        "match": dataclasses.asdict(ready.settings.match),
         "per_video": per_video,
         "overall_by_lag_s": overall,
         "overall_best_at_lag_le_1s": max(
@@ -273,13 +272,18 @@ def main() -> None:
         "--descriptor",
         default="auto",
         choices=("auto", *DESCRIPTORS),
-        help="auto (default, as mimic perform): pose with MediaPipe, else multigrid",
+        help="auto (default, as mimic perform): pose with MediaPipe, else outline",
     )
     ap.add_argument(
         "--recency",
         type=float,
         default=MatchSettings.recency,
         help="the matcher's weighing of the window's last frames (as mimic perform's)",
+    )
+    ap.add_argument(
+        "--perform-args",
+        default="",
+        help="more of mimic evaluate's flags, as one string: --perform-args '--window 0.7'",
     )
     ap.add_argument("--out", default="benchmarks/results/real_video.json")
     args = ap.parse_args()
@@ -288,16 +292,15 @@ def main() -> None:
     if not args.no_segmentation:
         result["segmentation"] = segmentation(videos, Path(args.out).parent)
     options = GraphOptions(coords=args.coords, sigma_scale=args.sigma_scale)
-    result["agreement"] = agreement(
-        videos,
-        Path(args.labels),
-        Path(args.library),
+    flags = _run_args(
         args.clips,
         options,
         args.variants,
         args.descriptor,
-        MatchSettings(recency=args.recency),
+        args.recency,
+        shlex.split(args.perform_args),
     )
+    result["agreement"] = agreement(videos, Path(args.labels), Path(args.library), flags)
     save(result, args.out)
 
 

@@ -39,3 +39,19 @@ def test_bad_label_files_name_file_and_line(tmp_path: Path, text: str, message: 
         read_labels(p)
     with pytest.raises(LabelFileError, match="no such file"):
         read_labels(tmp_path / "none.csv")
+
+
+def test_the_real_video_benchmark_runs_mimic_evaluates_flags() -> None:
+    """bench_real_video prepares each video with the command line's own code, its options
+    passed on as ``mimic evaluate``'s flags: each must be one that flag sets."""
+    from benchmarks.bench_real_video import _run_args
+    from control.graph import GraphOptions
+    from mimic.cli import build_parser
+
+    flags = _run_args(
+        ["13_*"], GraphOptions(sigma_scale=0.5), True, "outline", 2.0, ["--vote", "7"]
+    )
+    argv = ["evaluate", "v.mp4", "--labels", "l.csv", "--json", "o.json", *flags]
+    args = build_parser().parse_args(argv)
+    assert (args.clips, args.coords, args.sigma_scale) == (["13_*"], "fixed", 0.5)
+    assert (args.variants, args.descriptor, args.recency, args.vote) == (True, "outline", 2.0, 7)
