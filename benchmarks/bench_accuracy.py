@@ -92,6 +92,7 @@ from vision import (
     VideoSource,
     clean_mask,
     evaluation,
+    excursions_per_minute,
     on_the_floor,
     perform,
     performer_sequence,
@@ -306,6 +307,11 @@ def _run_figures(
         "switches_per_minute": {
             "avatar": round(_switches_per_minute(avatar_labels, seconds), 2),
             "performer": round(_switches_per_minute(performer_labels, seconds), 2),
+            # flicker: the avatar away from its action for under 0.5 s and back (an
+            # unlabelled stretch counts as an action, as in the switches)
+            "avatar_excursions_under_0.5s": excursions_per_minute(
+                [x or "(none)" for x in avatar_labels], times.tolist(), seconds
+            ),
         },
         "latency_ms": {
             "p50": float(np.percentile(lat, 50)),

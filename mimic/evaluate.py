@@ -87,13 +87,14 @@ def _evaluate(args: argparse.Namespace) -> int:
         plot_evaluation(report, args.png, title=f"{Path(args.video).name} against {truth.source}")
     print_actions(result.decisions, ready.clips)
     best = report["best_at_lag_le_1s"]
+    sw = report["switches_per_minute"]
     print(
         "agreement (actions the library has): "
         + (f"{best:.2f} at lag {report['best_lag_s']:g} s" if best is not None else "none")
         + f"; chance {report['chance']}; per action "
         + ", ".join(f"{a} {v:.2f}" for a, v in report["per_action_at_best_lag"].items())
-        + f"; switches a minute: avatar {report['switches_per_minute']['avatar']}, "
-        f"performer {report['switches_per_minute']['performer']}"
+        + f"; switches a minute: avatar {sw['avatar']} (excursions back within 0.5 s: "
+        f"{sw['avatar_excursions_under_0.5s']} a minute), performer {sw['performer']}"
     )
     print(f"wrote {args.json}" + (f" and {args.png}" if args.png else ""))
     return 0

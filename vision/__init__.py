@@ -16,6 +16,7 @@ from ._decision import (
 )
 from ._evaluate import (
     evaluation,
+    excursions_per_minute,
     plot_evaluation,
 )
 from ._index import (
@@ -167,6 +168,7 @@ __all__ = [
     "clean_mask",
     "clean_mask_others",
     "evaluation",
+    "excursions_per_minute",
     "floor_level",
     "library_actions",
     "looks_like_silhouettes",

@@ -9,7 +9,14 @@ import numpy as np
 import pytest
 
 from tests.vision.conftest import RECORDING
-from vision import LabelFileError, Truth, action_runs, agreement, truth_for
+from vision import (
+    LabelFileError,
+    Truth,
+    action_runs,
+    agreement,
+    excursions_per_minute,
+    truth_for,
+)
 from vision._video import PANE, MaskTape, _frame_decisions
 
 
@@ -81,6 +88,16 @@ def test_what_the_avatar_did_merges_short_runs(setup) -> None:
     assert runs == [(0.0, 2.9, "JumpJack")]
 
 
+def test_an_excursion_is_a_brief_stay_in_another_action_and_back() -> None:
+    t = [i * 0.1 for i in range(12)]
+    # jumpjack, 0.2 s of twist, back (an excursion); 0.4 s of squat, on to twist (none)
+    labels = ["jj", "jj", "tw", "tw", "jj", "jj", "sq", "sq", "sq", "sq", "tw", "tw"]
+    assert excursions_per_minute(labels, t, 60.0) == 1.0
+    # 0.5 s away is no longer brief; an unlabelled decision (None) is skipped
+    assert excursions_per_minute(["a"] + ["b"] * 5 + ["a"], t[:7], 60.0) == 0.0
+    assert excursions_per_minute(["a", "b", None, "a"], t[:4], 30.0) == 2.0
+
+
 def test_the_mask_tape_plays_back_what_was_written(rng: np.random.Generator) -> None:
     with MaskTape() as tape:
         masks = [rng.random((120, 160)) > 0.5 for _ in range(3)]
@@ -141,6 +158,9 @@ def test_mimic_evaluate_writes_agreement_confusion_and_a_plot(
     assert img is not None and img.shape[1] > img.shape[0] > 300
     said = capsys.readouterr().out
     assert "agreement (actions the library has): " in said
+    sw = report["switches_per_minute"]
+    assert 0 <= sw["avatar_excursions_under_0.5s"] <= sw["avatar"] / 2
+    assert f"(excursions back within 0.5 s: {sw['avatar_excursions_under_0.5s']} a minute)" in said
     # a video without ground truth is a clear error
     bare = tmp_path / "bare.mkv"
     shutil.copy(RECORDING, bare)
