@@ -90,9 +90,9 @@ from vision import (
     PerformSettings,
     RecordSettings,
     VideoSource,
+    brief_actions_per_minute,
     clean_mask,
     evaluation,
-    excursions_per_minute,
     on_the_floor,
     perform,
     performer_sequence,
@@ -307,9 +307,9 @@ def _run_figures(
         "switches_per_minute": {
             "avatar": round(_switches_per_minute(avatar_labels, seconds), 2),
             "performer": round(_switches_per_minute(performer_labels, seconds), 2),
-            # flicker: the avatar away from its action for under 0.5 s and back (an
-            # unlabelled stretch counts as an action, as in the switches)
-            "avatar_excursions_under_0.5s": excursions_per_minute(
+            # flicker: actions the avatar shows for under 0.5 s (an unlabelled stretch
+            # counts as an action, as in the switches)
+            "avatar_brief_actions_under_0.5s": brief_actions_per_minute(
                 [x or "(none)" for x in avatar_labels], times.tolist(), seconds
             ),
         },

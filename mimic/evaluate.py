@@ -93,8 +93,8 @@ def _evaluate(args: argparse.Namespace) -> int:
         + (f"{best:.2f} at lag {report['best_lag_s']:g} s" if best is not None else "none")
         + f"; chance {report['chance']}; per action "
         + ", ".join(f"{a} {v:.2f}" for a, v in report["per_action_at_best_lag"].items())
-        + f"; switches a minute: avatar {sw['avatar']} (excursions back within 0.5 s: "
-        f"{sw['avatar_excursions_under_0.5s']} a minute), performer {sw['performer']}"
+        + f"; switches a minute: avatar {sw['avatar']} (actions shown under 0.5 s: "
+        f"{sw['avatar_brief_actions_under_0.5s']} a minute), performer {sw['performer']}"
     )
     print(f"wrote {args.json}" + (f" and {args.png}" if args.png else ""))
     return 0

@@ -15,8 +15,8 @@ from ._decision import (
     MatchSettings,
 )
 from ._evaluate import (
+    brief_actions_per_minute,
     evaluation,
-    excursions_per_minute,
     plot_evaluation,
 )
 from ._index import (
@@ -160,6 +160,7 @@ __all__ = [
     "agreement",
     "avatar_labels",
     "best_window",
+    "brief_actions_per_minute",
     "cached_action_classifier",
     "cached_shape_stats",
     "cached_window_index",
@@ -168,7 +169,6 @@ __all__ = [
     "clean_mask",
     "clean_mask_others",
     "evaluation",
-    "excursions_per_minute",
     "floor_level",
     "library_actions",
     "looks_like_silhouettes",

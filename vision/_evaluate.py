@@ -4,7 +4,7 @@ From a performance (``perform``'s result) and its ground truth: agreement agains
 (over every labelled decision, and over those whose action the library has), the best at
 a lag of at most 1 s, the confusion matrix and per-action agreement at that lag, chance
 (the avatar at a random library frame), the avatar's and the performer's action switches
-a minute, the avatar's brief excursions a minute (flicker: ``excursions_per_minute``),
+a minute, the avatar's brief actions a minute (flicker: ``brief_actions_per_minute``),
 and the decision latency. ``plot_evaluation`` draws agreement against lag beside
 the confusion matrix (matplotlib, headless).
 """
@@ -23,10 +23,10 @@ from control.motion import Clip
 
 from ._truth import LAGS, Truth, agreement, avatar_labels, library_actions
 
-__all__ = ["evaluation", "excursions_per_minute", "plot_evaluation"]
+__all__ = ["brief_actions_per_minute", "evaluation", "plot_evaluation"]
 
-#: an excursion shorter than this (seconds) is flicker: the avatar leaves its action and
-#: is back before a viewer could take the new one for what it does
+#: an action the avatar shows for less than this (seconds) is flicker: it is gone before
+#: a viewer could take it for what the avatar does
 BRIEF_S = 0.5
 
 
@@ -35,18 +35,16 @@ def _switches_per_minute(labels: Sequence[str | None], seconds: float) -> float:
     return round(max(len(runs) - 1, 0) / max(seconds / 60.0, 1e-9), 2)
 
 
-def excursions_per_minute(
+def brief_actions_per_minute(
     labels: Sequence[str | None], times: Sequence[float], seconds: float, brief: float = BRIEF_S
 ) -> float:
     """How often a minute the action at ``times`` (``labels``; ``None``: none, skipped)
-    leaves one action for another for less than ``brief`` seconds and comes back to it:
-    the flicker among the switches (each such excursion is two of them)."""
+    changes to one that lasts less than ``brief`` seconds before the next change: the
+    flicker among the switches (the first and last actions, cut by the recording, are
+    not counted)."""
     kept = [(x, float(t)) for x, t in zip(labels, times, strict=True) if x]
-    runs = [(k, next(g)[1]) for k, g in itertools.groupby(kept, key=lambda p: p[0])]
-    n = sum(
-        a[0] == c[0] and c[1] - b[1] < brief
-        for a, b, c in zip(runs, runs[1:], runs[2:], strict=False)
-    )
+    starts = [next(g)[1] for _, g in itertools.groupby(kept, key=lambda p: p[0])]
+    n = sum(b - a < brief for a, b in itertools.pairwise(starts[1:]))
     return round(n / max(seconds / 60.0, 1e-9), 2)
 
 
@@ -94,7 +92,9 @@ def evaluation(
         "switches_per_minute": {
             "avatar": _switches_per_minute(mine, media_seconds),
             "performer": _switches_per_minute(theirs, media_seconds),
-            f"avatar_excursions_under_{BRIEF_S:g}s": excursions_per_minute(mine, at, media_seconds),
+            f"avatar_brief_actions_under_{BRIEF_S:g}s": brief_actions_per_minute(
+                mine, at, media_seconds
+            ),
         },
         "latency_ms": {
             "p50": round(float(np.percentile(lat, 50)), 3) if lat.size else None,

@@ -14,7 +14,7 @@ from vision import (
     Truth,
     action_runs,
     agreement,
-    excursions_per_minute,
+    brief_actions_per_minute,
     truth_for,
 )
 from vision._video import PANE, MaskTape, _frame_decisions
@@ -88,14 +88,15 @@ def test_what_the_avatar_did_merges_short_runs(setup) -> None:
     assert runs == [(0.0, 2.9, "JumpJack")]
 
 
-def test_an_excursion_is_a_brief_stay_in_another_action_and_back() -> None:
-    t = [i * 0.1 for i in range(12)]
-    # jumpjack, 0.2 s of twist, back (an excursion); 0.4 s of squat, on to twist (none)
-    labels = ["jj", "jj", "tw", "tw", "jj", "jj", "sq", "sq", "sq", "sq", "tw", "tw"]
-    assert excursions_per_minute(labels, t, 60.0) == 1.0
-    # 0.5 s away is no longer brief; an unlabelled decision (None) is skipped
-    assert excursions_per_minute(["a"] + ["b"] * 5 + ["a"], t[:7], 60.0) == 0.0
-    assert excursions_per_minute(["a", "b", None, "a"], t[:4], 30.0) == 2.0
+def test_a_brief_action_is_one_the_avatar_shows_under_half_a_second() -> None:
+    t = [i / 10 for i in range(17)]
+    # 0.2 s of b (brief), 0.6 s of a, 0.5 s of c (not brief), a to the end (cut: not counted)
+    labels = ["a"] * 3 + ["b"] * 2 + ["a"] * 6 + ["c"] * 5 + ["a"]
+    assert brief_actions_per_minute(labels, t, 60.0) == 1.0
+    # every action changed to counts, whether or not the avatar comes back from it
+    assert brief_actions_per_minute(["a", "b", "c", "d", "e"], t[:5], 60.0) == 3.0
+    # an unlabelled decision (None) is skipped
+    assert brief_actions_per_minute(["a", "b", None, "a", "a"], t[:5], 30.0) == 2.0
 
 
 def test_the_mask_tape_plays_back_what_was_written(rng: np.random.Generator) -> None:
@@ -159,8 +160,8 @@ def test_mimic_evaluate_writes_agreement_confusion_and_a_plot(
     said = capsys.readouterr().out
     assert "agreement (actions the library has): " in said
     sw = report["switches_per_minute"]
-    assert 0 <= sw["avatar_excursions_under_0.5s"] <= sw["avatar"] / 2
-    assert f"(excursions back within 0.5 s: {sw['avatar_excursions_under_0.5s']} a minute)" in said
+    assert 0 <= sw["avatar_brief_actions_under_0.5s"] <= sw["avatar"]
+    assert f"(actions shown under 0.5 s: {sw['avatar_brief_actions_under_0.5s']} a minute)" in said
     # a video without ground truth is a clear error
     bare = tmp_path / "bare.mkv"
     shutil.copy(RECORDING, bare)
