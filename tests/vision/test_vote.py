@@ -3,6 +3,7 @@ performer's action, and the avatar keeps to it."""
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -198,6 +199,19 @@ def test_a_negative_or_infinite_recency_weighing_is_refused(mocap: Path, capsys)
     argv = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "13_30", "--recency", "-2"]
     assert main(argv) != 0
     assert "recency must be a finite number >= 0 (0: off), got -2" in capsys.readouterr().err
+
+
+def test_the_hold_is_a_flag_and_a_bad_one_is_refused(mocap: Path, tmp_path: Path, capsys) -> None:
+    for bad in (-0.1, math.inf, math.nan):
+        with pytest.raises(ValueError, match="hold must be a finite number of seconds >= 0"):
+            MatchSettings(hold=bad)
+    argv = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "13_30", "--hold", "-1"]
+    assert main(argv) != 0
+    assert "hold must be a finite number of seconds >= 0, got -1" in capsys.readouterr().err
+    out = tmp_path / "r.json"
+    argv = ["evaluate", str(RECORDING), str(mocap), "--clips", "13_30", "--seconds", "2"]
+    assert main([*argv, "--hold", "0.5", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["match"]["hold"] == 0.5
 
 
 def test_a_negative_vote_is_refused(mocap: Path, capsys) -> None:
