@@ -155,10 +155,8 @@ class MatchSettings:
             raise ValueError(f"hold must be a finite number of seconds >= 0, got {self.hold}")
         if not 0.0 <= self.stay < 1.0:
             raise ValueError(f"stay must lie in [0, 1), got {self.stay}")
-        if not (
-            self.top >= 1 and self.blend_weight >= 0 and self.jump_ratio > 0 and self.hold >= 0
-        ):
-            raise ValueError("top must be >= 1, blend_weight, hold >= 0 and jump_ratio > 0")
+        if not (self.top >= 1 and self.blend_weight >= 0 and self.jump_ratio > 0):
+            raise ValueError("top must be >= 1, blend_weight >= 0 and jump_ratio > 0")
         if self.phase < 0:
             raise ValueError(f"phase must be a number of frames >= 0 (0: off), got {self.phase}")
         if not self.facing >= 0:
