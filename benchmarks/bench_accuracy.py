@@ -3,7 +3,7 @@
 Usage: python -m benchmarks.bench_accuracy [LIBRARY_DIR] [--out FILE] [--clips PATTERN]...
        [--coords relative|fixed] [--sigma-scale S] [--threshold T] [--contact RULE]
        [--folds 13_29,13_30] [--settings W:A,...] [--variants] [--descriptor D]
-       [--stay S] [--views N] [--recordings base,side,high,thin]
+       [--stay S] [--views N] [--recordings base,side,high,thin] [--leave take|person]
 
 Two folds on the labelled exercise clips: the performer is a recording of 13_29 (or
 13_30) made by ``mimic record`` (another body, a camera off the ring, mask noise); the
@@ -55,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks._landmarks import LandmarkSource, landmark_points
+from benchmarks._landmarks import LandmarkSource, simulated_landmarks
 from benchmarks._oracle import pose_oracle
 from benchmarks._report import machine, save
 from benchmarks._takes import held_since, hold_figures, paused_clip, retimed_clip, styled_clip
@@ -139,15 +139,13 @@ def _silhouette_rows(
 
 
 def _landmark_rows(
-    points: np.ndarray, perf_labels: list[str | None], rate: float, fps: float
+    vectors: np.ndarray, perf_labels: list[str | None], rate: float, fps: float
 ) -> tuple[np.ndarray, list[str | None]]:
-    """Pose vectors and labels at the library's rate ``fps`` of landmarks at ``rate``."""
-    keep = np.round(np.arange(0, points.shape[0], rate / fps)).astype(int)
-    keep = keep[keep < points.shape[0]]
-    desc = get_descriptor("pose")
-    assert isinstance(desc, PoseDescriptor)
+    """Pose vectors and labels at the library's rate ``fps`` of pose vectors at ``rate``."""
+    keep = np.round(np.arange(0, vectors.shape[0], rate / fps)).astype(int)
+    keep = keep[keep < vectors.shape[0]]
     labels = [perf_labels[i] if i < len(perf_labels) else None for i in keep]
-    return desc.from_points(points[keep]), labels
+    return vectors[keep], labels
 
 
 def _recognition(
@@ -391,9 +389,16 @@ def fold(
     off_floor: bool = False,
     store: str = "float32",
     recordings: tuple[str, ...] = ("base",),
+    leave: str = "take",
 ) -> dict[str, Any]:
     everything = load_library(root, clips=list(clips) if clips else None)
-    train = [c for c in everything.clips if c.name != test]
+    # leave the take out, or every take of its subject (CMU names: subject_take)
+    subject = test.split("_")[0]
+    train = [
+        c
+        for c in everything.clips
+        if c.name != test and not (leave == "person" and c.name.split("_")[0] == subject)
+    ]
     dropped: dict[str, float] = {}
     if not off_floor:  # as mimic perform does by default
         train, dropped = on_the_floor(train)
@@ -529,12 +534,15 @@ def _recorded_runs(
             # the performer's landmarks, as a pose model would give them (the video
             # serves for its truth sidecar only)
             rng = np.random.default_rng(RECORDINGS[rec].seed)
-            points = landmark_points(perf_clip.motion, RECORDINGS[rec], rng)
+            points, vis = simulated_landmarks(perf_clip.motion, RECORDINGS[rec], rng)
             rate = perf_clip.motion.fps
-            rows = _landmark_rows(points, perf_labels, rate, fps)
+            desc = get_descriptor("pose")
+            assert isinstance(desc, PoseDescriptor)
+            rows = _landmark_rows(desc.from_points(points), perf_labels, rate, fps)
 
             def source() -> Any:
-                return LandmarkSource(points, rate, name=f"{video.stem} landmarks")
+                name = f"{video.stem} landmarks"
+                return LandmarkSource(points, rate, name, visibility=vis)
 
         else:
             rows = _silhouette_rows(video, bank.settings.descriptor, perf_labels, fps)
@@ -604,6 +612,13 @@ def main() -> None:
         "--clips", action="append", help="library clips (patterns; default: every clip)"
     )
     ap.add_argument("--folds", default="13_29,13_30")
+    ap.add_argument(
+        "--leave",
+        default="take",
+        choices=("take", "person"),
+        help="leave out of the library the held-out take, or every take of its person "
+        "(its subject: 14_20 against subject 13's takes, 13_29 against 14_20)",
+    )
     ap.add_argument(
         "--recordings",
         default="base",
@@ -676,6 +691,7 @@ def main() -> None:
         "off_floor": args.off_floor,
         "store": args.store,
         "recordings": list(recordings),
+        "leave": args.leave,
         "folds": [
             fold(
                 root,
@@ -691,6 +707,7 @@ def main() -> None:
                 args.off_floor,
                 args.store,
                 recordings,
+                args.leave,
             )
             for t in args.folds.split(",")
         ],

@@ -96,5 +96,11 @@ def _evaluate(args: argparse.Namespace) -> int:
         + f"; switches a minute: avatar {sw['avatar']} (actions shown under 0.5 s: "
         f"{sw['avatar_brief_actions_under_0.5s']} a minute), performer {sw['performer']}"
     )
+    points = report["decision_points"]
+    print(
+        f"decision points: {points['points']}, {points['decided']} decided; "
+        f"{points['person_in_view_undecided']} undecided with a person in view"
+        + "".join(f"; {why}: {n}" for why, n in points["undecided_by_reason"].items())
+    )
     print(f"wrote {args.json}" + (f" and {args.png}" if args.png else ""))
     return 0

@@ -25,7 +25,7 @@ __all__ = ["add_record_command"]
 def add_record_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     r = sub.add_parser(
         "record",
-        help="render a clip as a performer's silhouette video with ground truth",
+        help="render a clip as a performer's silhouette (or colour) video with ground truth",
         description="Another body than the avatar's, a camera off the bank's ring, mask "
         "noise; FFV1 video plus a JSON sidecar (source frame and label per video frame).",
     )
@@ -46,9 +46,22 @@ def add_record_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
         "--arms", type=float, default=d.body.arms, help="arm bones' length factor (0.5-2)"
     )
     r.add_argument("--azimuth", type=float, default=d.azimuth, help="camera azimuth, degrees")
+    r.add_argument(
+        "--turn",
+        type=float,
+        default=d.turn,
+        help="degrees the camera moves round the performer over the recording (90: a "
+        "performer who turns from facing it to showing it their side)",
+    )
     r.add_argument("--camera-height", type=float, default=d.camera_height)
     r.add_argument("--distance", type=float, default=d.distance)
     r.add_argument("--no-noise", action="store_true", help="clean masks")
+    r.add_argument(
+        "--colour",
+        action="store_true",
+        help="a colour video of the shaded body (for the pose model's landmarks) instead "
+        "of silhouettes",
+    )
     r.add_argument("--seed", type=int, default=0)
     r.set_defaults(func=_record)
 
@@ -73,6 +86,8 @@ def _record(args: argparse.Namespace) -> int:
         holes=0 if args.no_noise else RecordSettings().holes,
         shadow=not args.no_noise,
         seed=args.seed,
+        colour=args.colour,
+        turn=args.turn,
     )
     side = record_clip(clip, args.out, settings, start, stop)
     print(f"wrote {args.out} and {args.out}.json: {len(side['frames'])} frames of {args.clip}")

@@ -13,7 +13,14 @@ from ._bank import (
     ensure_bank,
     load_bank,
 )
-from ._body import BodyShape, CapsuleBody, capsule_body, capsule_segments, with_proportions
+from ._body import (
+    BodyShape,
+    CapsuleBody,
+    capsule_body,
+    capsule_segments,
+    face_marks,
+    with_proportions,
+)
 from ._camera import CameraRing
 from ._descriptor import (
     DEFAULT_DESCRIPTOR,
@@ -36,7 +43,8 @@ from ._descriptor import (
 from ._features import feature_size, silhouette_features
 from ._gl import GLRenderer
 from ._metric import METRIC_FRAMES, lda_directions, learn_metric, metric_rings
-from ._pose import joint_points
+from ._occlusion import joint_visibility
+from ._pose import joint_points, pose_visibility
 from ._raster import rasterize
 from ._render import (
     draw_ground_shadow,
@@ -88,6 +96,7 @@ __all__ = [
     "cluster_address",
     "draw_ground_shadow",
     "ensure_bank",
+    "face_marks",
     "feature_size",
     "get_descriptor",
     "gl_features",
@@ -95,6 +104,7 @@ __all__ = [
     "grid_cells",
     "hu_log",
     "joint_points",
+    "joint_visibility",
     "lda_directions",
     "learn_metric",
     "load_bank",
@@ -106,6 +116,7 @@ __all__ = [
     "npy_file",
     "open_mapped",
     "outline_extents",
+    "pose_visibility",
     "rasterize",
     "render_motion_video",
     "robust_settings",

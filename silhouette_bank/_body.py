@@ -15,7 +15,14 @@ from numpy.typing import NDArray
 
 from control.motion import ROLE_ALIASES, Motion, Skeleton, find_role, forward_kinematics
 
-__all__ = ["BodyShape", "CapsuleBody", "capsule_body", "capsule_segments", "with_proportions"]
+__all__ = [
+    "BodyShape",
+    "CapsuleBody",
+    "capsule_body",
+    "capsule_segments",
+    "face_marks",
+    "with_proportions",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -190,3 +197,43 @@ def capsule_segments(motion: Motion, body: CapsuleBody) -> FloatArray:
         base[:, 1] = 0.0
         pts = base[:, None, :] + (pts - base[:, None, :]) * body.height
     return np.stack((pts[:, body.start], pts[:, body.end]), axis=2)
+
+
+#: the face's marks: (forward, right, up) offsets from the head's centre in head radii,
+#: and each mark's radius in head radii: two eyes and a nose
+_FACE = ((0.82, -0.36, 0.15, 0.17), (0.82, 0.36, 0.15, 0.17), (0.98, 0.0, -0.15, 0.2))
+
+
+def face_marks(motion: Motion, body: CapsuleBody) -> tuple[FloatArray, FloatArray] | None:
+    """Two eyes and a nose on the head's front: centres ``(F, 3, 3)`` (world) and radii
+    ``(3,)``, where the head is the capsule above the head joint and its front the
+    horizontal direction the shoulders face; ``None`` when the skeleton lacks a head or
+    shoulders. Shaded renders draw them: a faceless body looks the same from the front
+    and, mirrored, from behind, and a pose model then takes one for the other."""
+    sk = motion.skeleton
+    head = find_role(sk, "head")
+    left, right = find_role(sk, "left_shoulder"), find_role(sk, "right_shoulder")
+    if head is None or left is None or right is None:
+        return None
+    bone = np.flatnonzero(body.start == head)
+    if bone.size == 0:
+        return None
+    b = int(bone[np.argmax(body.radius[bone])])  # the head itself: its thickest bone
+    seg = capsule_segments(motion, body)  # (F, B, 2, 3)
+    centre = seg[:, b].mean(axis=1)
+    r = float(body.radius[b])
+    pts = _points(motion)
+    if body.height != 1.0:  # (the same scaling capsule_segments applies)
+        base = motion.root_pos.copy()
+        base[:, 1] = 0.0
+        pts = base[:, None, :] + (pts - base[:, None, :]) * body.height
+    across = pts[:, left] - pts[:, right]  # the performer's right to left
+    across[:, 1] = 0.0
+    up = np.array([0.0, 1.0, 0.0])
+    forward = np.cross(across, up)
+    forward /= np.maximum(np.linalg.norm(forward, axis=1, keepdims=True), 1e-9)
+    to_right = -across / np.maximum(np.linalg.norm(across, axis=1, keepdims=True), 1e-9)
+    marks = np.stack(
+        [centre + r * (f * forward + s * to_right + u * up) for f, s, u, _ in _FACE], axis=1
+    )
+    return marks, np.array([r * k for *_, k in _FACE])

@@ -111,6 +111,7 @@ class GLRenderer:
         )
         self._body: Any = None
         self._scenery: Any = None
+        self._face: Any = None
         self._material = pyrender.MetallicRoughnessMaterial(
             baseColorFactor=(0.75, 0.72, 0.68, 1.0), metallicFactor=0.0, roughnessFactor=0.8
         )
@@ -160,6 +161,16 @@ class GLRenderer:
         vertices, faces = capsule_mesh(np.asarray(segments, dtype=np.float64), np.asarray(radius))
         self._body = self._mesh(self._body, vertices, faces, self._material)
 
+    def set_face(self, centres: FloatArray, radius: FloatArray) -> None:
+        """Show small dark spheres ``(K, 3)`` of ``radius`` ``(K,)`` (the face's eyes and
+        nose); shaded renders only."""
+        c = np.asarray(centres, dtype=np.float64)
+        vertices, faces = capsule_mesh(np.stack((c, c), axis=1), np.asarray(radius))
+        material = self._pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=(0.12, 0.1, 0.1, 1.0), metallicFactor=0.0, roughnessFactor=0.6
+        )
+        self._face = self._mesh(self._face, vertices, faces, material)
+
     def set_scenery(self, vertices: FloatArray, faces: NDArray[np.int64]) -> None:
         """Show a static mesh (world coordinates) beside the body, grey; shaded renders
         only (silhouettes stay the body's alone)."""
@@ -171,11 +182,12 @@ class GLRenderer:
     def render(self, camera_pose: FloatArray) -> NDArray[np.uint8]:
         """The silhouette ``(H, W)`` (1 inside) seen from the camera-to-world ``camera_pose``."""
         self._scene.set_pose(self._camera, np.asarray(camera_pose, dtype=np.float64))
-        if self._scenery is not None:
-            self._scenery.mesh.is_visible = False
+        extras = [n for n in (self._scenery, self._face) if n is not None]
+        for node in extras:
+            node.mesh.is_visible = False
         depth = self._r.render(self._scene, flags=self._pyrender.RenderFlags.DEPTH_ONLY)
-        if self._scenery is not None:
-            self._scenery.mesh.is_visible = True
+        for node in extras:
+            node.mesh.is_visible = True
         self.renders += 1
         return (np.asarray(depth) > 0).astype(np.uint8)
 

@@ -5,6 +5,10 @@ Where a silhouette bank renders masks, a pose bank projects the 12 joints of
 camera of the ring and keeps ``PoseDescriptor.from_points`` of them, with the root's
 projection as the origin. The root's image motion is in torso lengths, like the
 descriptor's centre.
+
+``pose_visibility`` says how much of each joint a camera sees past the body (the
+capsule body in the way: ``joint_visibility``): what a pose model's visibilities say of
+a real performer, for landmarks simulated from a take.
 """
 
 from __future__ import annotations
@@ -14,10 +18,12 @@ from numpy.typing import NDArray
 
 from control.motion import Motion, Skeleton, forward_kinematics, role_point
 
+from ._body import BodyShape, capsule_body, capsule_segments
 from ._camera import CameraRing
 from ._descriptor import POSE_JOINTS, PoseDescriptor, get_descriptor
+from ._occlusion import joint_visibility, own_bones
 
-__all__ = ["joint_points", "motion_pose_features", "pose_point_indices"]
+__all__ = ["joint_points", "motion_pose_features", "pose_point_indices", "pose_visibility"]
 
 FloatArray = NDArray[np.float64]
 
@@ -43,6 +49,50 @@ def joint_points(motion: Motion, frames: NDArray[np.int64] | None = None) -> Flo
         src = pose.positions if kind == "joint" else pose.end_positions
         cols.append(src[frames, i])
     return np.stack(cols, axis=1)
+
+
+def pose_visibility(
+    motion: Motion,
+    poses: FloatArray,
+    frames: NDArray[np.int64] | None = None,
+    body: BodyShape | None = None,
+) -> NDArray[np.float32]:
+    """How visible each of ``POSE_JOINTS`` is ``(F, V, 12)`` at ``frames`` (default all)
+    to cameras ``poses`` ``(F, V, 4, 4)`` (camera-to-world), the capsule body of
+    ``body`` (default the avatar's) in the way (``joint_visibility``)."""
+    frames = np.arange(motion.n_frames) if frames is None else np.asarray(frames, dtype=np.int64)
+    caps = capsule_body(motion.skeleton, body)
+    seg = capsule_segments(motion, caps)[frames]  # (F, B, 2, 3), the body's own proportions
+    points = pose_point_indices(motion.skeleton)
+    n_j = motion.skeleton.n_joints
+    at = np.array([i if kind == "joint" else n_j + i for kind, i in points], dtype=np.int64)
+    # each joint's place on that body: the end of a bone that ends there (a bone's start
+    # where none does)
+    first_end = {int(e): b for b, e in reversed(list(enumerate(caps.end)))}
+    first_start = {int(a): b for b, a in reversed(list(enumerate(caps.start)))}
+    where = [(first_end[i], 1) if i in first_end else (first_start[i], 0) for i in at.tolist()]
+    joints = np.stack([seg[:, b, e] for b, e in where], axis=1)  # (F, 12, 3)
+    own = own_bones(motion.skeleton, caps, points)
+    # a joint's own radius: its thickest own bone's
+    own_r = np.array([caps.radius[row].max() if row.any() else 0.0 for row in own])
+    v = poses.shape[1]
+    out = np.empty((frames.size, v, len(POSE_JOINTS)), dtype=np.float32)
+    b_n = seg.shape[1]
+    for j in range(v):
+        pose = poses[:, j]
+        cam_j = _to_camera(joints, pose)
+        cam_s = _to_camera(seg.reshape(frames.size, b_n * 2, 3), pose)
+        out[:, j] = joint_visibility(
+            cam_j, cam_s.reshape(frames.size, b_n, 2, 3), caps.radius, own_r, own
+        )
+    return out
+
+
+def _to_camera(points: FloatArray, pose: FloatArray) -> FloatArray:
+    """World points ``(F, N, 3)`` in the frames of cameras ``pose`` ``(F, 4, 4)``."""
+    r = pose[:, :3, :3]
+    t = pose[:, :3, 3]
+    return np.einsum("fji,fnj->fni", r, points - t[:, None, :])
 
 
 def motion_pose_features(

@@ -207,22 +207,27 @@ def shaded_frames(
     body: CapsuleBody | None = None,
     scenery: tuple[NDArray[np.float64], NDArray[np.int64]] | None = None,
     camera_poses: FloatArray | None = None,
+    face: bool = True,
 ) -> Iterator[NDArray[np.uint8]]:
     """BGR images ``(H, W, 3)`` of the shaded capsule body, one per frame, each seen by
     the camera ``views[i]`` (or one view for all) of ``ring``, which follows the root, or
     by ``camera_poses[i]`` (``(F, 4, 4)`` camera-to-world) when given; ``scenery``
-    ``(vertices, faces)`` is a static mesh shown with it (obstacles, blocks). The
-    background is black."""
-    from ._body import capsule_body
+    ``(vertices, faces)`` is a static mesh shown with it (obstacles, blocks); with
+    ``face``, the head has eyes and a nose (``face_marks``: which way the body faces).
+    The background is black."""
+    from ._body import capsule_body, face_marks
 
     body = body or capsule_body(motion.skeleton)
     seg = capsule_segments(motion, body)
+    marks = face_marks(motion, body) if face else None
     poses = ring.poses(motion.root_pos) if camera_poses is None else None
     with GLRenderer(ring) as gl:
         if scenery is not None:
             gl.set_scenery(*scenery)
         for i in range(motion.n_frames):
             gl.set_body(seg[i], body.radius)
+            if marks is not None:
+                gl.set_face(marks[0][i], marks[1])
             if camera_poses is not None:
                 pose = camera_poses[min(i, len(camera_poses) - 1)]
             else:

@@ -15,7 +15,9 @@ from ._decision import (
     MatchSettings,
 )
 from ._evaluate import (
+    UNSEEN_REASONS,
     brief_actions_per_minute,
+    decision_points,
     evaluation,
     plot_evaluation,
 )
@@ -62,6 +64,8 @@ from ._person import (
 from ._record import (
     RecordSettings,
     add_mask_noise,
+    camera_poses,
+    performer_images,
     performer_masks,
     record_clip,
 )
@@ -128,6 +132,7 @@ __all__ = [
     "PANE",
     "PERSON_METHODS",
     "TABLES_VERSION",
+    "UNSEEN_REASONS",
     "VISION_COORDS",
     "ActionClassifier",
     "ActionVote",
@@ -165,9 +170,11 @@ __all__ = [
     "cached_shape_stats",
     "cached_window_index",
     "cached_window_tables",
+    "camera_poses",
     "choose_action",
     "clean_mask",
     "clean_mask_others",
+    "decision_points",
     "evaluation",
     "floor_level",
     "library_actions",
@@ -177,6 +184,7 @@ __all__ = [
     "open_source",
     "per_frame_cost",
     "perform",
+    "performer_images",
     "performer_masks",
     "performer_queries",
     "performer_sequence",

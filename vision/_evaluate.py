@@ -5,7 +5,8 @@ From a performance (``perform``'s result) and its ground truth: agreement agains
 a lag of at most 1 s, the confusion matrix and per-action agreement at that lag, chance
 (the avatar at a random library frame), the avatar's and the performer's action switches
 a minute, the avatar's brief actions a minute (flicker: ``brief_actions_per_minute``),
-and the decision latency. ``plot_evaluation`` draws agreement against lag beside
+the decision points without a decision, per reason (``decision_points``), and the
+decision latency. ``plot_evaluation`` draws agreement against lag beside
 the confusion matrix (matplotlib, headless).
 """
 
@@ -23,7 +24,13 @@ from control.motion import Clip
 
 from ._truth import LAGS, Truth, agreement, avatar_labels, library_actions
 
-__all__ = ["brief_actions_per_minute", "evaluation", "plot_evaluation"]
+__all__ = [
+    "UNSEEN_REASONS",
+    "brief_actions_per_minute",
+    "decision_points",
+    "evaluation",
+    "plot_evaluation",
+]
 
 #: an action the avatar shows for less than this (seconds) is flicker: it is gone before
 #: a viewer could take it for what the avatar does
@@ -46,6 +53,31 @@ def brief_actions_per_minute(
     starts = [next(g)[1] for _, g in itertools.groupby(kept, key=lambda p: p[0])]
     n = sum(b - a < brief for a, b in itertools.pairwise(starts[1:]))
     return round(n / max(seconds / 60.0, 1e-9), 2)
+
+
+#: reasons for no decision that are no failure to follow a person in view: nobody is, the
+#: first window is still filling, or the avatar is on its way to a window it chose
+UNSEEN_REASONS = ("nobody in view", "no silhouette", "filling buffer", "en route")
+
+
+def decision_points(decisions: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """How many decision points gave no decision, per reason (the log's ``reason``), and
+    the share of them at which a person was in view (a reason not in
+    ``UNSEEN_REASONS``): the points at which the avatar ignored someone it could see."""
+    reasons: dict[str, int] = {}
+    for d in decisions:
+        if d.get("decision") is None:
+            # (a reason's figures in brackets, a cost, say, are the point's own)
+            why = str(d.get("reason") or "no decision").split(" (")[0]
+            reasons[why] = reasons.get(why, 0) + 1
+    ignored = sum(n for why, n in reasons.items() if why not in UNSEEN_REASONS)
+    return {
+        "points": len(decisions),
+        "decided": len(decisions) - sum(reasons.values()),
+        "undecided_by_reason": dict(sorted(reasons.items(), key=lambda kv: -kv[1])),
+        "person_in_view_undecided": ignored,
+        "person_in_view_undecided_share": round(ignored / max(len(decisions), 1), 4),
+    }
 
 
 def evaluation(
@@ -96,6 +128,7 @@ def evaluation(
                 mine, at, media_seconds
             ),
         },
+        "decision_points": decision_points(decisions),
         "latency_ms": {
             "p50": round(float(np.percentile(lat, 50)), 3) if lat.size else None,
             "p99": round(float(np.percentile(lat, 99)), 3) if lat.size else None,

@@ -9,9 +9,12 @@ library's joints are.
 Low confidence is handled per landmark (``PoseReader``):
 
 - the torso (both shoulders and both hips) must be seen, else the frame has no pose;
-- a limb landmark of low visibility takes its last confident place relative to the torso
-  (a wrist behind the back for a moment); once more than ``hold`` seconds of frames in a
-  row lack one, the frame has no pose ("half a body in view");
+- a limb landmark of low visibility is information, not a reason to give the frame up:
+  the model still places it (where the body it sees implies it is), and that place is
+  used. A performer seen from the side hides the far arm and leg for the whole take, a
+  bend hides the legs, a turn hides one side after the other; all are matched.
+  ``visibility`` keeps each landmark's confidence and ``hidden`` names those under
+  ``min_visibility``, for the decision log;
 - ``why`` says, for the last frame, why it has no pose.
 """
 
@@ -34,21 +37,21 @@ FloatArray = NDArray[np.float64]
 class PoseReader:
     """Pose-descriptor vectors from landmark arrays, one frame after another.
 
-    ``min_visibility``: a landmark below it is of low confidence; ``hold``: frames a limb
-    landmark may be missing in a row before the frame is given up (default: half a
-    second at 30 frames/s).
+    ``min_visibility``: a landmark below it is of low confidence (the torso's must not
+    be; a limb's is named in ``hidden``).
     """
 
-    def __init__(self, min_visibility: float = 0.5, hold: int = 15) -> None:
+    def __init__(self, min_visibility: float = 0.5) -> None:
         if not 0.0 <= min_visibility < 1.0:
             raise ValueError("min_visibility must lie in [0, 1)")
         desc = get_descriptor("pose")
         assert isinstance(desc, PoseDescriptor)
         self.desc = desc
         self.min_visibility = min_visibility
-        self.hold = hold
-        self._last: FloatArray | None = None  # the last confident normalised landmarks
-        self._missing = np.zeros(len(POSE_JOINTS), dtype=np.int64)
+        #: the last frame's visibility of each of ``POSE_JOINTS`` ``(12,)`` (NaN: nobody)
+        self.visibility = np.full(len(POSE_JOINTS), np.nan)
+        #: ``POSE_JOINTS`` of the last frame under ``min_visibility``
+        self.hidden: tuple[str, ...] = ()
         self.why = ""
 
     def read(self, landmarks: FloatArray | None, size: tuple[int, int]) -> FloatArray:
@@ -56,33 +59,25 @@ class PoseReader:
         fractions, visibility; ``None``: nobody found) in an image of ``size`` (width,
         height); all NaN when the frame has no usable pose (``why`` says why)."""
         blank = np.full(self.desc.size, np.nan)
+        self.visibility[:] = np.nan
+        self.hidden = ()
         if landmarks is None:
             self.why = "nobody in view"
-            self._missing += 1
             return blank
         lm = np.asarray(landmarks, dtype=np.float64)
         if lm.ndim != 2 or lm.shape[0] < 33 or lm.shape[1] < 3:
             raise ValueError(f"landmarks must be (33, 3) (x, y, visibility), got {lm.shape}")
         pick = lm[list(MEDIAPIPE_INDEX)]
-        pts = pick[:, :2] * np.array([size[0], size[1]], dtype=np.float64)
+        self.visibility[:] = pick[:, 2]
         seen = pick[:, 2] >= self.min_visibility
+        self.hidden = tuple(POSE_JOINTS[j] for j in np.flatnonzero(~seen))
         if not seen[list(_TORSO)].all():
             self.why = "torso landmarks of low confidence"
-            self._missing += 1
             return blank
+        pts = pick[:, :2] * np.array([size[0], size[1]], dtype=np.float64)
         vec = self.desc.from_points(pts)
         if not np.isfinite(vec).all():
             self.why = "degenerate torso"
             return blank
-        shape = vec[: self.desc.n_shape].reshape(-1, 2)
-        self._missing = np.where(seen, 0, self._missing + 1)
-        lost = ~seen
-        if lost.any():
-            if self._last is None or (self._missing[lost] > self.hold).any():
-                self.why = "half a body in view (limb landmarks of low confidence)"
-                return blank
-            shape[lost] = self._last[lost]
-        self._last = shape.copy()
-        vec[: self.desc.n_shape] = shape.ravel()
         self.why = ""
         return vec

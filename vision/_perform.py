@@ -363,6 +363,8 @@ class Performance:
             entry["skipped"] = missed
         if self.others:  # the largest is followed, the log says so
             entry["people_in_view"] = 1 + self.others
+        if self.reader is not None and self.reader.hidden:  # matched all the same
+            entry["hidden"] = list(self.reader.hidden)
         return entry
 
     def decide(self, t: float) -> dict[str, Any]:

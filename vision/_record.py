@@ -1,18 +1,28 @@
-"""``mimic record``: a clip rendered as a performer's silhouette video, with ground truth.
+"""``mimic record``: a clip rendered as a performer's video, with ground truth.
 
 The performer is not the avatar: another body shape, a camera at a height and azimuth
 that the bank's ring does not contain, a static camera (the performer moves across the
-image), and the flaws of real masks: ragged edges, small holes, a shadow blob at the
-feet. The video is lossless (FFV1 in Matroska), white silhouettes on black; a JSON
-sidecar gives, per video frame, the source clip's frame (at the source rate) and its
-action label where the clip has labels.
+image). Two kinds of video:
+
+- silhouettes (the default), with the flaws of real masks: ragged edges, small holes, a
+  shadow blob at the feet; white on black;
+- ``colour``: the shaded capsule body (a mannequin with a head) on a plain background,
+  drawn by pyrender. MediaPipe Pose finds this body from every side, and gives the far
+  limbs of a side view the low visibilities real footage gives them, so the whole
+  landmark path (model, visibilities, the loop) can be tested on a performer whose
+  truth is known, from any azimuth.
+
+The video is lossless (FFV1 in Matroska); a JSON sidecar gives, per video frame, the
+source clip's frame (at the source rate) and its action label where the clip has labels.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shlex
 import sys
+from collections.abc import Iterable, Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -30,9 +40,19 @@ from silhouette_bank import (
     capsule_segments,
     draw_ground_shadow,
     rasterize,
+    shaded_frames,
 )
 
-__all__ = ["RecordSettings", "add_mask_noise", "performer_masks", "record_clip"]
+__all__ = [
+    "RecordSettings",
+    "add_mask_noise",
+    "camera_poses",
+    "performer_images",
+    "performer_masks",
+    "record_clip",
+]
+
+FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -51,6 +71,13 @@ class RecordSettings:
     holes: int = 3  # small holes per frame
     shadow: bool = True
     seed: int = 0
+    #: a colour video of the shaded body (``performer_images``) instead of silhouettes
+    colour: bool = False
+    #: the colour video's background (BGR)
+    background: tuple[int, int, int] = (100, 110, 90)
+    #: degrees the camera moves round the performer over the recording (a performer who
+    #: turns from facing it to showing it their side: 90)
+    turn: float = 0.0
 
     def ring(self) -> CameraRing:
         return CameraRing(
@@ -100,14 +127,13 @@ def performer_masks(
     ring = settings.ring()
     body = capsule_body(m.skeleton, settings.body)
     seg = capsule_segments(m, body)[frames]
-    centre = m.root_pos[frames].mean(axis=0)  # a static camera on the middle of the action
-    pose = ring.poses(centre)[0]
+    poses = camera_poses(m, settings, frames)
     b = seg.shape[1]
-    cam = ring.to_camera(seg.reshape(-1, b * 2, 3), np.broadcast_to(pose, (frames.size, 4, 4)))
+    cam = ring.to_camera(seg.reshape(-1, b * 2, 3), poses)
     masks = rasterize(cam.reshape(frames.size, b, 2, 3), body.radius, ring)
     ground = m.root_pos[frames].copy()
     ground[:, 1] = 0.0
-    ground_cam = ring.to_camera(ground[:, None, :], np.broadcast_to(pose, (frames.size, 4, 4)))
+    ground_cam = ring.to_camera(ground[:, None, :], poses)
     rng = np.random.default_rng(settings.seed)
     out = np.empty_like(masks)
     for i in range(frames.size):
@@ -115,6 +141,38 @@ def performer_masks(
             draw_ground_shadow(masks[i], ring, ground_cam[i, 0])
         out[i] = add_mask_noise(masks[i], rng, settings.edge_noise, settings.holes)
     return out
+
+
+def camera_poses(motion: Motion, settings: RecordSettings, frames: NDArray[np.int64]) -> FloatArray:
+    """The camera's camera-to-world poses ``(F, 4, 4)`` at ``frames``: static, aimed at
+    the middle of the action; with ``settings.turn``, it moves round the performer
+    (the same as a performer who turns the other way) from ``azimuth`` to ``azimuth +
+    turn`` over the frames."""
+    centre = motion.root_pos[frames].mean(axis=0)
+    if settings.turn == 0.0:
+        pose = settings.ring().poses(centre)[0]
+        return np.ascontiguousarray(np.broadcast_to(pose, (frames.size, 4, 4)))
+    az = settings.azimuth + settings.turn * np.linspace(0.0, 1.0, frames.size)
+    return np.array(
+        [dataclasses.replace(settings.ring(), azimuth_offset=float(a)).poses(centre)[0] for a in az]
+    )
+
+
+def performer_images(
+    motion: Motion, settings: RecordSettings | None = None, frames: NDArray[np.int64] | None = None
+) -> Iterator[NDArray[np.uint8]]:
+    """BGR images ``(H, W, 3)`` of ``frames`` (default all) of ``motion``: the shaded
+    body of ``settings.body`` seen by the static camera, on ``settings.background``."""
+    settings = settings or RecordSettings()
+    frames = np.arange(motion.n_frames) if frames is None else np.asarray(frames, dtype=np.int64)
+    poses = camera_poses(motion, settings, frames)
+    sub = dataclasses.replace(motion, root_pos=motion.root_pos[frames], quats=motion.quats[frames])
+    body = capsule_body(motion.skeleton, settings.body)
+    back = np.array(settings.background, dtype=np.uint8)
+    for img in shaded_frames(sub, settings.ring(), body=body, camera_poses=poses):
+        out = img.copy()
+        out[~img.any(axis=2)] = back
+        yield out
 
 
 def record_clip(
@@ -134,19 +192,27 @@ def record_clip(
         raise ValueError(f"frame range {start}..{stop} is not inside {clip.name} (0..{m.n_frames})")
     ring = settings.ring()
     frames = np.arange(start, stop)
-    masks = performer_masks(m, settings, frames)
+    images: Iterable[NDArray[np.uint8]]
+    if settings.colour:
+        images = performer_images(m, settings, frames)
+    else:
+        images = (x * 255 for x in performer_masks(m, settings, frames))
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.stem}.tmp{out.suffix or '.mkv'}")
+    size = (ring.width, ring.height_px)
     writer = cv2.VideoWriter(
-        str(tmp), cv2.VideoWriter.fourcc(*"FFV1"), m.fps, (ring.width, ring.height_px), False
+        str(tmp), cv2.VideoWriter.fourcc(*"FFV1"), m.fps, size, settings.colour
     )
     if not writer.isOpened():
         raise OSError(f"{out}: cannot write an FFV1 video here")
     try:
-        for i in range(frames.size):
-            writer.write(masks[i] * 255)
-    finally:
+        for img in images:
+            writer.write(img)
+    except BaseException:
         writer.release()
+        tmp.unlink(missing_ok=True)
+        raise
+    writer.release()
     tmp.replace(out)
     sidecar = {
         "video": out.name,

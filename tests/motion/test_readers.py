@@ -84,7 +84,7 @@ def _readme_frame_counts() -> dict[str, int]:
 def test_every_amc_loads_with_the_readme_frame_count(mocap: Path) -> None:
     counts = _readme_frame_counts()
     amcs = sorted((mocap / "cmu" / "subjects").rglob("*.amc"))
-    assert len(counts) == len(amcs) == 31  # 13_31 joined the shared data
+    assert len(counts) == len(amcs) == 32  # 14_20, a second person, joined the shared data
     for p in amcs:
         m = read_amc(p, read_asf(asf_path(p.stem)))
         assert m.n_frames == counts[p.stem], p.stem
