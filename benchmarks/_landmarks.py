@@ -19,6 +19,8 @@ from vision import MEDIAPIPE_INDEX, Frame, RecordSettings, camera_poses
 
 __all__ = ["LandmarkSource", "landmark_points", "simulated_landmarks"]
 
+#: the shoulders and hips in ``POSE_JOINTS``
+TORSO = (0, 1, 6, 7)
 #: landmark noise, in torso lengths (what the recognition benchmark's folds use)
 NOISE = 0.03
 
@@ -41,6 +43,10 @@ def simulated_landmarks(
     px = ring.project(cam)
     torso = np.linalg.norm(px[:, :2].mean(axis=1) - px[:, 6:8].mean(axis=1), axis=-1)
     vis = pose_visibility(motion, poses[:, None], frames, rs.body)[:, 0]
+    # a pose model sees the torso from every side (MediaPipe gave the shoulders and hips
+    # of our rendered performers a visibility of 1.00 from 0 to 180 degrees): only the
+    # limbs' visibility follows the body's
+    vis[:, list(TORSO)] = 1.0
     noisy = px + rng.normal(0.0, noise, px.shape) * torso[:, None, None]
     return np.asarray(noisy), np.asarray(vis, dtype=np.float64)
 

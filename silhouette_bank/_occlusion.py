@@ -1,15 +1,15 @@
-"""Which of the pose descriptor's limb joints the body itself hides from a camera.
+"""Which of the pose descriptor's joints the body itself hides from a camera.
 
 A pose model seeing a performer from the side gives the far elbow, wrist, knee and ankle
-a low visibility: the body is in the way. The bank knows the same of its own views: a
-joint is hidden when the ray from the camera to the joint's near surface (the joint
+a low visibility: the body is in the way. The same can be said of any motion and camera:
+a joint is hidden when the ray from the camera to the joint's near surface (the joint
 moved towards the camera by its limb's radius) passes through another capsule of the
 body (not the limb's own bones). How far inside the capsule the ray passes makes the
 visibility soft: 1 clear of it by half its radius or more, 0 within half its radius of
 the capsule's axis, linear between, the least over every capsule.
 
-So a performer seen from the side and a bank view from the side agree on which joints
-are hidden, and the matcher takes that agreement as evidence of the view.
+Landmarks simulated from a take (the benchmarks' performers) carry it, so that what a
+side view hides reaches the loop as it does from a real pose model.
 """
 
 from __future__ import annotations

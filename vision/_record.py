@@ -6,7 +6,7 @@ image). Two kinds of video:
 
 - silhouettes (the default), with the flaws of real masks: ragged edges, small holes, a
   shadow blob at the feet; white on black;
-- ``colour``: the shaded capsule body (a mannequin with a head) on a plain background,
+- ``colour``: the shaded capsule body (a mannequin with a face) on a plain background,
   drawn by pyrender. MediaPipe Pose finds this body from every side, and gives the far
   limbs of a side view the low visibilities real footage gives them, so the whole
   landmark path (model, visibilities, the loop) can be tested on a performer whose
@@ -162,7 +162,8 @@ def performer_images(
     motion: Motion, settings: RecordSettings | None = None, frames: NDArray[np.int64] | None = None
 ) -> Iterator[NDArray[np.uint8]]:
     """BGR images ``(H, W, 3)`` of ``frames`` (default all) of ``motion``: the shaded
-    body of ``settings.body`` seen by the static camera, on ``settings.background``."""
+    body of ``settings.body``, with a face, seen by the camera (``camera_poses``), on
+    ``settings.background``."""
     settings = settings or RecordSettings()
     frames = np.arange(motion.n_frames) if frames is None else np.asarray(frames, dtype=np.int64)
     poses = camera_poses(motion, settings, frames)

@@ -7,12 +7,15 @@ import subprocess
 import sys
 from pathlib import Path
 
+import cv2
+import numpy as np
 import pytest
 
 from control.graph import load_graph
 from control.motion import read_bvh
 from mimic.cli import main
 from tests.conftest import REPO
+from vision import RecordSettings
 
 
 def test_build_prints_table_and_writes_graph(
@@ -121,3 +124,17 @@ def test_record_films_a_performer_of_other_proportions(
     assert main([*base, "--legs", "3", "--out", str(tmp_path / "bad.mkv")]) == 2
     assert "legs and arms must lie in 0.5..2" in capsys.readouterr().err
     assert not (tmp_path / "bad.mkv").exists()
+    # in colour: the shaded body on a plain background, for a pose model; the camera
+    # going round the performer as it films
+    colour = tmp_path / "c.mkv"
+    assert main([*base, "--colour", "--turn", "90", "--out", str(colour)]) == 0
+    side = json.loads(Path(f"{colour}.json").read_text())
+    assert side["settings"]["colour"] and side["settings"]["turn"] == 90.0
+    cap = cv2.VideoCapture(str(colour))
+    ok, img = cap.read()
+    cap.release()
+    assert ok and img.shape == (60, 80, 3)
+    background = np.array(RecordSettings().background)
+    body = np.abs(img.astype(int) - background).sum(axis=2) > 30
+    assert 0.02 < body.mean() < 0.5  # a performer, lit and shaded: not one grey
+    assert len({tuple(px) for px in img[body][::5]}) > 10
