@@ -124,8 +124,13 @@ def test_record_films_a_performer_of_other_proportions(
     assert main([*base, "--legs", "3", "--out", str(tmp_path / "bad.mkv")]) == 2
     assert "legs and arms must lie in 0.5..2" in capsys.readouterr().err
     assert not (tmp_path / "bad.mkv").exists()
-    # in colour: the shaded body on a plain background, for a pose model; the camera
-    # going round the performer as it films
+
+
+@pytest.mark.gl
+def test_record_films_a_colour_performer_for_a_pose_model(mocap: Path, tmp_path: Path) -> None:
+    # the shaded body on a plain background, for a pose model; the camera going round
+    # the performer as it films
+    base = ["record", "13_29", str(mocap), "--to", "0.4", "--fps", "15", "--size", "80x60"]
     colour = tmp_path / "c.mkv"
     assert main([*base, "--colour", "--turn", "90", "--out", str(colour)]) == 0
     side = json.loads(Path(f"{colour}.json").read_text())

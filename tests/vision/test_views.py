@@ -74,6 +74,7 @@ def _follow(setup: Any, bank: Any, video: Path) -> tuple[dict[str, Any], list[di
     return evaluation(r.decisions, lib.clips, truth, r.media_seconds), r.decisions
 
 
+@pytest.mark.gl
 def test_a_side_view_is_matched_and_its_action_found(
     setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
 ) -> None:
@@ -88,6 +89,7 @@ def test_a_side_view_is_matched_and_its_action_found(
     assert report["best_at_lag_le_1s"] >= 0.6, report["per_action_at_best_lag"]
 
 
+@pytest.mark.gl
 def test_a_performer_who_turns_is_followed_throughout(
     setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
 ) -> None:
@@ -100,6 +102,7 @@ def test_a_performer_who_turns_is_followed_throughout(
     assert report["best_at_lag_le_1s"] >= 0.6, report["per_action_at_best_lag"]
 
 
+@pytest.mark.gl
 def test_a_performer_cut_off_at_the_knees_is_matched(
     setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
 ) -> None:
@@ -122,6 +125,7 @@ def test_a_performer_cut_off_at_the_knees_is_matched(
     assert report["best_at_lag_le_1s"] >= 0.6, report["per_action_at_best_lag"]
 
 
+@pytest.mark.gl
 def test_a_performer_upside_down_is_still_rejected(
     setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
 ) -> None:
