@@ -27,7 +27,8 @@ def add_record_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
         "record",
         help="render a clip as a performer's silhouette (or colour) video with ground truth",
         description="Another body than the avatar's, a camera off the bank's ring, mask "
-        "noise; FFV1 video plus a JSON sidecar (source frame and label per video frame).",
+        "noise (or, with --colour, the shaded body with a face, for a pose model); FFV1 "
+        "video plus a JSON sidecar (source frame and label per video frame).",
     )
     r.add_argument("clip", help="clip name, e.g. 13_29")
     add_library_dir(r)

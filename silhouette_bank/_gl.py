@@ -115,6 +115,9 @@ class GLRenderer:
         self._material = pyrender.MetallicRoughnessMaterial(
             baseColorFactor=(0.75, 0.72, 0.68, 1.0), metallicFactor=0.0, roughnessFactor=0.8
         )
+        self._face_material = pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=(0.12, 0.1, 0.1, 1.0), metallicFactor=0.0, roughnessFactor=0.6
+        )
         self.renders = 0
 
     @staticmethod
@@ -166,10 +169,7 @@ class GLRenderer:
         nose); shaded renders only."""
         c = np.asarray(centres, dtype=np.float64)
         vertices, faces = capsule_mesh(np.stack((c, c), axis=1), np.asarray(radius))
-        material = self._pyrender.MetallicRoughnessMaterial(
-            baseColorFactor=(0.12, 0.1, 0.1, 1.0), metallicFactor=0.0, roughnessFactor=0.6
-        )
-        self._face = self._mesh(self._face, vertices, faces, material)
+        self._face = self._mesh(self._face, vertices, faces, self._face_material)
 
     def set_scenery(self, vertices: FloatArray, faces: NDArray[np.int64]) -> None:
         """Show a static mesh (world coordinates) beside the body, grey; shaded renders
