@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import shlex
 import sys
 from collections.abc import Iterable, Iterator
@@ -78,6 +79,15 @@ class RecordSettings:
     #: degrees the camera moves round the performer over the recording (a performer who
     #: turns from facing it to showing it their side: 90)
     turn: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("azimuth", "turn", "camera_height", "target_height", "distance"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(
+                    f"the recording's {name} must be a finite number, not {getattr(self, name)}"
+                )
+        if len(self.background) != 3 or not all(0 <= v <= 255 for v in self.background):
+            raise ValueError(f"the background must be 3 values 0-255 (BGR), not {self.background}")
 
     def ring(self) -> CameraRing:
         return CameraRing(

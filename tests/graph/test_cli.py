@@ -127,7 +127,9 @@ def test_record_films_a_performer_of_other_proportions(
 
 
 @pytest.mark.gl
-def test_record_films_a_colour_performer_for_a_pose_model(mocap: Path, tmp_path: Path) -> None:
+def test_record_films_a_colour_performer_for_a_pose_model(
+    mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     # the shaded body on a plain background, for a pose model; the camera going round
     # the performer as it films
     base = ["record", "13_29", str(mocap), "--to", "0.4", "--fps", "15", "--size", "80x60"]
@@ -143,3 +145,10 @@ def test_record_films_a_colour_performer_for_a_pose_model(mocap: Path, tmp_path:
     body = np.abs(img.astype(int) - background).sum(axis=2) > 30
     assert 0.02 < body.mean() < 0.5  # a performer, lit and shaded: not one grey
     assert len({tuple(px) for px in img[body][::5]}) > 10
+    # a turn or an azimuth that is not a number is said, and nothing is written
+    bad = tmp_path / "bad.mkv"
+    assert main([*base, "--colour", "--turn", "nan", "--out", str(bad)]) == 2
+    assert "turn must be a finite number" in capsys.readouterr().err
+    assert main([*base, "--azimuth", "inf", "--out", str(bad)]) == 2
+    assert "azimuth must be a finite number" in capsys.readouterr().err
+    assert not bad.exists()
