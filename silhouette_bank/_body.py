@@ -219,15 +219,14 @@ def face_marks(motion: Motion, body: CapsuleBody) -> tuple[FloatArray, FloatArra
     if bone.size == 0:
         return None
     b = int(bone[np.argmax(body.radius[bone])])  # the head itself: its thickest bone
-    seg = capsule_segments(motion, body)  # (F, B, 2, 3)
+    ends = [np.flatnonzero(body.end == j) for j in (left, right)]
+    if not all(e.size for e in ends):
+        return None
+    seg = capsule_segments(motion, body)  # (F, B, 2, 3), the body's own proportions
     centre = seg[:, b].mean(axis=1)
     r = float(body.radius[b])
-    pts = _points(motion)
-    if body.height != 1.0:  # (the same scaling capsule_segments applies)
-        base = motion.root_pos.copy()
-        base[:, 1] = 0.0
-        pts = base[:, None, :] + (pts - base[:, None, :]) * body.height
-    across = pts[:, left] - pts[:, right]  # the performer's right to left
+    # the shoulders: where the bones that end at them end
+    across = seg[:, ends[0][0], 1] - seg[:, ends[1][0], 1]  # the performer's right to left
     across[:, 1] = 0.0
     up = np.array([0.0, 1.0, 0.0])
     forward = np.cross(across, up)

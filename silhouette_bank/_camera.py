@@ -94,7 +94,8 @@ class CameraRing:
         out[..., 3, 3] = 1.0
         return out
 
-    def to_camera(self, points: FloatArray, pose: FloatArray) -> FloatArray:
+    @staticmethod
+    def to_camera(points: FloatArray, pose: FloatArray) -> FloatArray:
         """World points ``(..., N, 3)`` in the frame of camera ``pose`` (``(..., 4, 4)``)."""
         r = pose[..., :3, :3]
         t = pose[..., :3, 3]

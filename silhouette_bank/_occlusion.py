@@ -20,8 +20,6 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from control.motion import Skeleton
-
 from ._body import CapsuleBody
 from ._raster import _ray_segment_dist2
 
@@ -30,14 +28,11 @@ __all__ = ["joint_visibility", "own_bones"]
 FloatArray = NDArray[np.float64]
 
 
-def own_bones(
-    skeleton: Skeleton, body: CapsuleBody, points: list[tuple[str, int]]
-) -> NDArray[np.bool_]:
-    """``(K, B)``: whether bone ``b`` starts or ends at point ``k`` of ``points``
-    (``("joint", j)`` or ``("end", e)``, as ``pose_point_indices`` gives them): the
-    limb's own capsules, which never hide the joint."""
-    n_j = skeleton.n_joints
-    idx = np.array([i if kind == "joint" else n_j + i for kind, i in points], dtype=np.int64)
+def own_bones(body: CapsuleBody, points: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """``(K, B)``: whether bone ``b`` starts or ends at ``points[k]`` (indices into the
+    body's point table, joints then end sites): the limb's own capsules, which never
+    hide the joint."""
+    idx = np.asarray(points, dtype=np.int64)
     return (body.start[None, :] == idx[:, None]) | (body.end[None, :] == idx[:, None])
 
 

@@ -72,7 +72,7 @@ def pose_visibility(
     first_start = {int(a): b for b, a in reversed(list(enumerate(caps.start)))}
     where = [(first_end[i], 1) if i in first_end else (first_start[i], 0) for i in at.tolist()]
     joints = np.stack([seg[:, b, e] for b, e in where], axis=1)  # (F, 12, 3)
-    own = own_bones(motion.skeleton, caps, points)
+    own = own_bones(caps, at)
     # a joint's own radius: its thickest own bone's
     own_r = np.array([caps.radius[row].max() if row.any() else 0.0 for row in own])
     v = poses.shape[1]
@@ -80,19 +80,12 @@ def pose_visibility(
     b_n = seg.shape[1]
     for j in range(v):
         pose = poses[:, j]
-        cam_j = _to_camera(joints, pose)
-        cam_s = _to_camera(seg.reshape(frames.size, b_n * 2, 3), pose)
+        cam_j = CameraRing.to_camera(joints, pose)
+        cam_s = CameraRing.to_camera(seg.reshape(frames.size, b_n * 2, 3), pose)
         out[:, j] = joint_visibility(
             cam_j, cam_s.reshape(frames.size, b_n, 2, 3), caps.radius, own_r, own
         )
     return out
-
-
-def _to_camera(points: FloatArray, pose: FloatArray) -> FloatArray:
-    """World points ``(F, N, 3)`` in the frames of cameras ``pose`` ``(F, 4, 4)``."""
-    r = pose[:, :3, :3]
-    t = pose[:, :3, 3]
-    return np.einsum("fji,fnj->fni", r, points - t[:, None, :])
 
 
 def motion_pose_features(
