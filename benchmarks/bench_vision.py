@@ -55,7 +55,7 @@ from vision import (
     perform,
     record_clip,
 )
-from vision._perform import ready_matcher
+from vision._fallback import ready_matcher
 
 RECORDING = Path("recordings/13_29_first12s_160x120.mkv")
 

@@ -67,6 +67,7 @@ def _evaluate(args: argparse.Namespace) -> int:
             ready.settings,
             start=ready.start,
             seed=args.seed,
+            fallback=ready.fallback,
         )
     finally:
         source.close()
@@ -98,7 +99,11 @@ def _evaluate(args: argparse.Namespace) -> int:
     )
     points = report["decision_points"]
     print(
-        f"decision points: {points['points']}, {points['decided']} decided; "
+        f"decision points: {points['points']}, {points['decided']} decided"
+        + "".join(
+            f" ({n} by {k})" for k, n in points.get("decided_by", {}).items() if k != "landmarks"
+        )
+        + "; "
         f"{points['person_in_view_undecided']} undecided with a person in view"
         + "".join(f"; {why}: {n}" for why, n in points["undecided_by_reason"].items())
     )

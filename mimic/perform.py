@@ -222,6 +222,7 @@ def _run(args: argparse.Namespace, source: Any, ready: Prepared) -> Any:
                 ready.settings,
                 start=ready.start,
                 seed=args.seed,
+                fallback=ready.fallback,
                 log=log,
                 tape=tape,
                 on_frame=painter.on_frame if painter else None,

@@ -128,6 +128,13 @@ def add_run_args(p: argparse.ArgumentParser) -> None:
         help="a bank folder built by mimic bank build (any render settings and descriptor; "
         "from the same clips) instead of the cached default bank",
     )
+    p.add_argument(
+        "--no-fallback",
+        action="store_true",
+        help="with the pose descriptor, make no decision where the landmarks fail; by "
+        "default the pose model's person mask is matched then, against a silhouette bank "
+        f"({DEFAULT_DESCRIPTOR}) of the same clips",
+    )
     p.add_argument("--k", type=int, help="number of clusters (default: BIC)")
     p.add_argument("--start", help="avatar starts at CLIP:FRAME")
     p.add_argument("--seed", type=int, default=0)
@@ -214,6 +221,8 @@ class Prepared:
     bank_built: bool
     settings: PerformSettings
     start: int | None
+    #: with the pose descriptor, the silhouette bank matched where the landmarks fail
+    fallback: Any = None
 
 
 def prepare(args: argparse.Namespace, source: Any) -> Prepared:
@@ -251,6 +260,16 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
         file=sys.stderr,
     )
     descriptor, bank, built = _bank(args, clips, source)
+    fallback = None
+    if descriptor == "pose" and not args.no_fallback:
+        print(
+            f"where the landmarks fail, the silhouette ({DEFAULT_DESCRIPTOR}) is matched "
+            "(--no-fallback: no decision there)",
+            file=sys.stderr,
+        )
+        fallback, _ = ensure_bank(
+            clips, BankSettings(), progress=bar("silhouette bank (fallback)", "renders")
+        )
     _say_vote(clips, match)
     settings = PerformSettings(
         segmentation=args.segmentation,
@@ -260,7 +279,15 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
         blend=blend_seconds(args, PerformSettings.blend),
     )
     return Prepared(
-        descriptor, clips, graph, layer, bank, built, settings, start_frame(graph, args.start)
+        descriptor,
+        clips,
+        graph,
+        layer,
+        bank,
+        built,
+        settings,
+        start_frame(graph, args.start),
+        fallback,
     )
 
 

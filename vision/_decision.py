@@ -1,4 +1,5 @@
-"""What the matcher is told (``MatchSettings``) and what it answers (``Decision``)."""
+"""What the matcher is told (``MatchSettings``), what the performance loop is told
+(``PerformSettings``), and what the matcher answers (``Decision``)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Decision", "MatchSettings"]
+__all__ = ["Decision", "MatchSettings", "PerformSettings"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -187,3 +188,24 @@ class Decision:
     candidates: int
     latency_ms: float
     extra: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class PerformSettings:
+    decide_every: float = 0.1
+    #: "auto": the pose descriptor's landmarks need the pose model; otherwise a camera
+    #: learns a plate (mog2) and footage uses a person segmenter (pose)
+    segmentation: str = "auto"
+    learn_frames: int = 30
+    match: MatchSettings = field(default_factory=MatchSettings)
+    seconds: float | None = None  # stop after this much media time (cameras never end)
+    #: the avatar's blend interval, seconds (transitions and jumps). 0.5, against the
+    #: graph's 1 s: the avatar jumps every few tenths of a second, so a 1 s blend never
+    #: ends, and its planted feet slid more and its junctions turned faster
+    #: (``benchmarks/HISTORY.md``)
+    blend: float = 0.5
+    #: run relocation's global search in a thread, its answer taken at a later decision,
+    #: so that a live source is never held up by it (it takes tens to hundreds of ms);
+    #: None: only for a camera or a paced (``realtime``) file, so that replays stay
+    #: deterministic
+    background_search: bool | None = None

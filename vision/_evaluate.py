@@ -63,9 +63,14 @@ UNSEEN_REASONS = ("nobody in view", "no silhouette", "filling buffer", "en route
 def decision_points(decisions: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """How many decision points gave no decision, per reason (the log's ``reason``), and
     the share of them at which a person was in view (a reason not in
-    ``UNSEEN_REASONS``): the points at which the avatar ignored someone it could see."""
+    ``UNSEEN_REASONS``): the points at which the avatar ignored someone it could see.
+    ``decided_by``: how many decisions each kind of evidence made (the log's ``by``:
+    landmarks, or the silhouette where they failed), for a run that logs it."""
     reasons: dict[str, int] = {}
+    by: dict[str, int] = {}
     for d in decisions:
+        if d.get("by") and d.get("decision") is not None:
+            by[str(d["by"])] = by.get(str(d["by"]), 0) + 1
         if d.get("decision") is None:
             # (a reason's figures in brackets, a cost, say, are the point's own)
             why = str(d.get("reason") or "no decision").split(" (")[0]
@@ -74,6 +79,7 @@ def decision_points(decisions: Sequence[dict[str, Any]]) -> dict[str, Any]:
     return {
         "points": len(decisions),
         "decided": len(decisions) - sum(reasons.values()),
+        **({"decided_by": dict(sorted(by.items()))} if by else {}),
         "undecided_by_reason": dict(sorted(reasons.items(), key=lambda kv: -kv[1])),
         "person_in_view_undecided": ignored,
         "person_in_view_undecided_share": round(ignored / max(len(decisions), 1), 4),

@@ -22,7 +22,7 @@ import json
 from collections import deque
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import IO, Any
 
 import numpy as np
@@ -34,10 +34,9 @@ from control.kernels import one_thread
 from control.motion import Clip
 from silhouette_bank import Bank, silhouette_features
 
-from ._decision import Decision, MatchSettings
-from ._facing import Facing
+from ._decision import Decision, PerformSettings
+from ._fallback import FALLBACK_REASONS, SilhouetteFallback, ready_matcher
 from ._landmarks import PoseReader
-from ._library import action_keys
 from ._matcher import Matcher
 from ._person import make_segmenter, resolve_segmentation
 from ._segment import clean_mask_others
@@ -52,36 +51,11 @@ MAX_COVER = 0.6
 #: degrees a second the avatar's blended joints may turn in a frame beyond what their
 #: source frames turn (``control.graph.follow_turns``), and the rate of its leg IK's
 #: corrections (``TURN_RATE`` is 300 elsewhere). Its blends pile up (a jump every few
-#: tenths of a second), and a fading offset on a fast joint turned it up to 45 degrees in
-#: a frame at junctions (the library's 99th percentile: 31). Over the 12 landmark runs of
-#: ``bench_accuracy`` (2026-12-04, the same paths re-synthesized): junctions' p99 22-41
-#: degrees (5 runs over 31) without either, 22-33 (2) with the limit alone, 21-30 (none)
-#: with both; planted feet slid 0.058 m/s against 0.054.
+#: tenths of a second), and a fading offset on a fast joint turned faster at junctions
+#: than the library's own 99th percentile; with both limits none did (the figures:
+#: ``benchmarks/HISTORY.md``, "junctions").
 TURN_LIMIT = 450.0
 IK_TURN_RATE = 200.0
-
-
-@dataclass(frozen=True)
-class PerformSettings:
-    decide_every: float = 0.1
-    #: "auto": the pose descriptor's landmarks need the pose model; otherwise a camera
-    #: learns a plate (mog2) and footage uses a person segmenter (pose)
-    segmentation: str = "auto"
-    learn_frames: int = 30
-    match: MatchSettings = field(default_factory=MatchSettings)
-    seconds: float | None = None  # stop after this much media time (cameras never end)
-    #: the avatar's blend interval, seconds (transitions and jumps). 0.5 (2026-12-04;
-    #: the graph's default is 1 s): the avatar jumps every few tenths of a second, so a
-    #: 1 s blend never ends, and its planted feet slid more and its junctions turned
-    #: faster (with planted feet brought to the source's height, ``feet="floor"``, over
-    #: 12 runs of bench_accuracy: foot slide 0.137 -> 0.067 m/s, junctions' p99 26-43 ->
-    #: 17-30 degrees; on 6 runs 0.4 s did about as well, 0.35 s turned them faster)
-    blend: float = 0.5
-    #: run relocation's global search in a thread, its answer taken at a later decision,
-    #: so that a live source is never held up by it (it takes tens to hundreds of ms);
-    #: None: only for a camera or a paced (``realtime``) file, so that replays stay
-    #: deterministic
-    background_search: bool | None = None
 
 
 @dataclass
@@ -112,6 +86,7 @@ def perform(
     on_frame: Callable[[float, NDArray[np.bool_] | None, Avatar], None] | None = None,
     on_decision: Callable[[dict[str, Any]], None] | None = None,
     stop: Callable[[], str] | None = None,
+    fallback: Bank | None = None,
 ) -> PerformResult:
     """Run the loop until the source ends (or ``settings.seconds`` of media time).
 
@@ -119,22 +94,11 @@ def perform(
     side-by-side video, ``vision._video.write_video``). ``on_frame(t, mask, avatar)`` is
     called for every media frame, ``on_decision(entry)`` with every decision log entry
     (the live view uses both). ``stop()`` is asked before every frame: a non-empty
-    answer (why) ends the run there, and what was performed is returned as usual."""
-    run = Performance(source, layer, bank, clips, settings, start, seed)
+    answer (why) ends the run there, and what was performed is returned as usual.
+    ``fallback``: with a pose ``bank``, a silhouette bank of the same clips, whose
+    matcher decides when the landmarks cannot (``vision._fallback``)."""
+    run = Performance(source, layer, bank, clips, settings, start, seed, fallback)
     return run.run(log=log, tape=tape, on_frame=on_frame, on_decision=on_decision, stop=stop)
-
-
-def ready_matcher(matcher: Matcher, clips: Sequence[Clip], period: float) -> None:
-    """The vote's actions (``clips``: the graph's), its classifier and each action's
-    search made now (at a first decision they took 7-10 ms), and the facing for decisions
-    every ``period`` seconds: the loop's matcher, beyond the graph and the bank."""
-    actions = action_keys(clips)
-    if actions is not None:
-        matcher.vote.actions = actions
-        if matcher.settings.jumps and matcher.settings.vote > 0:
-            matcher.classifier()
-            matcher.index().prepare(matcher.vote.window_actions(matcher.n))
-    matcher.facing = Facing.of(clips, matcher, period)
 
 
 class Performance:
@@ -152,6 +116,7 @@ class Performance:
         settings: PerformSettings | None = None,
         start: int | None = None,
         seed: int = 0,
+        fallback: Bank | None = None,
     ) -> None:
         # the graph's clips, in its order (one of another skeleton would misalign the vote)
         self.graph, clips = layer.graph, layer.graph.clips_of(clips)
@@ -173,10 +138,17 @@ class Performance:
         if jumps:
             avatar = self.avatar
             matcher.warm_up(avatar.frame, avatar.recent(matcher.recent_frames), self.costs)
-        ready_matcher(matcher, clips, settings.decide_every)  # (after the warm-up: no vote)
+        period = settings.decide_every
+        ready_matcher(matcher, clips, period)  # (after the warm-up: no vote)
         self.segmenter: Any = None
         self.landmarks = matcher.desc.kind == "pose"
         self.reader = PoseReader() if self.landmarks else None
+        #: the silhouette's matcher, where the landmarks fail (landmarks only)
+        self.fallback = (
+            SilhouetteFallback(layer, fallback, clips, matcher, self.avatar, self.costs, period)
+            if fallback is not None and self.landmarks
+            else None
+        )
         self.why_blank = ""  # why the latest frame has no features
         #: other people in view in the latest frame's mask, beside the one followed (the
         #: largest blob: ``clean_mask_others``); the decisions' log says so
@@ -273,6 +245,8 @@ class Performance:
             h_px, w_px = frame.image.shape[:2] if frame.image is not None else (1, 1)
             self.latest = self.reader.read(lm, (w_px, h_px))
             self.why_blank = self.reader.why
+            if self.fallback is not None:
+                self.fallback.see(mask)
         elif mask is not None:
             self.latest = silhouette_features(mask, descriptor=self.matcher.desc)
         else:
@@ -289,6 +263,8 @@ class Performance:
         """The library-rate history, and the avatar's clock, up to media time ``t``."""
         while self.next_tick <= t + 1e-9:
             self.history.append(self.latest)
+            if self.fallback is not None:
+                self.fallback.tick()
             self.next_tick += self.period
         while self.t_avatar + self.period <= t + 1e-9:
             self.avatar.step()
@@ -367,6 +343,31 @@ class Performance:
             entry["hidden"] = list(self.reader.hidden)
         return entry
 
+    def match(self, entry: dict[str, Any]) -> Decision | None:
+        """The matcher's decision for the avatar's frame; where the landmark matcher
+        has none for want of a pose, the silhouette's (``vision._fallback``;
+        ``entry`` says which decided, ``by``, and why the silhouette did not)."""
+        matcher, avatar = self.matcher, self.avatar
+        recent = avatar.recent(matcher.recent_frames)
+        d = (
+            matcher.decide(avatar.frame, np.array(self.history), recent, avatar.jump_costs)
+            if self.jumps
+            else matcher.decide(avatar.frame, self.window())
+        )
+        if self.fallback is None:
+            return d
+        if d is not None:
+            entry["by"] = "landmarks"
+            return d
+        if matcher.why.split(" (")[0] not in FALLBACK_REASONS:
+            return d
+        d = self.fallback.decide(avatar.frame, recent, avatar.jump_costs)
+        if d is None:
+            entry["silhouette"] = self.fallback.matcher.why
+        else:
+            entry["by"] = "silhouette"
+        return d
+
     def decide(self, t: float) -> dict[str, Any]:
         """The decision at media time ``t``: its log entry, the avatar told."""
         settings, matcher, avatar = self.settings, self.matcher, self.avatar
@@ -388,19 +389,9 @@ class Performance:
                 avatar = self.avatar
         # on the way to a relocation's window: no decision may turn it aside
         routing = t < self.en_route - 1e-9
-        d = None
-        if full and not routing:
-            d = (
-                matcher.decide(
-                    avatar.frame,
-                    np.array(self.history),
-                    avatar.recent(matcher.recent_frames),
-                    avatar.jump_costs,
-                )
-                if self.jumps
-                else matcher.decide(avatar.frame, self.window())
-            )
-        if d is not None and not self.jumps and settings.match.relocate > 0:
+        d = self.match(entry) if full and not routing else None
+        by_landmarks = entry.get("by") != "silhouette"  # (relocation searches landmarks)
+        if d is not None and not self.jumps and settings.match.relocate > 0 and by_landmarks:
             d = self.relocate(t, d, entry)
         if d is None:
             entry["decision"] = None
@@ -411,6 +402,10 @@ class Performance:
                 if routing
                 else "filling buffer"
                 if not full
+                # the performer back in view, in under half of the window so far
+                else "filling buffer (back in view)"
+                if matcher.why in ("no pose", "no silhouette")
+                and (self.fallback is None or self.fallback.matcher.why == "no silhouette")
                 else matcher.why or "no decision"
             )
             if routing:

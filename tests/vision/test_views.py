@@ -17,6 +17,7 @@ from control.motion import load_library
 from silhouette_bank import BankSettings, build_bank
 from vision import (
     PerformSettings,
+    PersonSegmenter,
     RecordSettings,
     VideoSource,
     decision_points,
@@ -26,6 +27,7 @@ from vision import (
     record_clip,
     truth_for,
 )
+from vision._perform import Performance
 
 
 @pytest.fixture(scope="module")
@@ -125,6 +127,65 @@ def test_a_performer_cut_off_at_the_knees_is_matched(
     assert report["best_at_lag_le_1s"] >= 0.6, report["per_action_at_best_lag"]
 
 
+class _TorsoLost:
+    """The pose model, whose torso landmarks are of low confidence between ``hide``
+    seconds (as when the torso is cut by the frame or hidden), its mask as it is."""
+
+    def __init__(self, hide: tuple[float, float]) -> None:
+        self.model = PersonSegmenter("pose")
+        self.hide, self.t, self.others = hide, 0.0, 0
+        self.landmarks: np.ndarray | None = None
+
+    def apply(self, image: np.ndarray) -> np.ndarray | None:
+        mask = self.model.apply(image)
+        self.landmarks = self.model.landmarks
+        if self.landmarks is not None and self.hide[0] <= self.t < self.hide[1]:
+            self.landmarks = self.landmarks.copy()
+            self.landmarks[[11, 12, 23, 24], 2] = 0.1  # shoulders and hips
+        self.t += 1 / 15
+        return mask
+
+
+@pytest.mark.gl
+def test_where_the_landmarks_fail_the_silhouette_decides(
+    setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
+) -> None:
+    # 13_29's jumping jacks and twists; from 2 to 7 s the torso's landmarks fail while
+    # the person mask is good: half a window on, the silhouette bank decides (the log's
+    # ``by``), and the avatar keeps doing the performer's action
+    lib, layer, silhouettes = setup
+    video = _film(mocap, tmp_path, (0.0, 9.0), azimuth=20.0)
+    truth = truth_for(video)
+    assert truth is not None
+    runs = {}
+    for fallback in (silhouettes, None):
+        run = Performance(
+            VideoSource(video),
+            layer,
+            pose_bank,
+            lib.clips,
+            PerformSettings(),
+            seed=1,
+            fallback=fallback,
+        )
+        run.segmenter = _TorsoLost((2.0, 7.0))
+        r = run.run()
+        runs[fallback is not None] = (r, evaluation(r.decisions, lib.clips, truth, r.media_seconds))
+    r, report = runs[True]
+    lost = [d for d in r.decisions if 2.6 <= d["t"] < 7.0]
+    assert all(d.get("by") == "silhouette" for d in lost), [d.get("reason") for d in lost]
+    kept = [d for d in r.decisions if d["t"] >= 7.6 or 1.0 <= d["t"] < 2.0]
+    assert kept and all(d.get("by") == "landmarks" for d in kept)
+    assert report["decision_points"]["person_in_view_undecided"] == 0, report["decision_points"]
+    assert report["best_at_lag_le_1s"] >= 0.6, report["per_action_at_best_lag"]
+    # without the silhouette those points get no decision, and say why
+    r, report = runs[False]
+    lost = [d for d in r.decisions if 2.6 <= d["t"] < 7.0]
+    assert all(d["decision"] is None for d in lost)
+    assert {d["reason"] for d in lost} == {"torso landmarks of low confidence"}
+    assert report["decision_points"]["person_in_view_undecided"] >= len(lost)
+
+
 @pytest.mark.gl
 def test_a_performer_upside_down_is_still_rejected(
     setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
@@ -133,10 +194,19 @@ def test_a_performer_upside_down_is_still_rejected(
     # is then upside down); no decision follows it
     video = _film(mocap, tmp_path, (0.0, 6.0), azimuth=0.0)
     flipped = _rewrite(video, tmp_path / "upside.mkv", lambda img: img[::-1])
-    lib, layer, _ = setup
-    r = perform(VideoSource(flipped), layer, pose_bank, lib.clips, PerformSettings(), seed=1)
-    points = decision_points(r.decisions)
-    assert points["decided"] <= 0.1 * points["points"], points
+    lib, layer, silhouettes = setup
+    for fallback in (None, silhouettes):  # nor does the silhouette follow it
+        r = perform(
+            VideoSource(flipped),
+            layer,
+            pose_bank,
+            lib.clips,
+            PerformSettings(),
+            seed=1,
+            fallback=fallback,
+        )
+        points = decision_points(r.decisions)
+        assert points["decided"] <= 0.1 * points["points"], points
 
 
 def test_decision_points_count_each_reason_once_and_blame_only_a_person_in_view() -> None:
@@ -145,10 +215,14 @@ def test_decision_points_count_each_reason_once_and_blame_only_a_person_in_view(
         {"t": 0.2, "decision": None, "reason": "no match (cost 5.10 per frame > 4.5)"},
         {"t": 0.3, "decision": None, "reason": "no match (cost 6.00 per frame > 4.5)"},
         {"t": 0.4, "decision": None, "reason": "nobody in view"},
-        {"t": 0.5, "decision": [1], "cost": 1.0},
+        {"t": 0.5, "decision": [1], "cost": 1.0, "by": "landmarks"},
+        {"t": 0.6, "decision": None, "reason": "filling buffer (back in view)"},
+        {"t": 0.7, "decision": [2], "cost": 1.0, "by": "silhouette"},
+        {"t": 0.8, "decision": [3], "cost": 1.0, "by": "landmarks"},
     ]
     got = decision_points(log)
-    assert got["points"] == 5 and got["decided"] == 1
-    assert got["undecided_by_reason"] == {"no match": 2, "filling buffer": 1, "nobody in view": 1}
+    assert got["points"] == 8 and got["decided"] == 3
+    assert got["decided_by"] == {"landmarks": 2, "silhouette": 1}
+    assert got["undecided_by_reason"] == {"no match": 2, "filling buffer": 2, "nobody in view": 1}
     assert got["person_in_view_undecided"] == 2
-    assert got["person_in_view_undecided_share"] == pytest.approx(0.4)
+    assert got["person_in_view_undecided_share"] == pytest.approx(0.25)

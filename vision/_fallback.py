@@ -1,0 +1,123 @@
+"""The silhouette when the landmarks fail (issue 59): one pass of the pose model gives
+both a person mask and landmarks, and the landmarks can fail while the mask is good (the
+torso hidden or cut by the frame's edge, too dark to read). A performer the camera sees
+is then matched by their silhouette rather than left unfollowed.
+
+``SilhouetteFallback`` keeps the performer's silhouette features at the library's rate
+beside the landmark features, and a second matcher on a silhouette bank of the same
+clips. The landmark matcher decides whenever it can; when it cannot for want of a pose
+(fewer than half the window's frames with a usable one), the silhouette matcher decides
+from the same avatar frame, with its own reject threshold: a silhouette that matches
+nothing real is still refused. Landmarks that were read but match nothing (``no
+match``) are not overruled: they say the pose is none the library has, and a
+silhouette, which cannot tell up from down nor front from back, matched upside-down
+jumping jacks at half the decision points where the landmarks refused them
+(``tests/vision/test_views.py``). Both matchers cast their votes into one
+``ActionVote``, so that the avatar's action does not restart when the evidence changes
+hands. The decision log says which decided (``by``).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections import deque
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from control.avatar import Avatar, JumpCosts
+from control.clusters import HigherLayer
+from control.motion import Clip
+from silhouette_bank import Bank, silhouette_features
+
+from ._decision import Decision
+from ._facing import Facing
+from ._library import action_keys
+from ._matcher import Matcher
+
+__all__ = ["FALLBACK_REASONS", "SilhouetteFallback", "ready_matcher"]
+
+#: the landmark matcher's reasons (``Matcher.why``, up to " (") after which the
+#: silhouette is tried: a person may be in view, and nothing was read of them
+FALLBACK_REASONS = ("no pose",)
+
+FloatArray = NDArray[np.float64]
+
+
+def ready_matcher(matcher: Matcher, clips: Sequence[Clip], period: float) -> None:
+    """The vote's actions (``clips``: the graph's), its classifier and each action's
+    search made now (at a first decision they took 7-10 ms), and the facing for decisions
+    every ``period`` seconds: the loop's matcher, beyond the graph and the bank."""
+    actions = action_keys(clips)
+    if actions is not None:
+        matcher.vote.actions = actions
+        if matcher.settings.jumps and matcher.settings.vote > 0:
+            matcher.classifier()
+            matcher.index().prepare(matcher.vote.window_actions(matcher.n))
+    matcher.facing = Facing.of(clips, matcher, period)
+
+
+class SilhouetteFallback:
+    """The silhouette matcher beside a landmark matcher ``main`` of the same graph, with
+    its settings, for the ``avatar`` (``costs``: its jump costs) of a loop deciding every
+    ``period`` seconds. ``bank``: a silhouette bank of the graph's ``clips``. Made
+    before the first frame, as ``main`` is (its search index, classifier and kernels
+    warmed up), so that the first frame without landmarks does not stall the loop."""
+
+    def __init__(
+        self,
+        layer: HigherLayer,
+        bank: Bank,
+        clips: Sequence[Clip],
+        main: Matcher,
+        avatar: Avatar,
+        costs: JumpCosts,
+        period: float,
+    ) -> None:
+        if bank.settings.features.kind != "silhouette":
+            raise ValueError(
+                f"the fallback needs a silhouette bank, not one of the "
+                f"{bank.settings.descriptor!r} descriptor"
+            )
+        settings = main.settings
+        self.matcher = matcher = Matcher(layer, bank, settings)
+        if settings.jumps:
+            matcher.index()
+            matcher.warm_up(avatar.frame, avatar.recent(matcher.recent_frames), costs)
+        ready_matcher(matcher, clips, period)
+        matcher.vote = main.vote  # one vote, whoever decides
+        self.blank = np.full(matcher.n_features, np.nan)
+        #: the performer's silhouette features at the library's rate, in step with the
+        #: landmark features' history
+        self.history: deque[FloatArray] = deque(maxlen=matcher.history_frames)
+        self.latest = self.blank
+
+    def see(self, mask: NDArray[np.bool_] | None) -> None:
+        """The latest frame's person mask (``None``: none)."""
+        self.latest = (
+            self.blank
+            if mask is None or not mask.any()
+            else silhouette_features(mask, descriptor=self.matcher.desc)
+        )
+
+    def tick(self) -> None:
+        """One library frame on: the latest features into the history."""
+        self.history.append(self.latest)
+
+    def window(self) -> FloatArray:
+        n = len(self.history)
+        return np.array(list(itertools.islice(self.history, max(0, n - self.matcher.n), n)))
+
+    def decide(
+        self, frame: int, recent: NDArray[np.int64] | None, costs: JumpCosts | None
+    ) -> Decision | None:
+        """The silhouette matcher's decision from the avatar at ``frame`` (``None``, and
+        ``matcher.why``, without one)."""
+        matcher = self.matcher
+        if len(self.history) < matcher.n:
+            matcher.why = "filling buffer"
+            return None
+        if matcher.settings.jumps:
+            return matcher.decide(frame, np.array(self.history), recent, costs)
+        return matcher.decide(frame, self.window())
