@@ -4,8 +4,10 @@ options, the blend and a start frame, and what they make (the options, the graph
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +22,8 @@ from control.motion import (
 from control.progress import step
 
 __all__ = [
+    "MOST_MOTION_SECONDS",
+    "MOST_SECONDS",
     "add_graph_args",
     "add_library_args",
     "add_library_dir",
@@ -28,8 +32,57 @@ __all__ = [
     "graph_options",
     "library_dir",
     "library_for",
+    "number",
     "start_frame",
 ]
+
+#: the longest media time a performance may be told to stop after, seconds (a day)
+MOST_SECONDS = 86400.0
+#: the longest motion a command may be asked to make, seconds (an hour: 54,000 frames
+#: at 15 frames/s; ``graph walk --seconds 1e12`` asked numpy for 109 TiB)
+MOST_MOTION_SECONDS = 3600.0
+
+
+def number(
+    kind: type[int] | type[float] = float,
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    above: bool = False,
+    inf: bool = False,
+) -> Callable[[str], float]:
+    """An argparse ``type`` for a numeric option: a ``kind`` (``int``: a whole number)
+    that is finite (``inf``: or infinite, where that means "no limit"), at least ``lo``
+    (``above``: more than ``lo``) and at most ``hi``. A value outside is refused by
+    argparse with the option's name: ``argument --window: must be a number above 0 and
+    at most 10, not 'nan'``. The one check every subcommand's numbers go through."""
+    noun = "a whole number" if kind is int else "a number"
+    if lo is not None and hi is not None and not above:
+        wanted = f"{noun} from {lo:g} to {hi:g}"
+    else:
+        parts = [f"{'above' if above else 'at least'} {lo:g}"] if lo is not None else []
+        parts += [f"at most {hi:g}"] if hi is not None else []
+        wanted = " ".join([noun, " and ".join(parts)]).strip()
+    wanted += " (or inf: no limit)" if inf else ""
+
+    def parse(text: str) -> float:
+        try:
+            value = kind(text)
+        except (TypeError, ValueError):
+            raise argparse.ArgumentTypeError(f"must be {wanted}, not {text!r}") from None
+        if inf and value == math.inf:
+            return value
+        bad = (
+            not math.isfinite(value)
+            or (lo is not None and (value < lo or (above and value == lo)))
+            or (hi is not None and value > hi)
+        )
+        if bad:
+            raise argparse.ArgumentTypeError(f"must be {wanted}, not {text!r}")
+        return value
+
+    parse.__name__ = noun  # (argparse names the type in some messages)
+    return parse
 
 
 def add_library_dir(p: argparse.ArgumentParser, positional: bool = True) -> None:
@@ -59,7 +112,12 @@ def add_library_args(p: argparse.ArgumentParser) -> None:
         metavar="PATTERN",
         help="only clips whose name matches (shell pattern, repeatable): --clips '01_*'",
     )
-    p.add_argument("--fps", type=float, default=15.0, help="library frame rate (default 15)")
+    p.add_argument(
+        "--fps",
+        type=number(float, 0, 240, above=True),
+        default=15.0,
+        help="library frame rate (default 15)",
+    )
     p.add_argument("--mirror", action="store_true", help="add mirrored copies of every clip")
 
 
@@ -86,18 +144,28 @@ def add_graph_args(p: argparse.ArgumentParser) -> None:
     sim.add_argument("--no-similarity", dest="similarity", action="store_false")
     p.add_argument(
         "--threshold",
-        type=float,
+        type=number(float, 0, 1000),
         default=d.threshold,
         help=f"likelihood threshold relative to playing on (default {d.threshold})",
     )
     p.add_argument(
         "--sigma-scale",
-        type=float,
+        type=number(float, 0, 1000, above=True),
         default=d.sigma_scale,
         help="sigma = this x the median distance between frames 1/15 s apart",
     )
-    p.add_argument("--nu", type=float, default=d.nu, help=f"velocity weight, s^2 (default {d.nu})")
-    p.add_argument("--block", type=float, default=d.block, help="terrain block size, metres")
+    p.add_argument(
+        "--nu",
+        type=number(float, 0, 1000),
+        default=d.nu,
+        help=f"velocity weight, s^2 (default {d.nu})",
+    )
+    p.add_argument(
+        "--block",
+        type=number(float, 0, 1000, above=True),
+        default=d.block,
+        help="terrain block size, metres",
+    )
     p.add_argument(
         "--case4",
         choices=("slip", "prune"),
@@ -107,7 +175,7 @@ def add_graph_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--blend",
-        type=float,
+        type=number(float, 0, 10, above=True),
         default=None,
         help=f"blend interval b, seconds, of the avatar's transitions and jumps (default "
         f"{d.blend:g}; perform 0.5; sketch on block terrain 0.3); with --case4 prune also "

@@ -23,7 +23,7 @@ from silhouette_bank import (
     motion_silhouettes,
 )
 
-from .args import add_library_args, library_for
+from .args import add_library_args, library_for, number
 
 __all__ = ["add_bank_args", "add_bank_commands", "bank_settings", "contact_sheet"]
 
@@ -34,15 +34,48 @@ def add_bank_args(p: argparse.ArgumentParser) -> None:
     add_library_args(p)
     d = CameraRing()
     p.add_argument("--bank", help="bank folder (default: the cache, by content hash)")
-    p.add_argument("--width", type=int, default=d.width, help="image width, pixels")
-    p.add_argument("--height", type=int, default=d.height_px, help="image height, pixels")
-    p.add_argument("--views", type=int, default=d.n_views, help="cameras on the ring")
-    p.add_argument("--distance", type=float, default=d.distance, help="camera distance, m")
-    p.add_argument("--camera-height", type=float, default=d.height, help="camera height, m")
-    p.add_argument("--target-height", type=float, default=d.target_height, help="look-at height, m")
-    p.add_argument("--fov", type=float, default=d.fov_y, help="vertical field of view, degrees")
-    p.add_argument("--body-width", type=float, default=1.0, help="radius scale of the body")
-    p.add_argument("--body-height", type=float, default=1.0, help="height scale of the body")
+    p.add_argument(
+        "--width", type=number(int, 16, 4096), default=d.width, help="image width, pixels"
+    )
+    p.add_argument(
+        "--height", type=number(int, 16, 4096), default=d.height_px, help="image height, pixels"
+    )
+    p.add_argument(
+        "--views", type=number(int, 1, 360), default=d.n_views, help="cameras on the ring"
+    )
+    p.add_argument(
+        "--distance",
+        type=number(float, 0, 1000, above=True),
+        default=d.distance,
+        help="camera distance, m",
+    )
+    p.add_argument(
+        "--camera-height", type=number(float, -100, 100), default=d.height, help="camera height, m"
+    )
+    p.add_argument(
+        "--target-height",
+        type=number(float, -100, 100),
+        default=d.target_height,
+        help="look-at height, m",
+    )
+    p.add_argument(
+        "--fov",
+        type=number(float, 0, 179, above=True),
+        default=d.fov_y,
+        help="vertical field of view, degrees",
+    )
+    p.add_argument(
+        "--body-width",
+        type=number(float, 0, 10, above=True),
+        default=1.0,
+        help="radius scale of the body",
+    )
+    p.add_argument(
+        "--body-height",
+        type=number(float, 0, 10, above=True),
+        default=1.0,
+        help="height scale of the body",
+    )
     p.add_argument(
         "--renderer",
         choices=("raster", "gl"),
@@ -87,8 +120,12 @@ def add_bank_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
         description="Built in shards (parallel, resumable); a stale bank is rebuilt.",
     )
     add_bank_args(build)
-    build.add_argument("--workers", type=int, default=None, help="processes (default: cores)")
-    build.add_argument("--shard-frames", type=int, default=1000, help="frames per shard")
+    build.add_argument(
+        "--workers", type=number(int, 1, 1024), default=None, help="processes (default: cores)"
+    )
+    build.add_argument(
+        "--shard-frames", type=number(int, 1, 10**8), default=1000, help="frames per shard"
+    )
     build.add_argument(
         "--cluster",
         default=None,

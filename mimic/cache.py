@@ -16,6 +16,8 @@ from control.artifacts import (
 
 __all__ = ["add_cache_command"]
 
+from .args import number
+
 
 def add_cache_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     cache = sub.add_parser(
@@ -41,7 +43,7 @@ def add_cache_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     clear.add_argument(
         "--older-than",
-        type=float,
+        type=number(float, 0, 36500),
         default=0.0,
         metavar="DAYS",
         help="only entries not used for this many days",

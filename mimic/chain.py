@@ -11,7 +11,7 @@ from control.motion import load_library, write_bvh
 from control.progress import step
 from control.transition import Chainer
 
-from .args import add_library_dir, library_dir
+from .args import add_library_dir, library_dir, number
 
 __all__ = ["add_chain_command"]
 
@@ -33,16 +33,21 @@ def add_chain_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     p.add_argument("actions", nargs="+", metavar="ACTION")
     add_library_dir(p, positional=False)  # ACTION... takes the positionals
     p.add_argument("--clips", action="append", metavar="PATTERN", help="only these clips")
-    p.add_argument("--fps", type=float, default=15.0)
+    p.add_argument("--fps", type=number(float, 0, 240, above=True), default=15.0)
     p.add_argument(
         "--cluster-sigmas",
-        type=float,
+        type=number(float, 0, 1000, above=True),
         default=10.0,
         help="cluster radius of the two-pass clustering, in sigmas (sketch's --radius is "
         "metres: another thing)",
     )
-    p.add_argument("--blend", type=float, default=0.5, help="junction blend, seconds")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--blend",
+        type=number(float, 0, 10, above=True),
+        default=0.5,
+        help="junction blend, seconds",
+    )
+    p.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=0)
     p.add_argument("--undirected", action="store_true", help="also play transition clips backwards")
     p.add_argument(
         "--fallback",
@@ -52,7 +57,7 @@ def add_chain_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     p.add_argument(
         "--example-cost",
-        type=float,
+        type=number(float, 0, 100, above=True),
         default=0.5,
         help="a parametric action's examples: at most this share of the library's "
         "background DTW cost (default 0.5)",

@@ -17,7 +17,15 @@ from control.graph import FrameData, MotionGraph
 from control.motion import Library, write_bvh
 from control.progress import step
 
-from .args import add_graph_args, add_library_args, blend_seconds, graph_for, start_frame
+from .args import (
+    MOST_MOTION_SECONDS,
+    add_graph_args,
+    add_library_args,
+    blend_seconds,
+    graph_for,
+    number,
+    start_frame,
+)
 
 __all__ = ["add_choose_command", "parse_ks", "read_script", "run_choice_session"]
 
@@ -171,22 +179,36 @@ def add_choose_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
     )
     add_library_args(p)
     add_graph_args(p)
-    p.add_argument("--k", type=int, help="number of clusters (default: chosen by BIC)")
+    p.add_argument(
+        "--k", type=number(int, 1, 10000), help="number of clusters (default: chosen by BIC)"
+    )
     p.add_argument("--ks", default="5:60:5", help="cluster counts BIC chooses from (5:60:5)")
     p.add_argument("--seeding", choices=("keyframes", "random"), default="keyframes")
-    p.add_argument("--bound", type=float, default=15.0, help="cluster tree time bound, s")
-    p.add_argument("--options", type=int, default=4, help="actions offered (default 4)")
+    p.add_argument(
+        "--bound",
+        type=number(float, 0, 3600, above=True),
+        default=15.0,
+        help="cluster tree time bound, s",
+    )
+    p.add_argument(
+        "--options", type=number(int, 1, 100), default=4, help="actions offered (default 4)"
+    )
     p.add_argument(
         "--lookahead",
-        type=float,
+        type=number(float, 0, 3600),
         default=6.0,
         help="offer clusters reached within this many seconds (0: the whole tree)",
     )
     p.add_argument("--region", help="only actions whose root ends in the circle X,Z,RADIUS")
-    p.add_argument("--seconds", type=float, default=120.0, help="length of the session")
+    p.add_argument(
+        "--seconds",
+        type=number(float, 0, MOST_MOTION_SECONDS, above=True),
+        default=120.0,
+        help="length of the session",
+    )
     p.add_argument("--script", help="file of choices: N, 'wait S' or 'quit' per line")
     p.add_argument("--start", help="start at CLIP:FRAME")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=0)
     p.add_argument("--out", required=True, help="BVH file to write")
     p.set_defaults(func=_choose)
 

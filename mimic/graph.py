@@ -18,7 +18,15 @@ from control.graph import (
 )
 from control.motion import write_bvh
 
-from .args import add_graph_args, add_library_args, blend_seconds, graph_for, start_frame
+from .args import (
+    MOST_MOTION_SECONDS,
+    add_graph_args,
+    add_library_args,
+    blend_seconds,
+    graph_for,
+    number,
+    start_frame,
+)
 
 __all__ = ["add_graph_commands", "format_report"]
 
@@ -50,9 +58,16 @@ def add_graph_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser])
     )
     add_library_args(walk)
     add_graph_args(walk)
-    walk.add_argument("--seconds", type=float, required=True, help="length of the walk")
+    walk.add_argument(
+        "--seconds",
+        type=number(float, 0, MOST_MOTION_SECONDS, above=True),
+        required=True,
+        help="length of the walk",
+    )
     walk.add_argument("--out", required=True, help="BVH file to write")
-    walk.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    walk.add_argument(
+        "--seed", type=number(int, 0, 2**32 - 1), default=0, help="random seed (default 0)"
+    )
     walk.add_argument("--start", help="start at CLIP:FRAME (default: a random frame)")
     walk.add_argument("--no-ik", action="store_true", help="do not keep planted feet in place")
     walk.add_argument(

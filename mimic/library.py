@@ -17,7 +17,7 @@ from control.motion import (
     load_library,
 )
 
-from .args import add_library_dir, library_dir
+from .args import add_library_dir, library_dir, number
 
 __all__ = ["add_library_commands", "library_summary"]
 
@@ -31,7 +31,12 @@ def add_library_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
         description="Load a motion library (ASF/AMC and/or BVH) and summarise it.",
     )
     add_library_dir(info)
-    info.add_argument("--fps", type=float, default=15.0, help="resample to this rate (default 15)")
+    info.add_argument(
+        "--fps",
+        type=number(float, 0, 240, above=True),
+        default=15.0,
+        help="resample to this rate (default 15)",
+    )
     info.add_argument("--mirror", action="store_true", help="add mirrored copies of every clip")
     info.add_argument(
         "--prefer",

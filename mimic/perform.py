@@ -34,6 +34,7 @@ from vision import (
     write_video,
 )
 
+from .args import number
 from .run import (
     Prepared,
     add_run_args,
@@ -55,7 +56,7 @@ def add_perform_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]
         "against the avatar's possible next actions (the silhouette bank); the best is taken.",
     )
     src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--camera", type=int, help="webcam index")
+    src.add_argument("--camera", type=number(int, 0, 1000), help="webcam index")
     src.add_argument("--video", help="a video file (colour, or a silhouette video)")
     src.add_argument("--masks", help="a folder of mask images")
     add_run_args(p)
@@ -71,7 +72,7 @@ def add_perform_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     )
     p.add_argument(
         "--live-port",
-        type=int,
+        type=number(int, 0, 65535),
         default=8765,
         help="with --camera or --realtime, a live view at http://127.0.0.1:PORT/ (0: none)",
     )

@@ -14,10 +14,7 @@ from vision import (
     record_clip,
 )
 
-from .args import (
-    add_library_dir,
-    library_dir,
-)
+from .args import MOST_SECONDS, add_library_dir, library_dir, number
 
 __all__ = ["add_record_command"]
 
@@ -33,29 +30,51 @@ def add_record_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
     r.add_argument("clip", help="clip name, e.g. 13_29")
     add_library_dir(r)
     r.add_argument("--out", required=True, help="video to write (.mkv)")
-    r.add_argument("--from", dest="start", type=float, default=0.0, help="start, seconds")
-    r.add_argument("--to", dest="stop", type=float, help="end, seconds (default: clip end)")
+    r.add_argument(
+        "--from",
+        dest="start",
+        type=number(float, 0, MOST_SECONDS),
+        default=0.0,
+        help="start, seconds",
+    )
+    r.add_argument(
+        "--to",
+        dest="stop",
+        type=number(float, 0, MOST_SECONDS, above=True),
+        help="end, seconds (default: clip end)",
+    )
     d = RecordSettings()
-    r.add_argument("--fps", type=float, default=30.0)
+    r.add_argument("--fps", type=number(float, 0, 240, above=True), default=30.0)
     r.add_argument("--size", default=f"{d.width}x{d.height}", help="WIDTHxHEIGHT")
-    r.add_argument("--body-width", type=float, default=d.body.width)
-    r.add_argument("--body-height", type=float, default=d.body.height)
+    r.add_argument("--body-width", type=number(float, 0, 10, above=True), default=d.body.width)
+    r.add_argument("--body-height", type=number(float, 0, 10, above=True), default=d.body.height)
     r.add_argument(
-        "--legs", type=float, default=d.body.legs, help="leg bones' length factor (0.5-2)"
+        "--legs",
+        type=number(float, 0.5, 2),
+        default=d.body.legs,
+        help="leg bones' length factor (0.5-2)",
     )
     r.add_argument(
-        "--arms", type=float, default=d.body.arms, help="arm bones' length factor (0.5-2)"
+        "--arms",
+        type=number(float, 0.5, 2),
+        default=d.body.arms,
+        help="arm bones' length factor (0.5-2)",
     )
-    r.add_argument("--azimuth", type=float, default=d.azimuth, help="camera azimuth, degrees")
+    r.add_argument(
+        "--azimuth",
+        type=number(float, -3600, 3600),
+        default=d.azimuth,
+        help="camera azimuth, degrees",
+    )
     r.add_argument(
         "--turn",
-        type=float,
+        type=number(float, -3600, 3600),
         default=d.turn,
         help="degrees the camera moves round the performer over the recording (90: a "
         "performer who turns from facing it to showing it their side)",
     )
-    r.add_argument("--camera-height", type=float, default=d.camera_height)
-    r.add_argument("--distance", type=float, default=d.distance)
+    r.add_argument("--camera-height", type=number(float, -100, 100), default=d.camera_height)
+    r.add_argument("--distance", type=number(float, 0, 1000, above=True), default=d.distance)
     r.add_argument("--no-noise", action="store_true", help="clean masks")
     r.add_argument(
         "--colour",
@@ -63,7 +82,7 @@ def add_record_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
         help="a colour video of the shaded body (for the pose model's landmarks) instead "
         "of silhouettes",
     )
-    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=0)
     r.set_defaults(func=_record)
 
 

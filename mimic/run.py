@@ -42,11 +42,13 @@ from vision import (
 )
 
 from .args import (
+    MOST_SECONDS,
     add_graph_args,
     add_library_args,
     blend_seconds,
     graph_options,
     library_for,
+    number,
     start_frame,
 )
 
@@ -86,9 +88,20 @@ def add_run_args(p: argparse.ArgumentParser) -> None:
         "as the avatar would float",
     )
     _add_jump_args(p)
-    p.add_argument("--seconds", type=float, help="stop after this much media time")
-    p.add_argument("--window", type=float, default=1.0, help="seconds of performer matched")
-    p.add_argument("--lookahead", type=float, default=1.5, help="candidate actions within, s")
+    p.add_argument(
+        "--seconds",
+        type=number(float, 0, MOST_SECONDS, above=True),
+        help="stop after this much media time",
+    )
+    p.add_argument(
+        "--window",
+        type=number(float, 0, 10, above=True),
+        default=1.0,
+        help="seconds of performer matched",
+    )
+    p.add_argument(
+        "--lookahead", type=number(float, 0, 60), default=1.5, help="candidate actions within, s"
+    )
     p.add_argument(
         "--segmentation",
         choices=("auto", *PERSON_METHODS, *METHODS),
@@ -97,7 +110,12 @@ def add_run_args(p: argparse.ArgumentParser) -> None:
         "no such plate, so a person segmenter (pose, needs MediaPipe) is used; the pose "
         "descriptor always uses the pose model; the rest are OpenCV background subtractors",
     )
-    p.add_argument("--learn-frames", type=int, default=30, help="frames to learn the background")
+    p.add_argument(
+        "--learn-frames",
+        type=number(int, 1, 100000),
+        default=30,
+        help="frames to learn the background",
+    )
     p.add_argument(
         "--variants",
         action="store_true",
@@ -135,9 +153,9 @@ def add_run_args(p: argparse.ArgumentParser) -> None:
         "default the pose model's person mask is matched then, against a silhouette bank "
         f"({DEFAULT_DESCRIPTOR}) of the same clips",
     )
-    p.add_argument("--k", type=int, help="number of clusters (default: BIC)")
+    p.add_argument("--k", type=number(int, 1, 10000), help="number of clusters (default: BIC)")
     p.add_argument("--start", help="avatar starts at CLIP:FRAME")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=0)
 
 
 def _add_jump_args(p: argparse.ArgumentParser) -> None:
@@ -150,13 +168,13 @@ def _add_jump_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--vote",
-        type=int,
+        type=number(int, 0, 1000),
         default=MatchSettings.vote,
         help="keep to the action the best windows of the last N decisions voted for (0: off)",
     )
     p.add_argument(
         "--vote-margin",
-        type=float,
+        type=number(float, 0, 1000, inf=True),
         default=MatchSettings.vote_margin,
         help="with the vote, a window of another action is taken when it fits better even "
         "at 1 + M times its cost, and the avatar's own motion of another action costs as "
@@ -164,14 +182,14 @@ def _add_jump_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--recency",
-        type=float,
+        type=number(float, 0, 1000),
         default=MatchSettings.recency,
         help="the matcher's DTW weighs the performer's last frame 1 + R times the first of "
         "the window, linearly between (default %(default)s; 0: every frame alike)",
     )
     p.add_argument(
         "--hold",
-        type=float,
+        type=number(float, 0, 60),
         default=MatchSettings.hold,
         metavar="SECONDS",
         help="no jump until the avatar has played this long since its last move (default "

@@ -23,12 +23,14 @@ from control.sketch import (
 )
 
 from .args import (
+    MOST_MOTION_SECONDS,
     add_graph_args,
     add_library_args,
     blend_seconds,
     graph_for,
     graph_options,
     library_for,
+    number,
     start_frame,
 )
 
@@ -58,10 +60,20 @@ def add_sketch_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
     p.add_argument("--png", help="top-down picture of sketch, obstacles and root path")
     p.add_argument("--video", help="MP4 of the avatar (shaded, camera following)")
     d = SketchSettings()
-    p.add_argument("--c", type=float, default=d.c, help=f"facing weight of eq. 8 (m, {d.c})")
-    p.add_argument("--step-frames", type=int, default=d.step_frames, help="frames per step")
-    p.add_argument("--radius", type=float, default=d.body_radius, help="obstacle clearance, m")
-    p.add_argument("--seconds", type=float, help="most motion to plan (default: from length)")
+    p.add_argument(
+        "--c", type=number(float, 0, 1000), default=d.c, help=f"facing weight of eq. 8 (m, {d.c})"
+    )
+    p.add_argument(
+        "--step-frames", type=number(int, 1, 1000), default=d.step_frames, help="frames per step"
+    )
+    p.add_argument(
+        "--radius", type=number(float, 0, 100), default=d.body_radius, help="obstacle clearance, m"
+    )
+    p.add_argument(
+        "--seconds",
+        type=number(float, 0, MOST_MOTION_SECONDS, above=True),
+        help="most motion to plan (default: from length)",
+    )
     p.add_argument("--baseline", action="store_true", help="also run without the facing term")
     p.add_argument(
         "--approach",
@@ -71,10 +83,20 @@ def add_sketch_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
         "approach, the cluster-tree action whose root path is nearest the sketch by DTW "
         "(builds the higher layer first: slower)",
     )
-    p.add_argument("--k", type=int, help="actions: number of clusters (default: by BIC)")
-    p.add_argument("--bound", type=float, default=15.0, help="actions: cluster tree bound, s")
     p.add_argument(
-        "--tree-nodes", type=int, default=4096, help="actions: most nodes per cluster tree"
+        "--k", type=number(int, 1, 10000), help="actions: number of clusters (default: by BIC)"
+    )
+    p.add_argument(
+        "--bound",
+        type=number(float, 0, 3600, above=True),
+        default=15.0,
+        help="actions: cluster tree bound, s",
+    )
+    p.add_argument(
+        "--tree-nodes",
+        type=number(int, 1, 10**8),
+        default=4096,
+        help="actions: most nodes per cluster tree",
     )
     p.add_argument("--start", help="start at CLIP:FRAME")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
