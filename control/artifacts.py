@@ -24,6 +24,7 @@ ones are removed until the cache holds at most ``$MIMIC_CACHE_MAX_GB`` (default 
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import json
 import logging
@@ -146,9 +147,24 @@ def atomic_write(path: str | Path, mode: str = "w") -> Iterator[IO[Any]]:
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):  # (a bare "[Errno 28]" named nothing)
+            raise OSError(exc.errno, disk_full(path), str(path)) from None
+        raise
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def disk_full(path: Path) -> str:
+    """What a write of ``path`` that found its disk full says: the file, and the room
+    that was left (the file needs more)."""
+    try:
+        free = f"{shutil.disk_usage(path.parent).free / 1e6:.1f} MB"
+    except OSError:
+        free = "no room"
+    return f"{path}: the disk is full: writing it needs more room than the {free} left there"
 
 
 def read_npz(
@@ -199,7 +215,13 @@ def cache_root() -> Path:
     """``$MIMIC_CACHE``, else ``$XDG_CACHE_HOME/mimic``, else ``~/.cache/mimic``."""
     env = os.environ.get(ENV_CACHE)
     if env:
-        return Path(env)
+        root = Path(env)
+        if root.exists() and not root.is_dir():
+            raise NotADirectoryError(
+                f"${ENV_CACHE}={env}: is a file, not a folder (point it at a folder, or unset "
+                "it for the default)"
+            )
+        return root
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return Path(base) / "mimic"
 

@@ -17,6 +17,7 @@ from vision import (
     truth_for,
 )
 
+from .outputs import Output, OutputSet
 from .run import (
     add_run_args,
     prepare,
@@ -49,6 +50,11 @@ def add_evaluate_command(sub: argparse._SubParsersAction[argparse.ArgumentParser
     e.set_defaults(func=_evaluate)
 
 
+def _write_report(path: Path, report: dict[str, object]) -> None:
+    with atomic_write(path) as fh:
+        fh.write(json.dumps(report, indent=1) + "\n")
+
+
 def _evaluate(args: argparse.Namespace) -> int:
     truth = truth_for(args.video, args.labels)  # bad: LabelFileError, naming the file
     if truth is None:
@@ -56,6 +62,17 @@ def _evaluate(args: argparse.Namespace) -> int:
             f"{args.video}: no ground truth (no {Path(args.video).name}.json sidecar): "
             "give --labels CSV"
         )
+    outputs = OutputSet(  # a clash or an unwritable place: said before any work
+        [
+            Output("--json", Path(args.json)),
+            Output("--png", Path(args.png)) if args.png else None,
+        ],
+        [
+            ("the video", args.video),
+            ("the sidecar of the video", f"{args.video}.json"),
+            ("--labels", args.labels),
+        ],
+    )
     source = open_source(None, args.video, None, silhouette=silhouette_flag(args))
     ready = prepare(args, source)
     try:
@@ -82,10 +99,12 @@ def _evaluate(args: argparse.Namespace) -> int:
         "match": dataclasses.asdict(ready.settings.match),
         **report,
     }
-    with atomic_write(args.json) as fh:
-        fh.write(json.dumps(report, indent=1) + "\n")
-    if args.png:
-        plot_evaluation(report, args.png, title=f"{Path(args.video).name} against {truth.source}")
+    with outputs:  # the report and its plot replaced together, or neither
+        outputs.write(outputs.outputs[0], lambda p: _write_report(p, report))
+        if args.png:
+            title = f"{Path(args.video).name} against {truth.source}"
+            outputs.write(outputs.outputs[1], lambda p: plot_evaluation(report, p, title=title))
+        outputs.commit()
     print_actions(result.decisions, ready.clips)
     best = report["best_at_lag_le_1s"]
     sw = report["switches_per_minute"]

@@ -8,7 +8,6 @@ import argparse
 import contextlib
 import itertools
 import json
-import os
 import signal
 import sys
 import threading
@@ -35,6 +34,7 @@ from vision import (
 )
 
 from .args import number
+from .outputs import Output, OutputSet
 from .run import (
     Prepared,
     add_run_args,
@@ -116,20 +116,23 @@ class StopOnSignal:
 
 
 class DecisionLog:
-    """The JSON-lines decision log, written line by line (each line flushed) to a
-    temporary file beside ``path`` and moved onto ``path`` when the run ends, stopped or
-    not: an old log is replaced only by a run that logged something, never destroyed by
-    a run that failed to start."""
+    """The JSON-lines decision log, written line by line (each line flushed) to ``path``
+    (``mimic perform``: the log's temporary file, moved into place with the run's other
+    outputs, ``mimic.outputs``). A write that fails names ``said`` (the option and the
+    path the user gave)."""
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, said: str = "") -> None:
         self.path = Path(path)
-        self._tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
-        self._fh = open(self._tmp, "w", buffering=1, encoding="utf-8")  # noqa: SIM115
+        self.said = said or str(path)
+        self._fh = open(self.path, "w", buffering=1, encoding="utf-8")  # noqa: SIM115
         self.lines = 0
 
     def write(self, text: str) -> int:
-        n = self._fh.write(text)
-        self._fh.flush()
+        try:
+            n = self._fh.write(text)
+            self._fh.flush()
+        except OSError as exc:
+            raise OSError(f"{self.said}: could not be written ({exc.strerror or exc})") from None
         self.lines += text.count("\n")
         return n
 
@@ -138,17 +141,12 @@ class DecisionLog:
 
     def __exit__(self, *exc: object) -> None:
         self._fh.close()
-        if self.lines:
-            os.replace(self._tmp, self.path)
-        else:
-            self._tmp.unlink(missing_ok=True)
 
 
-def _write_timing(out: str, result: Any, frames: int, fps: float, source: str) -> Path:
-    """``OUT.json`` beside the BVH: where its frames lie in the input's media time (a BVH
-    has no field for it), so that the avatar lines up with the input after a late start."""
-    path = Path(out).expanduser()
-    path = path.with_name(path.name + ".json")
+def _write_timing(path: Path, out: str, result: Any, frames: int, fps: float, source: str) -> None:
+    """``OUT.json`` beside the BVH ``out`` (written to ``path``): where its frames lie in
+    the input's media time (a BVH has no field for it), so that the avatar lines up with
+    the input after a late start."""
     timing = {
         "bvh": Path(out).name,
         "source": source,
@@ -161,16 +159,32 @@ def _write_timing(out: str, result: Any, frames: int, fps: float, source: str) -
     with atomic_write(path) as fh:
         json.dump(timing, fh, indent=1)
         fh.write("\n")
-    return path
+
+
+def _outputs(args: argparse.Namespace) -> OutputSet:
+    """The run's outputs, checked against each other and its inputs before any work."""
+    out = args.out
+    return OutputSet(
+        [
+            Output("--out", Path(out)) if out else None,
+            Output("--out's timing file", Path(f"{out}.json")) if out else None,
+            Output("--video-out", Path(args.video_out)) if args.video_out else None,
+            Output("--log", Path(args.log)) if args.log else None,
+        ],
+        [
+            ("--video", args.video),
+            ("the sidecar of --video", f"{args.video}.json" if args.video else None),
+            ("--labels", args.labels),
+            ("--masks", args.masks),
+        ],
+    )
 
 
 def _perform(args: argparse.Namespace) -> int:
     if args.labels and not args.video:
         raise ValueError("--labels needs --video (the labels name its file)")
     truth = truth_for(args.video, args.labels) if args.video else None  # bad: LabelFileError
-    for name in ("out", "video_out", "log"):  # outputs into a missing folder work alike
-        if getattr(args, name):
-            Path(getattr(args, name)).expanduser().parent.mkdir(parents=True, exist_ok=True)
+    outputs = _outputs(args)  # a clash or an unwritable place: said before any work
     source = open_source(
         args.camera,
         args.video,
@@ -189,19 +203,34 @@ def _perform(args: argparse.Namespace) -> int:
             "step out of view for two seconds so that the background can be learned",
             file=sys.stderr,
         )
-    result = _run(args, source, ready)
-    _summary(args, source, ready, result, truth)
+    with outputs:
+        result = _run(args, source, ready, outputs)
+        written = outputs.commit()
+    _summary(args, source, ready, result, truth, written)
+    if result.stopped and result.frames_with_media == 0:
+        print(
+            f"stopped by {result.stopped} before the first frame: nothing was performed, "
+            "nothing written",
+            file=sys.stderr,
+        )
+        return 128 + _SIGNALS[result.stopped]
     # Ctrl-C is how a camera session ends; another signal is reported as such
     return 0 if result.stopped in ("", "SIGINT") else 128 + _SIGNALS[result.stopped]
 
 
-def _run(args: argparse.Namespace, source: Any, ready: Prepared) -> Any:
+def _run(args: argparse.Namespace, source: Any, ready: Prepared, outputs: OutputSet) -> Any:
     """The performance, with its log, tape, live view and signal handling; its outputs
-    (BVH and timing, MP4) written, also after a stop."""
+    (BVH and timing, MP4, log) written to ``outputs``' temporary files, also after a
+    stop."""
     clips, graph, layer, bank = ready.clips, ready.graph, ready.layer, ready.bank
     live = args.live_port != 0 and (args.camera is not None or args.realtime)
+    log_out = outputs.find("--log")
     with contextlib.ExitStack() as stack:
-        log: Any = stack.enter_context(DecisionLog(args.log)) if args.log else None
+        log: Any = (
+            stack.enter_context(DecisionLog(outputs.stage(log_out), log_out.said()))
+            if log_out
+            else None
+        )
         tape = stack.enter_context(MaskTape(fps=graph.fps)) if args.video_out else None
         stops = stack.enter_context(StopOnSignal())
         painter = None
@@ -232,11 +261,8 @@ def _run(args: argparse.Namespace, source: Any, ready: Prepared) -> Any:
             )
         finally:
             source.close()
-        if result.frames_with_media == 0:
-            raise SourceError(
-                f"{source.name}: no frame came from the source in "
-                f"{result.media_seconds:.1f} s (a camera that does not open, or is in use?)"
-            )
+        if result.frames_with_media == 0 and not result.stopped:
+            raise SourceError(_nothing_read(args, source, result))
         warn_source(source)
         if result.stopped:
             print(
@@ -245,17 +271,59 @@ def _run(args: argparse.Namespace, source: Any, ready: Prepared) -> Any:
                 file=sys.stderr,
                 flush=True,
             )
-        if args.out:
-            motion = result.avatar.motion().motion
-            write_bvh(motion, args.out)
-            _write_timing(args.out, result, motion.n_frames, motion.fps, source.name)
-        if tape is not None:
-            write_video(result, bank, clips, args.video_out, tape)
+        if result.frames_with_media == 0:
+            return result  # stopped before the first frame: nothing to write
+        _write(args, source, ready, result, outputs, tape, log)
     return result
 
 
+def _nothing_read(args: argparse.Namespace, source: Any, result: Any) -> str:
+    """Why a source gave no frame, as its kind says."""
+    if args.camera is not None:
+        return (
+            f"{source.name}: no frame came from the camera in {result.media_seconds:.1f} s "
+            "(a camera that does not open, or is in use?)"
+        )
+    if args.masks is not None:
+        return f"{source.name}: no mask image in the folder could be read"
+    return f"{source.name}: no frame could be read from the video (is it one OpenCV reads?)"
+
+
+def _write(
+    args: argparse.Namespace,
+    source: Any,
+    ready: Prepared,
+    result: Any,
+    outputs: OutputSet,
+    tape: MaskTape | None,
+    log: DecisionLog | None,
+) -> None:
+    """The run's outputs into their temporary files (``outputs.commit`` moves them into
+    place): the BVH and its timing, the MP4, the log that was written as it went."""
+    out, timing = outputs.find("--out"), outputs.find("--out's timing file")
+    if out is not None and timing is not None:
+        motion = result.avatar.motion().motion
+        outputs.write(out, lambda p: write_bvh(motion, p))
+        outputs.write(
+            timing,
+            lambda p: _write_timing(p, args.out, result, motion.n_frames, motion.fps, source.name),
+        )
+    video = outputs.find("--video-out")
+    if video is not None and tape is not None:
+        outputs.write(video, lambda p: write_video(result, ready.bank, ready.clips, p, tape))
+    if log is not None and log.lines:  # (written as it went)
+        found = outputs.find("--log")
+        assert found is not None
+        outputs.write(found, lambda p: None)
+
+
 def _summary(
-    args: argparse.Namespace, source: Any, ready: Prepared, result: Any, truth: Truth | None
+    args: argparse.Namespace,
+    source: Any,
+    ready: Prepared,
+    result: Any,
+    truth: Truth | None,
+    written: list[Output],
 ) -> None:
     """The one summary line, what the avatar did, its agreement with the labels, and
     what was written."""
@@ -303,11 +371,11 @@ def _summary(
             f"in the log as such): {shown}",
             file=sys.stderr,
         )
-    for name in ("out", "video_out", "log"):
-        if getattr(args, name):
-            print(f"wrote {getattr(args, name)}")
-            if name == "out":
-                print(f"wrote {args.out}.json (the BVH's place in the input's media time)")
+    for out in written:  # (only what was written: a log of no decision is not)
+        print(
+            f"wrote {out.path}"
+            + (" (the BVH's place in the input's media time)" if "timing" in out.option else "")
+        )
 
 
 def _print_agreement(decisions: list[dict[str, Any]], clips: list[Any], truth: Truth) -> None:

@@ -88,6 +88,14 @@ def add_run_args(p: argparse.ArgumentParser) -> None:
         "as the avatar would float",
     )
     _add_jump_args(p)
+    _add_vision_args(p)
+    p.add_argument("--k", type=number(int, 1, 10000), help="number of clusters (default: BIC)")
+    p.add_argument("--start", help="avatar starts at CLIP:FRAME")
+    p.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=0)
+
+
+def _add_vision_args(p: argparse.ArgumentParser) -> None:
+    """The matcher's window, the segmentation, the descriptor and its bank."""
     p.add_argument(
         "--seconds",
         type=number(float, 0, MOST_SECONDS, above=True),
@@ -153,9 +161,6 @@ def add_run_args(p: argparse.ArgumentParser) -> None:
         "default the pose model's person mask is matched then, against a silhouette bank "
         f"({DEFAULT_DESCRIPTOR}) of the same clips",
     )
-    p.add_argument("--k", type=number(int, 1, 10000), help="number of clusters (default: BIC)")
-    p.add_argument("--start", help="avatar starts at CLIP:FRAME")
-    p.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=0)
 
 
 def _add_jump_args(p: argparse.ArgumentParser) -> None:

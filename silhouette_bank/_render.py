@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import errno
 import os
+import shutil
 import tempfile
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
@@ -251,6 +253,7 @@ def write_mp4(path: str | Path, frames: Iterable[NDArray[np.uint8]], fps: float)
     tmp = Path(name)
     os.chmod(tmp, 0o666 & ~current_umask())
     writer = None
+    n = 0
     try:
         for img in frames:
             if writer is None:
@@ -259,15 +262,37 @@ def write_mp4(path: str | Path, frames: Iterable[NDArray[np.uint8]], fps: float)
                 if not writer.isOpened():
                     raise OSError(f"{path}: cannot write an MP4 here")
             writer.write(img)
+            n += 1
         if writer is None:
             raise ValueError(f"{path}: no frames to write")
         writer.release()
+        _check_written(tmp, path, n)
         tmp.replace(path)
     except BaseException:
         if writer is not None:
             writer.release()
         tmp.unlink(missing_ok=True)
         raise
+
+
+def _check_written(tmp: Path, path: Path, n: int) -> None:
+    """Raise ``OSError`` unless the MP4 ``tmp`` reads back with all ``n`` frames:
+    OpenCV's writer says nothing when a frame fails (a full disk: it only prints a
+    warning, and the file it leaves has no index and plays nowhere)."""
+    import cv2
+
+    cap = cv2.VideoCapture(str(tmp))
+    try:
+        got = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else 0
+    finally:
+        cap.release()
+    if got != n:
+        full = shutil.disk_usage(tmp.parent).free < 16 * 2**20
+        raise OSError(
+            errno.ENOSPC if full else errno.EIO,
+            f"the video was not written whole ({got} of {n} frames read back)",
+            str(path),
+        )
 
 
 def render_motion_video(

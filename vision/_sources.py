@@ -179,10 +179,17 @@ class MaskFolderSource:
         pass
 
 
+#: seconds a camera may take to give its first frame (some take a few to start)
+FIRST_WAIT = 20.0
+
+
 class CameraSource:
-    """A webcam. Failures never end the stream: it yields empty frames and reopens the
-    device with back-off (``min_backoff`` seconds, doubling up to ``max_backoff``).
-    ``opener`` replaces ``cv2.VideoCapture(index)`` (tests)."""
+    """A webcam. Once it has given a frame, failures never end the stream: it yields
+    empty frames and reopens the device with back-off (``min_backoff`` seconds, doubling
+    up to ``max_backoff``): a camera unplugged for a moment is waited for. One that has
+    given no frame ``first_wait`` seconds after the start raises ``SourceError`` (no such
+    camera, or one in use: retrying that forever helped nobody). ``opener`` replaces
+    ``cv2.VideoCapture(index)`` (tests)."""
 
     def __init__(
         self,
@@ -191,6 +198,7 @@ class CameraSource:
         max_backoff: float = 8.0,
         opener: Callable[[], Any] | None = None,
         min_backoff: float = 0.5,
+        first_wait: float = FIRST_WAIT,
     ) -> None:
         self.index = index
         self.name = f"camera {index}"
@@ -204,6 +212,8 @@ class CameraSource:
         self._backoff = min_backoff
         self._retry_at = 0.0
         self.reconnects = 0
+        self.first_wait = first_wait
+        self._seen = False  # a frame came: from then on, waited for whatever happens
 
     def _connect(self) -> bool:
         now = time.monotonic()
@@ -223,6 +233,11 @@ class CameraSource:
         t = time.monotonic() - self._t0
         i = self._i
         self._i += 1
+        if not self._seen and t > self.first_wait:
+            raise SourceError(
+                f"{self.name}: no frame in {self.first_wait:g} s (no such camera, or one "
+                "in use by another program? try another --camera index)"
+            )
         if self._cap is None and not self._connect():
             time.sleep(1.0 / self.fps)
             return Frame(t, i)
@@ -233,6 +248,7 @@ class CameraSource:
             self._cap = None
             self.reconnects += 1
             return Frame(t, i)
+        self._seen = True
         return Frame(t, i, image=img)
 
     def close(self) -> None:

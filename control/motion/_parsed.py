@@ -7,6 +7,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -56,8 +57,25 @@ class Source:
     asf: Path | None  # for AMC
 
 
+def library_files(root: Path) -> list[Path]:
+    """Every file under ``root`` (symlinked folders not followed, as ``Path.rglob``).
+    A folder that cannot be read is an error naming it: ``rglob`` skipped it without a
+    word, and the library silently lacked its clips."""
+
+    def unreadable(exc: OSError) -> None:
+        raise MotionFormatError(
+            Path(exc.filename or root),
+            f"cannot read this folder of the library ({exc.strerror or exc})",
+        )
+
+    found = []
+    for folder, _, names in os.walk(root, onerror=unreadable):
+        found += [p for p in (Path(folder) / n for n in names) if p.is_file()]
+    return sorted(found)
+
+
 def discover(root: Path, prefer: str) -> list[Source]:
-    files = sorted(p for p in root.rglob("*") if p.is_file())
+    files = library_files(root)
     by_suffix: dict[str, list[Path]] = {}
     for p in files:
         by_suffix.setdefault(p.suffix.lower(), []).append(p)

@@ -196,6 +196,24 @@ def test_bad_library_inputs(tmp_path: Path, small_lib: Path) -> None:
         load_library(small_lib, use_cache=False)
 
 
+def test_a_library_folder_that_cannot_be_read_is_named(
+    small_lib: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # (a folder of mode 000 for a user; root reads it anyway, so the refusal is made here)
+    import os
+
+    real = os.scandir
+
+    def scandir(path: object) -> object:
+        if Path(str(path)).name == "bvh":
+            raise PermissionError(13, "Permission denied", str(path))
+        return real(path)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(os, "scandir", scandir)
+    with pytest.raises(MotionFormatError, match=r"bvh: cannot read this folder of the library"):
+        load_library(small_lib, use_cache=False)
+
+
 def test_label_file_errors(tmp_path: Path) -> None:
     p = tmp_path / "l.csv"
     for text, line, words in (

@@ -103,6 +103,23 @@ def test_camera_reconnects_with_backoff_and_never_ends() -> None:
     assert with_images >= 6 and cam.reconnects >= 2 and opened["n"] >= 4
 
 
+def test_a_camera_that_never_gives_a_frame_is_given_up_saying_so() -> None:
+    cam = CameraSource(7, fps=1000.0, opener=lambda: None, min_backoff=0.001, first_wait=0.05)
+    with pytest.raises(SourceError, match=r"camera 7: no frame in 0.05 s \(no such camera"):
+        for _ in range(10_000):
+            cam.read()
+    # one that has given a frame is waited for however long it is gone
+    opened = {"n": 0}
+
+    def opener() -> object:
+        opened["n"] += 1
+        return _FlakyCapture(1) if opened["n"] == 1 else None
+
+    cam = CameraSource(0, fps=1000.0, opener=opener, min_backoff=0.001, first_wait=0.01)
+    got = [cam.read() for _ in range(100)]
+    assert sum(f is not None and f.image is not None for f in got) == 1
+
+
 def _scene(t: int) -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(1)
     bg = (rng.random((120, 160, 3)) * 120 + 60).astype(np.uint8)

@@ -35,7 +35,7 @@ def _start(argv: list[str]) -> subprocess.Popen[str]:
 def _wait_for(path: Path, proc: subprocess.Popen[str], lines: int, timeout: float = 240) -> None:
     t0 = time.monotonic()
     while time.monotonic() - t0 < timeout:
-        tmp = list(path.parent.glob(f".{path.name}.*.tmp"))
+        tmp = list(path.parent.glob(f".{path.name}.*.tmp*"))
         if tmp and tmp[0].read_text().count("\n") >= lines:
             return
         if proc.poll() is not None:
@@ -70,7 +70,7 @@ def test_a_stopped_perform_writes_what_was_performed(mocap: Path, tmp_path: Path
         # was first located) up to the stop
         start = next(x["t"] for x in lines if "located" in x)
         assert motion.n_frames >= 0.9 * (lines[-1]["t"] - start) * 15
-        assert not list(out.parent.glob(".*.tmp"))
+        assert not list(out.parent.glob(".*.tmp*"))
 
 
 def test_a_failed_start_keeps_the_old_log(mocap: Path, tmp_path: Path) -> None:
@@ -78,7 +78,7 @@ def test_a_failed_start_keeps_the_old_log(mocap: Path, tmp_path: Path) -> None:
     log.write_text("an old log\n")
     argv = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "99_*"]
     assert main([*argv, "--log", str(log)]) == 2
-    assert log.read_text() == "an old log\n" and not list(tmp_path.glob(".*.tmp"))
+    assert log.read_text() == "an old log\n" and not list(tmp_path.glob(".*.tmp*"))
 
 
 def test_sigterm_during_graph_walk_leaves_no_temporary_file(mocap: Path, tmp_path: Path) -> None:

@@ -1,0 +1,186 @@
+"""The files a command writes: every one checked before any work, each written to a
+temporary file beside its place, and all moved into place together once every one is
+written.
+
+Why so: an output that named an input (``perform --video in.mkv --out in.mkv``)
+destroyed the recording and its ground truth; two outputs that named one file overwrote
+each other; an unwritable folder was found only after the whole performance, and named by
+a hidden temporary file; a run that failed half way left a new log beside the old BVH.
+Now a clash or an unwritable place is an error before the first frame that names the
+option and the path the user gave; a write that fails replaces nothing, removes its
+temporary files and says which file failed and why (a full disk: how much room was
+left). A run that is stopped (Ctrl-C) still writes its set: a stop is not a failure.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import shutil
+import tempfile
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+
+from control.artifacts import current_umask
+
+__all__ = ["Output", "OutputError", "OutputSet"]
+
+
+class OutputError(ValueError):
+    """An output that cannot be written where it is asked for, said before any work."""
+
+
+@dataclass(frozen=True)
+class Output:
+    """A file a command writes: ``option`` names it as the user did (``--out``, or
+    ``--out's timing file`` for one that comes with it), ``path`` as given."""
+
+    option: str
+    path: Path
+
+    def said(self) -> str:
+        return f"{self.option} {self.path}"
+
+
+def _identity(path: Path) -> tuple[object, ...]:
+    """What makes two names one file: its device and inode where it exists (a hard
+    link, a symlink), else its resolved path."""
+    try:
+        st = path.stat()
+    except OSError:
+        return ("path", os.path.realpath(path))
+    return ("inode", st.st_dev, st.st_ino)
+
+
+def _free_mb(folder: Path) -> str:
+    try:
+        return f"{shutil.disk_usage(folder).free / 1e6:.1f} MB"
+    except OSError:
+        return "no room"
+
+
+class OutputSet:
+    """The outputs of one run (``outputs``, ``None`` paths left out), checked against
+    each other and against its ``inputs`` (``(what, path)``: the files and folders it
+    reads, sidecars included) when made: raises ``OutputError`` naming both options of
+    a clash, or the option of a place that cannot be written.
+
+    ``write(output, fn)`` has ``fn`` write the output's temporary file; ``commit()``
+    moves every written one into place (and returns them); ``discard()`` (also on
+    leaving a ``with`` by an exception) removes the temporary files and replaces
+    nothing."""
+
+    def __init__(
+        self,
+        outputs: Sequence[Output | None],
+        inputs: Sequence[tuple[str, str | Path | None]] = (),
+    ) -> None:
+        self.outputs = [
+            Output(o.option, Path(o.path).expanduser()) for o in outputs if o is not None
+        ]
+        self._staged: dict[Output, Path] = {}
+        self._written: list[Output] = []
+        read: dict[tuple[object, ...], str] = {}
+        for what, path in inputs:
+            if path is not None:
+                read.setdefault(_identity(Path(path).expanduser()), f"{what} {path}")
+        written: dict[tuple[object, ...], str] = {}
+        for out in self.outputs:  # (clashes first: a refused run makes no folder)
+            key = _identity(out.path)
+            if key in read:
+                raise OutputError(
+                    f"{out.said()}: the same file as {read[key]}, which this run reads "
+                    "(an output never replaces an input)"
+                )
+            if key in written:
+                raise OutputError(
+                    f"{out.said()}: the same file as {written[key]} (two outputs cannot "
+                    "share a file)"
+                )
+            written[key] = out.said()
+        for out in self.outputs:
+            self._check_place(out)
+
+    @staticmethod
+    def _check_place(out: Output) -> None:
+        path = out.path
+        if path.is_dir():
+            raise OutputError(f"{out.said()}: is a folder, not a file")
+        if path.exists() and not path.is_file():
+            raise OutputError(f"{out.said()}: is not a regular file (a device or a pipe)")
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(
+                f"{out.said()}: cannot make its folder {path.parent} ({exc.strerror or exc})"
+            ) from None
+        try:  # the one reliable test of a place: writing there (a read-only mount, /proc)
+            fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".probe", dir=path.parent)
+            os.close(fd)
+            os.unlink(probe)
+        except OSError as exc:
+            raise OutputError(
+                f"{out.said()}: cannot write in {path.parent} ({exc.strerror or exc})"
+            ) from None
+
+    def find(self, option: str) -> Output | None:
+        return next((o for o in self.outputs if o.option == option), None)
+
+    def stage(self, out: Output) -> Path:
+        """A new temporary file of ``out``'s, beside it, with its suffix (a video
+        writer picks its format by it)."""
+        if out not in self._staged:
+            fd, name = tempfile.mkstemp(
+                prefix=f".{out.path.name}.", suffix=f".tmp{out.path.suffix}", dir=out.path.parent
+            )
+            os.close(fd)
+            os.chmod(name, 0o666 & ~current_umask())  # as open() would make it
+            self._staged[out] = Path(name)
+        return self._staged[out]
+
+    def write(self, out: Output, fn: Callable[[Path], object]) -> None:
+        """``fn(temporary path)`` writes ``out``; an ``OSError`` of it is said as
+        ``out``'s (the option and path given, a full disk's room left)."""
+        tmp = self.stage(out)
+        try:
+            fn(tmp)
+        except OSError as exc:
+            raise OSError(self._failed(out, exc)) from None
+        self._written.append(out)
+
+    def _failed(self, out: Output, exc: OSError) -> str:
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            return (
+                f"{out.said()}: the disk is full: it needs more room than the "
+                f"{_free_mb(out.path.parent)} left in {out.path.parent}; nothing was replaced"
+            )
+        why = exc.strerror or str(exc)
+        return f"{out.said()}: could not be written ({why}); nothing was replaced"
+
+    def commit(self) -> list[Output]:
+        """Every written output moved into place (renames in their own folders, which
+        need no room); their temporary files of any not written removed."""
+        for out in self._written:
+            os.replace(self._staged.pop(out), out.path)
+        done, self._written = self._written, []
+        self.discard()
+        return done
+
+    def discard(self) -> None:
+        for tmp in self._staged.values():
+            tmp.unlink(missing_ok=True)
+        self._staged.clear()
+        self._written = []
+
+    def __enter__(self) -> OutputSet:
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.discard()  # (after a commit there is nothing left to remove)
