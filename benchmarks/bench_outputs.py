@@ -33,69 +33,116 @@ from benchmarks._report import machine, save
 REPO = Path(__file__).resolve().parents[1]
 RECORDING = REPO / "recordings" / "13_29_first12s_160x120.mkv"
 
-#: name -> (argv after ``mimic``, the patch the child makes first, whether it must fail)
+#: name -> (argv after ``mimic``, the patch the child makes first, whether it must fail,
+#: what its message must say: the option named, what happened)
 PERFORM = ["perform", "--video", "in.mkv", "--clips", "13_30", "--k", "12"]
-CASES: dict[str, tuple[list[str], str, bool]] = {
-    "--out over the input video": ([*PERFORM, "--out", "in.mkv"], "", True),
-    "--log over the input video": ([*PERFORM, "--log", "in.mkv"], "", True),
-    "--video-out over the input video": ([*PERFORM, "--video-out", "in.mkv"], "", True),
-    "--log over the input's sidecar": ([*PERFORM, "--log", "in.mkv.json"], "", True),
-    "--out and --log the same file": ([*PERFORM, "--out", "s.x", "--log", "s.x"], "", True),
+SET = ["--seconds", "3", "--out", "a.bvh", "--log", "a.jsonl"]
+WALK = ["graph", "walk", "--clips", "13_30", "--out", "w.bvh", "--seconds"]
+CASES: dict[str, tuple[list[str], str, bool, str]] = {
+    "--out over the input video": (
+        [*PERFORM, "--out", "in.mkv"],
+        "",
+        True,
+        "--out in.mkv: the same file as --video",
+    ),
+    "--log over the input video": (
+        [*PERFORM, "--log", "in.mkv"],
+        "",
+        True,
+        "--log in.mkv: the same file as --video",
+    ),
+    "--video-out over the input video": (
+        [*PERFORM, "--video-out", "in.mkv"],
+        "",
+        True,
+        "--video-out in.mkv: the same file as --video",
+    ),
+    "--log over the input's sidecar": (
+        [*PERFORM, "--log", "in.mkv.json"],
+        "",
+        True,
+        "--log in.mkv.json: the same file as --video's sidecar",
+    ),
+    "--out and --log the same file": (
+        [*PERFORM, "--out", "s.x", "--log", "s.x"],
+        "",
+        True,
+        "--log s.x: the same file as --out s.x",
+    ),
     "--log over --out's timing file": (
         [*PERFORM, "--out", "c.bvh", "--log", "c.bvh.json"],
         "",
         True,
+        "the same file as --out's timing file",
     ),
-    "--out in /proc": ([*PERFORM, "--out", "/proc/x.bvh"], "", True),
-    "--out a folder": ([*PERFORM, "--out", "."], "", True),
+    "--out in /proc": (
+        [*PERFORM, "--out", "/proc/x.bvh"],
+        "",
+        True,
+        "--out /proc/x.bvh: cannot write",
+    ),
+    "--out a folder": ([*PERFORM, "--out", "."], "", True, "--out .: is a folder"),
     "--video-out whose frames fail to write": (
-        [*PERFORM, "--seconds", "3", "--out", "a.bvh", "--video-out", "a.mp4", "--log", "a.jsonl"],
+        [*PERFORM, *SET, "--video-out", "a.mp4"],
         "drop_frames",
         True,
+        "--video-out a.mp4: could not be written",
     ),
     "a full disk writing --out": (
-        [*PERFORM, "--seconds", "3", "--out", "a.bvh", "--log", "a.jsonl"],
+        [*PERFORM, *SET],
         "full_disk",
         True,
+        "--out a.bvh: the disk is full",
     ),
     "a PNG named .mp4, with --log": (
         [*PERFORM[:2], "p.mp4", *PERFORM[3:], "--log", "r.jsonl"],
         "",
         False,
+        "0 decisions",
     ),
-    "--live-port 70000": ([*PERFORM, "--live-port", "70000", "--realtime"], "", True),
-    "--live-port -5": ([*PERFORM, "--live-port", "-5", "--realtime"], "", True),
-    "graph walk --seconds inf": (
-        ["graph", "walk", "--clips", "13_30", "--seconds", "inf", "--out", "w.bvh"],
+    "--live-port 70000": (
+        [*PERFORM, "--live-port", "70000", "--realtime"],
         "",
         True,
+        "argument --live-port",
     ),
-    "graph walk --seconds 1e12": (
-        ["graph", "walk", "--clips", "13_30", "--seconds", "1e12", "--out", "w.bvh"],
+    "--live-port -5": (
+        [*PERFORM, "--live-port", "-5", "--realtime"],
         "",
         True,
+        "argument --live-port",
     ),
-    "perform --seconds nan": ([*PERFORM, "--seconds", "nan"], "", True),
-    "perform --seconds -1": ([*PERFORM, "--seconds", "-1"], "", True),
-    "perform --window 0": ([*PERFORM, "--window", "0"], "", True),
-    "perform --window -1": ([*PERFORM, "--window", "-1"], "", True),
-    "perform --window nan": ([*PERFORM, "--window", "nan"], "", True),
-    "perform --lookahead -1": ([*PERFORM, "--lookahead", "-1"], "", True),
+    "graph walk --seconds inf": ([*WALK, "inf"], "", True, "argument --seconds"),
+    "graph walk --seconds 1e12": ([*WALK, "1e12"], "", True, "argument --seconds"),
+    "perform --seconds nan": ([*PERFORM, "--seconds", "nan"], "", True, "argument --seconds"),
+    "perform --seconds -1": ([*PERFORM, "--seconds", "-1"], "", True, "argument --seconds"),
+    "perform --window 0": ([*PERFORM, "--window", "0"], "", True, "argument --window"),
+    "perform --window -1": ([*PERFORM, "--window", "-1"], "", True, "argument --window"),
+    "perform --window nan": ([*PERFORM, "--window", "nan"], "", True, "argument --window"),
+    "perform --lookahead -1": ([*PERFORM, "--lookahead", "-1"], "", True, "argument --lookahead"),
     "--masks of unreadable images": (
         ["perform", "--masks", "masks", "--clips", "13_30", "--k", "12"],
         "",
         True,
+        "no mask image in the folder could be read",
     ),
     "Ctrl-C before the first frame": (
         [*PERFORM, "--out", "a.bvh", "--log", "a.jsonl"],
         "stop_at_once",
         True,
+        "stopped by SIGINT before the first frame",
     ),
-    "$MIMIC_CACHE a regular file": (["graph", "build", "--clips", "13_30"], "cache_file", True),
+    "$MIMIC_CACHE a regular file": (
+        ["graph", "build", "--clips", "13_30"],
+        "cache_file",
+        True,
+        "is a file, not a folder",
+    ),
     "--camera 7 (no such camera)": (
         ["perform", "--camera", "7", "--clips", "13_30", "--k", "12", "--live-port", "0"],
         "",
         True,
+        "camera 7: no frame in 20 s",
     ),
 }
 
@@ -160,7 +207,7 @@ def _prepare(folder: Path) -> None:
 
 
 def run_case(name: str, code: Path, library: str, timeout: float) -> dict[str, Any]:
-    argv, patch, must_fail = CASES[name]
+    argv, patch, must_fail, says = CASES[name]
     with tempfile.TemporaryDirectory(prefix="mimic-outputs-") as tmp:
         folder = Path(tmp)
         _prepare(folder)
@@ -189,6 +236,7 @@ def run_case(name: str, code: Path, library: str, timeout: float) -> dict[str, A
         seconds = time.perf_counter() - t0
         after = _sums(folder)
     lines = [x for x in err.splitlines() if x.strip()]
+    said_so = says in err or says in out
     changed = sorted(k for k in before if k in after and before[k] != after[k])
     made = sorted(k for k in after if k not in before and not k.startswith("cache/"))
     removed = sorted(k for k in before if k not in after)
@@ -197,6 +245,8 @@ def run_case(name: str, code: Path, library: str, timeout: float) -> dict[str, A
     inputs_kept = all(before[k] == after.get(k) for k in ("in.mkv", "in.mkv.json"))
     # a run that fails must leave the previous run's files as they were: all or nothing
     partial = must_fail and bool(changed or made or removed)
+    # an error must name what the user named, not a hidden temporary file
+    hidden = must_fail and ".tmp" in (lines[-1] if lines else "")
     failed = (
         "Traceback" in err
         or not inputs_kept
@@ -204,6 +254,8 @@ def run_case(name: str, code: Path, library: str, timeout: float) -> dict[str, A
         or rc is None
         or (must_fail and rc == 0)
         or partial
+        or hidden
+        or not said_so
     )
     return {
         "case": name,
@@ -217,6 +269,8 @@ def run_case(name: str, code: Path, library: str, timeout: float) -> dict[str, A
         "removed": removed,
         "said_wrote_but_no_file": claimed,
         "failed_but_changed_files": partial,
+        "names_a_temporary_file": hidden,
+        "says_what_happened": said_so,
         "traceback": "Traceback" in err,
         "failure": failed,
     }

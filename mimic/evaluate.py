@@ -69,7 +69,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         ],
         [
             ("the video", args.video),
-            ("the sidecar of the video", f"{args.video}.json"),
+            ("the video's sidecar", f"{args.video}.json"),
             ("--labels", args.labels),
         ],
     )

@@ -173,7 +173,7 @@ def _outputs(args: argparse.Namespace) -> OutputSet:
         ],
         [
             ("--video", args.video),
-            ("the sidecar of --video", f"{args.video}.json" if args.video else None),
+            ("--video's sidecar", f"{args.video}.json" if args.video else None),
             ("--labels", args.labels),
             ("--masks", args.masks),
         ],
