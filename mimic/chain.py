@@ -12,6 +12,7 @@ from control.progress import step
 from control.transition import Chainer
 
 from .args import add_library_dir, library_dir, number
+from .outputs import check_outputs
 
 __all__ = ["add_chain_command"]
 
@@ -68,6 +69,7 @@ def add_chain_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def _chain(args: argparse.Namespace) -> int:
+    check_outputs(args, ["--out", "--video"])
     library = load_library(library_dir(args), fps=args.fps, clips=args.clips)
     t0 = time.perf_counter()
     with step("action clusters and transitions (two-pass clustering)"):

@@ -26,6 +26,7 @@ from .args import (
     number,
     start_frame,
 )
+from .outputs import check_outputs
 
 __all__ = ["add_choose_command", "parse_ks", "read_script", "run_choice_session"]
 
@@ -214,6 +215,7 @@ def add_choose_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
 
 
 def _choose(args: argparse.Namespace) -> int:
+    check_outputs(args, ["--out"], ["--script"])
     if args.script and not Path(args.script).is_file():
         raise FileNotFoundError(f"no script file {args.script}")
     if args.script:

@@ -27,6 +27,7 @@ from .args import (
     number,
     start_frame,
 )
+from .outputs import check_outputs
 
 __all__ = ["add_graph_commands", "format_report"]
 
@@ -94,6 +95,7 @@ def format_report(report: dict[str, Any]) -> str:
 
 
 def _graph_build(args: argparse.Namespace) -> int:
+    check_outputs(args, ["--out"])  # before minutes of building
     _, graph, path, built = graph_for(args)
     if args.out:
         save_graph(graph, args.out)
@@ -117,6 +119,7 @@ def _graph_build(args: argparse.Namespace) -> int:
 
 
 def _graph_walk(args: argparse.Namespace) -> int:
+    check_outputs(args, ["--out"])
     if not args.seconds > 0:
         raise ValueError("--seconds must be positive")
     library, graph, path, _ = graph_for(args)

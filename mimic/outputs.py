@@ -25,7 +25,7 @@ from types import TracebackType
 
 from control.artifacts import current_umask
 
-__all__ = ["Output", "OutputError", "OutputSet"]
+__all__ = ["Output", "OutputError", "OutputSet", "check_outputs"]
 
 
 class OutputError(ValueError):
@@ -184,3 +184,25 @@ class OutputSet:
         tb: TracebackType | None,
     ) -> None:
         self.discard()  # (after a commit there is nothing left to remove)
+
+
+def check_outputs(
+    args: object,
+    options: Sequence[str],
+    inputs: Sequence[str] = (),
+    also: Sequence[tuple[str, str]] = (),
+) -> OutputSet:
+    """The outputs named by ``args``' ``options`` (``"--out"``: ``args.out``; unset
+    ones left out) and ``also`` (``(what, path)``: a file one of them brings, such as a
+    recording's sidecar), checked against each other and the inputs named by ``inputs``,
+    before a command does any work (``OutputError``). The commands that write one file,
+    or files that need not agree, write each atomically themselves; the set is returned
+    for those that replace theirs together."""
+
+    def value(option: str) -> str | None:
+        got = getattr(args, option.lstrip("-").replace("-", "_"), None)
+        return str(got) if got is not None else None
+
+    outs = [Output(o, Path(v)) for o in options if (v := value(o)) is not None]
+    outs += [Output(what, Path(path)) for what, path in also]
+    return OutputSet(outs, [(o, value(o)) for o in inputs])

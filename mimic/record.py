@@ -15,6 +15,7 @@ from vision import (
 )
 
 from .args import MOST_SECONDS, add_library_dir, library_dir, number
+from .outputs import check_outputs
 
 __all__ = ["add_record_command"]
 
@@ -87,6 +88,7 @@ def add_record_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
 
 
 def _record(args: argparse.Namespace) -> int:
+    check_outputs(args, ["--out"], also=[("--out's sidecar", f"{args.out}.json")])
     try:
         w, h = (int(v) for v in args.size.lower().split("x"))
     except ValueError as exc:

@@ -33,6 +33,7 @@ from .args import (
     number,
     start_frame,
 )
+from .outputs import check_outputs
 
 __all__ = ["add_sketch_command"]
 
@@ -104,6 +105,7 @@ def add_sketch_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
 
 
 def _sketch(args: argparse.Namespace) -> int:
+    check_outputs(args, ["--out", "--png", "--video"], ["--path", "--env"])
     sketch = read_sketch(args.path)  # bad input is reported before any work
     env = read_environment(args.env) if args.env else None
     if env is not None and np.any(env.clearance(sketch[:1]) < 0):

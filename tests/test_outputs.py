@@ -255,3 +255,28 @@ def test_a_cache_that_is_a_file_is_said(
     assert main(["graph", "build", str(mocap), "--clips", "13_30"]) == 2
     err = capsys.readouterr().err
     assert f"$MIMIC_CACHE={tmp_path / 'cache'}: is a file, not a folder" in err
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["graph", "walk", "--seconds", "2", "--out", "{d}"], "--out {d}: is a folder"),
+        (["graph", "build", "--out", "/proc/g.npz"], "--out /proc/g.npz: cannot write in /proc"),
+        (["chain", "02_01", "--out", "{d}/c.bvh", "--video", "{d}/c.bvh"], "two outputs"),
+        (
+            ["sketch", "--path", "{d}/p.json", "--out", "{d}/p.json"],
+            "--out {d}/p.json: the same file as --path",
+        ),
+        (["choose", "--script", "{d}/p.json", "--out", "{d}/p.json"], "the same file as --script"),
+        (["record", "13_29", "--out", "/proc/r.mkv"], "--out /proc/r.mkv: cannot write"),
+    ],
+)
+def test_every_command_checks_its_outputs_first(
+    mocap: Path, tmp_path: Path, argv: list[str], said: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "p.json").write_text("the input")
+    argv = [a.format(d=tmp_path) for a in argv]
+    assert main([*argv, "--library", str(mocap)]) == 2
+    err = capsys.readouterr().err
+    assert said.format(d=tmp_path) in err and "motion library" not in err
+    assert (tmp_path / "p.json").read_text() == "the input"
