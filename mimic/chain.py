@@ -69,7 +69,7 @@ def add_chain_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def _chain(args: argparse.Namespace) -> int:
-    check_outputs(args, ["--out", "--video"])
+    outputs = check_outputs(args, ["--out", "--video"])
     library = load_library(library_dir(args), fps=args.fps, clips=args.clips)
     t0 = time.perf_counter()
     with step("action clusters and transitions (two-pass clustering)"):
@@ -85,11 +85,15 @@ def _chain(args: argparse.Namespace) -> int:
     t1 = time.perf_counter()
     result = chainer.chain(args.actions)
     t2 = time.perf_counter()
-    write_bvh(result.motion, args.out)
-    if args.video:
-        from silhouette_bank import render_motion_video
+    with outputs:  # the BVH and its video replaced together, or neither
+        out, video = outputs.find("--out"), outputs.find("--video")
+        assert out is not None
+        outputs.write(out, lambda p: write_bvh(result.motion, p))
+        if video is not None:
+            from silhouette_bank import render_motion_video
 
-        render_motion_video(result.motion, args.video)
+            outputs.write(video, lambda p: render_motion_video(result.motion, p))
+        outputs.commit()
     pieces = ", ".join(f"{name}@{start / chainer.fps:.1f}s" for name, start in result.pieces)
     print(
         f"wrote {args.out}: {result.motion.n_frames / chainer.fps:.1f} s ({pieces}); "

@@ -105,7 +105,7 @@ def add_sketch_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
 
 
 def _sketch(args: argparse.Namespace) -> int:
-    check_outputs(args, ["--out", "--png", "--video"], ["--path", "--env"])
+    outputs = check_outputs(args, ["--out", "--png", "--video"], ["--path", "--env"])
     sketch = read_sketch(args.path)  # bad input is reported before any work
     env = read_environment(args.env) if args.env else None
     if env is not None and np.any(env.clearance(sketch[:1]) < 0):
@@ -158,17 +158,22 @@ def _sketch(args: argparse.Namespace) -> int:
     first = plan[0][0]
     main = runs[first]
     syn = main.motion(blend=blend_seconds(args) if args.blend is not None else None)
-    write_bvh(syn.motion, args.out)
     if captured is not None:
         summary[first]["terrain"] = main.terrain_report(syn)
-    if args.png:
-        draw_top_down(args.png, sketch, env, {k: v.root_path() for k, v in runs.items()})
-    if args.video:
-        from silhouette_bank import render_motion_video
+    with outputs:  # the BVH, its picture and its video replaced together, or none
+        out, png, video = (outputs.find(o) for o in ("--out", "--png", "--video"))
+        assert out is not None
+        outputs.write(out, lambda p: write_bvh(syn.motion, p))
+        if png is not None:
+            roots = {k: v.root_path() for k, v in runs.items()}
+            outputs.write(png, lambda p: draw_top_down(p, sketch, env, roots))
+        if video is not None:
+            from silhouette_bank import render_motion_video
 
-        rise = main.captured.rise if main.captured is not None else 0.0
-        scenery = environment_mesh(env, rise) if env is not None else None
-        render_motion_video(syn.motion, args.video, scenery=scenery)
+            rise = main.captured.rise if main.captured is not None else 0.0
+            scenery = environment_mesh(env, rise) if env is not None else None
+            outputs.write(video, lambda p: render_motion_video(syn.motion, p, scenery=scenery))
+        outputs.commit()
     if args.json:
         print(json.dumps({"out": str(args.out), **summary}, indent=2))
     else:
