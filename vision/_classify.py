@@ -39,6 +39,7 @@ __all__ = [
     "WEIGHT",
     "ActionClassifier",
     "ClassifierFileError",
+    "action_scores",
     "cached_action_classifier",
     "choose_action",
     "voted_action",
@@ -165,13 +166,42 @@ def voted_action(
     them) and ``classifier``; ``None`` without a classifier (the best window's action
     then) or without a window. ``n_actions``: ``actions.max() + 1``, if the caller
     has it."""
+    scores = action_scores(ranked, actions, length, classifier, queries, n_actions)
+    if scores is None or not np.isfinite(scores).any():
+        return None
+    return int(np.argmin(scores))
+
+
+def action_scores(
+    ranked: list[tuple[IntArray, IntArray, FloatArray]],
+    actions: IntArray,
+    length: int,
+    classifier: ActionClassifier | None,
+    queries: list[FloatArray],
+    n_actions: int = 0,
+) -> FloatArray | None:
+    """Each action's score at this decision (``choose_action``'s, lower is better; inf:
+    no window of it among the ranked short lists); ``None`` without a classifier or a
+    window."""
     if classifier is None or not ranked:
         return None
     cost = np.full(n_actions or int(actions.max()) + 1, np.inf)
     for s, _, c in ranked:
         np.minimum.at(cost, actions[np.minimum(s + length - 1, actions.size - 1)], c)
-    a = choose_action(cost, classifier.log_proba(queries, cost.size))
-    return a if a >= 0 else None
+    return action_score(cost, classifier.log_proba(queries, cost.size))
+
+
+def action_score(
+    costs: FloatArray, log_proba: FloatArray | None, weight: float = WEIGHT
+) -> FloatArray:
+    """``costs[a] / min(costs) - weight * log_proba[a]`` (inf where ``costs`` is)."""
+    ok = np.isfinite(costs)
+    if not ok.any():
+        return np.full(costs.shape, np.inf)
+    best = max(float(costs[ok].min()), 1e-12)
+    if log_proba is None or weight <= 0:
+        return np.where(ok, costs / best, np.inf)
+    return np.where(ok, costs / best - weight * log_proba, np.inf)
 
 
 def choose_action(costs: FloatArray, log_proba: FloatArray | None, weight: float = WEIGHT) -> int:

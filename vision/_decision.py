@@ -104,6 +104,15 @@ class MatchSettings:
     #: silhouettes' 0.909 / 0.900 / 0.883 / 0.854, 0.657 / 0.671 / 0.684 / 0.703; the
     #: shared squat clip, the one real performer, 0.872 / 0.872 / 0.949 / 0.923
     vote_margin: float = 0.2
+    #: > 0: the voted action is filtered online by a hidden Markov model over the
+    #: library's actions (``ActionVote.filter``) rather than counted over the last
+    #: ``vote`` decisions: the chance per decision that the performer changes action,
+    #: and the temperature that turns each decision's action scores into evidence
+    vote_switch: float = 0.0
+    vote_temperature: float = 0.1
+    #: with ``vote_switch``: the fewest decision points an action, once voted in, is
+    #: kept (1: a plain hidden Markov model)
+    vote_min_stay: int = 1
     #: each decision's vote goes to the action the library's action classifier and the
     #: search's costs agree on (``vision._classify``), not the best window's alone
     classify: bool = True
@@ -164,6 +173,10 @@ class MatchSettings:
             raise ValueError(f"facing must be >= 0 (0: off), got {self.facing}")
         if not (math.isfinite(self.recency) and self.recency >= 0):
             raise ValueError(f"recency must be a finite number >= 0 (0: off), got {self.recency}")
+        if not 0.0 <= self.vote_switch < 1.0:
+            raise ValueError(f"vote_switch must lie in [0, 1), got {self.vote_switch}")
+        if not (self.vote_temperature > 0 and math.isfinite(self.vote_temperature)):
+            raise ValueError(f"vote_temperature must be positive, got {self.vote_temperature}")
         if not self.vote_margin >= 0:
             raise ValueError(f"vote_margin must be >= 0 (inf: strict), got {self.vote_margin}")
         if self.vote < 0:

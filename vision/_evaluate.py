@@ -135,6 +135,8 @@ def evaluation(
             ),
         },
         "decision_points": decision_points(decisions),
+        # what a viewer compares: the performer's action and the avatar's, on one time axis
+        "timeline": {"t": [round(x, 3) for x in at], "performer": theirs, "avatar": mine},
         "latency_ms": {
             "p50": round(float(np.percentile(lat, 50)), 3) if lat.size else None,
             "p99": round(float(np.percentile(lat, 99)), 3) if lat.size else None,
@@ -144,15 +146,54 @@ def evaluation(
     }
 
 
+def _timeline(ax: Any, timeline: dict[str, list[Any]] | None) -> None:
+    """Two rows of coloured spans, the performer's actions over the avatar's, one colour
+    an action: where they differ, and for how long, shows at a glance."""
+    if not timeline or not timeline["t"]:
+        ax.set_axis_off()
+        return
+    t = timeline["t"]
+    step = float(np.median(np.diff(t))) if len(t) > 1 else 0.1
+    names = sorted({x for k in ("performer", "avatar") for x in timeline[k] if x})
+    colours = {n: _colour(i) for i, n in enumerate(names)}
+    for row, key in ((1, "performer"), (0, "avatar")):
+        for label, group in itertools.groupby(zip(t, timeline[key], strict=True), lambda p: p[1]):
+            span = list(group)
+            if label:
+                start, end = span[0][0], span[-1][0] + step
+                ax.broken_barh([(start, end - start)], (row - 0.4, 0.8), color=colours[label])
+    ax.set_yticks([0, 1], ["avatar", "performer"])
+    ax.set(xlabel="media time (s)", xlim=(t[0], t[-1] + step), title="actions over time")
+    handles = [_patch(colours[n], n) for n in names]
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=7)
+
+
+def _colour(i: int) -> Any:
+    """The ``i``-th of 20 distinct colours (matplotlib's tab20)."""
+    from matplotlib import colormaps
+
+    return colormaps["tab20"](i % 20)
+
+
+def _patch(colour: Any, name: str) -> Any:
+    from matplotlib.patches import Patch
+
+    return Patch(color=colour, label=name)
+
+
 def plot_evaluation(report: dict[str, Any], path: str | Path, title: str = "") -> None:
-    """Agreement against lag (left) and the confusion matrix at the best lag (right),
-    as a PNG written through a temporary file."""
+    """Agreement against lag (top left), the confusion matrix at the best lag (top
+    right) and the performer's and the avatar's actions on one time axis (below), as a
+    PNG written through a temporary file."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (ax, cm) = plt.subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [1, 1.2]})
+    fig = plt.figure(figsize=(12, 7.2))
+    grid = fig.add_gridspec(2, 2, width_ratios=[1, 1.2], height_ratios=[2, 1])
+    ax, cm = fig.add_subplot(grid[0, 0]), fig.add_subplot(grid[0, 1])
+    _timeline(fig.add_subplot(grid[1, :]), report.get("timeline"))
     for key, name in (
         ("agreement_known_actions_by_lag_s", "actions the library has"),
         ("agreement_by_lag_s", "every labelled decision"),
@@ -176,7 +217,7 @@ def plot_evaluation(report: dict[str, Any], path: str | Path, title: str = "") -
     cm.set_yticks(range(len(rows)), rows, fontsize=8)
     for (i, j), v in np.ndenumerate(m):
         if v:
-            cm.text(j, i, int(v), ha="center", va="center", fontsize=7)
+            cm.text(j, i, str(int(v)), ha="center", va="center", fontsize=7)
     lag = report.get("best_lag_s")
     cm.set(xlabel="avatar", ylabel="performer", title=f"confusion at lag {lag} s")
     if title:

@@ -33,7 +33,7 @@ from control.clusters import HigherLayer
 from control.dtw import ShapeTable, dtw_batch, dtw_windows
 from silhouette_bank import Bank
 
-from ._classify import ActionClassifier, cached_action_classifier, voted_action
+from ._classify import ActionClassifier, action_scores, cached_action_classifier
 from ._decision import Decision, MatchSettings
 from ._facing import Facing
 from ._index import WindowIndex, best_of, cached_window_index
@@ -120,7 +120,10 @@ class Matcher(CandidatePaths, Landing):
         self.last_own = float("inf")
         d_max = layer.graph.report.get("max_distance") if layer.graph.report else None
         self.d_max = float(d_max) if d_max else 1.0
-        self.vote = ActionVote(self.settings.vote, self.n // 2)  # (actions: the caller's)
+        st = self.settings  # (the vote's actions: the caller's)
+        self.vote = ActionVote(
+            st.vote, self.n // 2, st.vote_switch, st.vote_temperature, st.vote_min_stay
+        )
         self.facing: Facing | None = None  # (``Landing``; the caller's: ``Performance``)
 
     def _check(self, performer: FloatArray) -> None:
@@ -325,7 +328,7 @@ class Matcher(CandidatePaths, Landing):
             ranked[:] = self.facing.weigh(ranked, recost=self._plain_cost(queries))
             got = best_of(ranked, st.top)
         target, ok, there = self._targets(frame, got, costs, queries)
-        voted = self.vote.cast(target, self._choice(queries, ranked, performer))
+        voted = self.vote.cast(target, *self._choice(queries, ranked, performer))
         at = [g[2] for g, t in zip(got, there, strict=True) if t]
         gated = self._gated(frame, queries, ranked, costs, (got, target, ok, there), voted)
         got, target, ok, weight, own_weight = gated
@@ -394,11 +397,12 @@ class Matcher(CandidatePaths, Landing):
         queries: list[FloatArray],
         ranked: list[tuple[IntArray, IntArray, FloatArray]],
         performer: FloatArray,
-    ) -> int | None:
-        """The action this decision votes for (``voted_action``), the performer's
-        features read at ``settings.tempos`` too; ``None``: the best window's."""
+    ) -> tuple[int | None, FloatArray | None]:
+        """The action this decision votes for (``voted_action``; ``None``: the best
+        window's) and every action's score (``action_scores``), the performer's features
+        read at ``settings.tempos`` too."""
         if self.vote.actions is None or self.vote.size <= 0:
-            return None
+            return None, None
         st = self.settings
         args = (self.desc, self.mean, self.proj, st.centre_weight)
         extra = tempo_readings(performer, self.n, st.tempos, queries[0].shape[0], *args)
@@ -407,7 +411,10 @@ class Matcher(CandidatePaths, Landing):
             self.index().search(extra, st.band, st.top, ranked=ranked, recency=st.recency)
         clf = self.classifier()
         n = self._classifier[1] if self._classifier else 0
-        return voted_action(ranked, self.vote.actions, self.n, clf, queries + extra, n)
+        scores = action_scores(ranked, self.vote.actions, self.n, clf, queries + extra, n)
+        if scores is None or not np.isfinite(scores).any():
+            return None, None
+        return int(np.argmin(scores)), scores
 
     def warm_up(self, frame: int, recent: IntArray, jump_costs: JumpCosts) -> None:
         """One throwaway decision from the avatar at ``frame`` on a window of the library

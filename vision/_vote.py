@@ -38,8 +38,18 @@ class ActionVote:
     """The vote over the last ``size`` decisions (0: none); a window counts for its action
     only when it still shows it ``span`` frames on."""
 
-    def __init__(self, size: int, span: int) -> None:
+    def __init__(
+        self,
+        size: int,
+        span: int,
+        switch: float = 0.0,
+        temperature: float = 0.1,
+        min_stay: int = 1,
+    ) -> None:
         self.size, self.span = size, span
+        #: > 0: ``filter`` decides the voted action (``MatchSettings.vote_switch``)
+        self.switch, self.temperature, self.min_stay = switch, temperature, max(1, min_stay)
+        self._belief: NDArray[np.float64] | None = None
         #: the action of every graph frame (``vision.action_keys``); ``None``: the library
         #: names no actions, and nothing is voted
         self.actions: IntArray | None = None
@@ -57,7 +67,41 @@ class ActionVote:
         self.missed = 0
         self._starts: tuple[tuple[int, int, int], NDArray[np.bool_]] | None = None
 
-    def cast(self, target: IntArray, choice: int | None = None) -> NDArray[np.bool_] | None:
+    def filter(self, scores: NDArray[np.float64]) -> None:
+        """One step of the forward filter of a hidden semi-Markov model over the actions:
+        an action once entered lasts at least ``min_stay`` decision points (a chain of
+        that many states, each passed in one step), then changes with the chance
+        ``switch`` per point (for the points skipped too); each decision's evidence is
+        ``exp(-(score - best) / temperature)``. The voted action is the most believed. A
+        switch needs evidence that outweighs its prior cost, so one odd decision moves
+        nothing, and a new action is not left within ``min_stay`` points."""
+        k, m = scores.size, self.min_stay
+        if self._belief is None or self._belief.shape != (k, m):
+            self._belief = np.full((k, m), 1.0 / (k * m))
+        p = self._belief
+        for _ in range(1 + self.missed):
+            last = p[:, -1]
+            leave = self.switch * last
+            moved = np.zeros_like(p)
+            moved[:, 1:] = p[:, :-1]  # (m == 1: nothing moves along a chain)
+            moved[:, -1] += last - leave
+            moved[:, 0] += (leave.sum() - leave) / max(k - 1, 1)
+            p = moved
+        ok = np.isfinite(scores)
+        if ok.any():
+            gap = np.where(ok, scores - scores[ok].min(), np.inf)
+            p = p * np.exp(-np.minimum(gap / self.temperature, 50.0))[:, None]
+        p = p / p.sum()
+        self._belief = p
+        self.missed = 0
+        self.voted = int(np.argmax(p.sum(axis=1)))
+
+    def cast(
+        self,
+        target: IntArray,
+        choice: int | None = None,
+        scores: NDArray[np.float64] | None = None,
+    ) -> NDArray[np.bool_] | None:
         """The decision's vote (``choice``, an action; by default the best window's:
         ``target`` holds the frames after the best windows, best first), and which of
         them show the action most voted for and still show it ``span`` frames on
@@ -66,6 +110,9 @@ class ActionVote:
         ``quick`` votes are all for another."""
         if self.actions is None or self.size <= 0:
             return None
+        if self.switch > 0 and scores is not None:
+            self.filter(scores)
+            return self.gate(target)
         best = choice
         if best is None:
             best = int(self.actions[min(max(int(target[0]), 0), self.actions.size - 1)])

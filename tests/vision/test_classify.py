@@ -135,12 +135,13 @@ def test_the_matchers_vote_goes_to_the_classifiers_choice(setup) -> None:
     m.index().search(
         queries, m.settings.band, m.settings.top, ranked=ranked, recency=m.settings.recency
     )
-    choice = m._choice(queries, ranked, x)
+    choice, scores = m._choice(queries, ranked, x)
     assert choice is not None and choice == int(keys[100 + m.n - 1])
+    assert scores is not None and int(np.argmin(scores)) == choice  # (the filter's evidence)
     assert list(Path(bank.path).glob("actions-*.npz"))
     off = Matcher(layer, bank, MatchSettings(vote=3, classify=False))
     off.vote.actions = keys
-    assert off._choice(queries, ranked, x) is None
+    assert off._choice(queries, ranked, x) == (None, None)
 
 
 def test_perform_says_whether_the_classifier_settles_the_vote(

@@ -89,6 +89,10 @@ def test_a_side_view_is_matched_and_its_action_found(
     points = report["decision_points"]
     assert points["person_in_view_undecided_share"] <= 0.05, points
     assert report["best_at_lag_le_1s"] >= 0.6, report["per_action_at_best_lag"]
+    # the timeline a viewer reads: the performer's action and the avatar's at each point
+    line = report["timeline"]
+    assert len(line["t"]) == len(line["performer"]) == len(line["avatar"]) == len(decisions)
+    assert {"JumpJack", "Twist"} <= set(line["performer"])
 
 
 @pytest.mark.gl

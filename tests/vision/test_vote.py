@@ -253,3 +253,27 @@ def test_holding_still_in_another_action_costs_the_margin_too(setup, margin: flo
         held.append(d.cost)
     assert held[0] > 0
     assert held[1] == pytest.approx(held[0] * (1.0 if math.isinf(margin) else 1.2), rel=1e-9)
+
+
+def test_the_filtered_vote_ignores_odd_decisions_and_follows_a_real_change() -> None:
+    """The hidden Markov filter (``vote_switch``): 10 s of one action whose decisions
+    are won by another now and then (every 7th, two in a row at 4 s) keep the voted
+    action; a clean change is taken up within half a second."""
+    from vision._vote import ActionVote
+
+    vote = ActionVote(15, 7, switch=0.02, temperature=0.1)
+    vote.actions = np.array([0, 1, 2], dtype=np.int64)
+    target = np.array([0], dtype=np.int64)
+    voted = []
+    for i in range(100):  # 10 s of action 0; action 1 wins every 7th, and at 4.0-4.1 s
+        odd = i % 7 == 3 or i in (40, 41)
+        scores = np.array([1.08, 1.0, 1.3]) if odd else np.array([1.0, 1.1, 1.3])
+        vote.cast(target, None, scores)
+        voted.append(vote.voted)
+    assert voted[5:] == [0] * 95
+    for _ in range(10):  # the performer changes to action 2
+        vote.cast(target, None, np.array([1.2, 1.15, 1.0]))
+        voted.append(vote.voted)
+    assert voted[-5:] == [2] * 5
+    taken = voted.index(2) - 100
+    assert taken <= 5, taken  # within 0.5 s of decisions
