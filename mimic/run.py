@@ -186,6 +186,21 @@ def _add_jump_args(p: argparse.ArgumentParser) -> None:
         "much more (default %(default)s; inf: only the voted action)",
     )
     p.add_argument(
+        "--vote-switch",
+        type=number(float, 0, 0.99),
+        default=MatchSettings.vote_switch,
+        metavar="P",
+        help="filter the voted action by a hidden Markov model whose chance of a change "
+        "per decision is P, instead of counting votes (default %(default)s: counting)",
+    )
+    p.add_argument(
+        "--vote-confidence",
+        type=number(float, 0, 1),
+        default=MatchSettings.vote_confidence,
+        help="with --vote-switch, change the voted action only to one believed at least "
+        "this much (default %(default)s)",
+    )
+    p.add_argument(
         "--recency",
         type=number(float, 0, 1000),
         default=MatchSettings.recency,
@@ -259,6 +274,8 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
         jumps=not args.no_jumps,
         vote=args.vote,
         vote_margin=args.vote_margin,
+        vote_switch=args.vote_switch,
+        vote_confidence=args.vote_confidence,
         recency=args.recency,
         hold=args.hold,
         classify=not args.no_classify,

@@ -113,6 +113,9 @@ class MatchSettings:
     #: with ``vote_switch``: the fewest decision points an action, once voted in, is
     #: kept (1: a plain hidden Markov model)
     vote_min_stay: int = 1
+    #: with ``vote_switch``: the voted action changes only to one believed at least this
+    #: much (0: to the most believed, whatever its belief)
+    vote_confidence: float = 0.0
     #: each decision's vote goes to the action the library's action classifier and the
     #: search's costs agree on (``vision._classify``), not the best window's alone
     classify: bool = True

@@ -120,10 +120,7 @@ class Matcher(CandidatePaths, Landing):
         self.last_own = float("inf")
         d_max = layer.graph.report.get("max_distance") if layer.graph.report else None
         self.d_max = float(d_max) if d_max else 1.0
-        st = self.settings  # (the vote's actions: the caller's)
-        self.vote = ActionVote(
-            st.vote, self.n // 2, st.vote_switch, st.vote_temperature, st.vote_min_stay
-        )
+        self.vote = ActionVote.of(self.settings, self.n // 2)  # (actions: the caller's)
         self.facing: Facing | None = None  # (``Landing``; the caller's: ``Performance``)
 
     def _check(self, performer: FloatArray) -> None:

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import itertools
 from collections import Counter, deque
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,10 +46,12 @@ class ActionVote:
         switch: float = 0.0,
         temperature: float = 0.1,
         min_stay: int = 1,
+        confidence: float = 0.0,
     ) -> None:
         self.size, self.span = size, span
         #: > 0: ``filter`` decides the voted action (``MatchSettings.vote_switch``)
         self.switch, self.temperature, self.min_stay = switch, temperature, max(1, min_stay)
+        self.confidence = confidence
         self._belief: NDArray[np.float64] | None = None
         #: the action of every graph frame (``vision.action_keys``); ``None``: the library
         #: names no actions, and nothing is voted
@@ -66,6 +69,19 @@ class ActionVote:
         #: that the vote spans ``size`` decision points of time whatever the frame rate
         self.missed = 0
         self._starts: tuple[tuple[int, int, int], NDArray[np.bool_]] | None = None
+
+    @classmethod
+    def of(cls, settings: Any, span: int) -> ActionVote:
+        """The vote ``settings`` (a ``MatchSettings``) ask for."""
+        st = settings
+        return cls(
+            st.vote,
+            span,
+            st.vote_switch,
+            st.vote_temperature,
+            st.vote_min_stay,
+            st.vote_confidence,
+        )
 
     def filter(self, scores: NDArray[np.float64]) -> None:
         """One step of the forward filter of a hidden semi-Markov model over the actions:
@@ -94,7 +110,12 @@ class ActionVote:
         p = p / p.sum()
         self._belief = p
         self.missed = 0
-        self.voted = int(np.argmax(p.sum(axis=1)))
+        belief = p.sum(axis=1)
+        best = int(np.argmax(belief))
+        # the decision changes only on a belief of at least ``confidence``: where two
+        # actions are about as likely, the one voted stays
+        if self.voted < 0 or self.voted >= k or belief[best] >= self.confidence:
+            self.voted = best
 
     def cast(
         self,
