@@ -277,3 +277,24 @@ def test_the_filtered_vote_ignores_odd_decisions_and_follows_a_real_change() -> 
     assert voted[-5:] == [2] * 5
     taken = voted.index(2) - 100
     assert taken <= 5, taken  # within 0.5 s of decisions
+
+
+def test_a_confident_filter_keeps_its_action_while_two_are_about_as_likely() -> None:
+    from vision._vote import ActionVote
+
+    target = np.array([0], dtype=np.int64)
+    steady = []
+    for confidence in (0.0, 0.9):
+        vote = ActionVote(15, 7, switch=0.02, temperature=0.1, confidence=confidence)
+        vote.actions = np.array([0, 1, 2], dtype=np.int64)
+        for _ in range(20):  # two actions alike from the start
+            vote.cast(target, None, np.array([1.0, 1.0, 1.3]))
+        changes, last = 0, vote.voted
+        for i in range(60):  # actions 0 and 1 lead by turns, by a hair: neither is sure
+            vote.cast(
+                target, None, np.array([1.0, 1.01, 1.3]) if i % 2 else np.array([1.01, 1.0, 1.3])
+            )
+            changes += vote.voted != last
+            last = vote.voted
+        steady.append(changes)
+    assert steady[1] == 0 and steady[0] > 10  # (the most believed flips at every point)
