@@ -2,14 +2,14 @@
 temporary file beside its place, and all moved into place together once every one is
 written.
 
-Why so: an output that named an input (``perform --video in.mkv --out in.mkv``)
-destroyed the recording and its ground truth; two outputs that named one file overwrote
-each other; an unwritable folder was found only after the whole performance, and named by
-a hidden temporary file; a run that failed half way left a new log beside the old BVH.
-Now a clash or an unwritable place is an error before the first frame that names the
-option and the path the user gave; a write that fails replaces nothing, removes its
-temporary files and says which file failed and why (a full disk: how much room was
-left). A run that is stopped (Ctrl-C) still writes its set: a stop is not a failure.
+Why: an output that names an input (``perform --video in.mkv --out in.mkv``) would
+destroy the recording and its ground truth; two outputs that name one file would
+overwrite each other; an unwritable place found after a long performance loses it; a
+run that fails half way must not leave a new log beside the old BVH. So a clash or an
+unwritable place is an error before the first frame that names the option and the path
+the user gave; a write that fails replaces nothing, removes its temporary files and says
+which file failed and why (a full disk: how much room was left). A run that is stopped
+(Ctrl-C) still writes its set: a stop is not a failure.
 """
 
 from __future__ import annotations
