@@ -19,6 +19,12 @@ jumps into an action the performer is not voted to do (until 2026-12-03 it jumpe
 the best window then, whatever its action). A source slower than the decisions has
 decision points skipped (``missed``); each vote then stands for them too, so that the
 vote spans the same time at any frame rate.
+
+With ``MatchSettings.vote_switch`` the voted action is not counted but filtered
+(``ActionVote.filter``): a hidden (semi-)Markov model over the actions, each decision's
+action scores its evidence. It is off by default: it made the avatar steadier on every
+fold but cost the pose score, the lag and the one real squat clip
+(``benchmarks/HISTORY.md``, "Steadiness").
 """
 
 from __future__ import annotations
