@@ -160,11 +160,18 @@ def atomic_write(path: str | Path, mode: str = "w") -> Iterator[IO[Any]]:
 def disk_full(path: Path) -> str:
     """What a write of ``path`` that found its disk full says: the file, and the room
     that was left (the file needs more)."""
+    return (
+        f"{path}: the disk is full: writing it needs more room than the "
+        f"{room_left(path.parent)} left there"
+    )
+
+
+def room_left(folder: Path) -> str:
+    """The free space of ``folder``'s disk, said in MB ("no room" when unknown)."""
     try:
-        free = f"{shutil.disk_usage(path.parent).free / 1e6:.1f} MB"
+        return f"{shutil.disk_usage(folder).free / 1e6:.1f} MB"
     except OSError:
-        free = "no room"
-    return f"{path}: the disk is full: writing it needs more room than the {free} left there"
+        return "no room"
 
 
 def read_npz(

@@ -16,14 +16,13 @@ from __future__ import annotations
 
 import errno
 import os
-import shutil
 import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
 
-from control.artifacts import current_umask
+from control.artifacts import current_umask, room_left
 
 __all__ = ["Output", "OutputError", "OutputSet", "check_outputs"]
 
@@ -52,13 +51,6 @@ def _identity(path: Path) -> tuple[object, ...]:
     except OSError:
         return ("path", os.path.realpath(path))
     return ("inode", st.st_dev, st.st_ino)
-
-
-def _free_mb(folder: Path) -> str:
-    try:
-        return f"{shutil.disk_usage(folder).free / 1e6:.1f} MB"
-    except OSError:
-        return "no room"
 
 
 class OutputSet:
@@ -154,7 +146,7 @@ class OutputSet:
         if exc.errno in (errno.ENOSPC, errno.EDQUOT):
             return (
                 f"{out.said()}: the disk is full: it needs more room than the "
-                f"{_free_mb(out.path.parent)} left in {out.path.parent}; nothing was replaced"
+                f"{room_left(out.path.parent)} left in {out.path.parent}; nothing was replaced"
             )
         why = exc.strerror or str(exc)
         return f"{out.said()}: could not be written ({why}); nothing was replaced"

@@ -22,6 +22,7 @@ from __future__ import annotations
 import itertools
 from collections import deque
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -88,26 +89,24 @@ class SilhouetteFallback:
         ready_matcher(matcher, clips, period)
         matcher.vote = main.vote  # one vote, whoever decides
         self.blank = np.full(matcher.n_features, np.nan)
-        #: the performer's silhouette features at the library's rate, in step with the
-        #: landmark features' history
-        self.history: deque[FloatArray] = deque(maxlen=matcher.history_frames)
-        self.latest = self.blank
+        #: the performer's masks at the library's rate, in step with the landmark
+        #: features' history
+        self.history: deque[_Seen] = deque(maxlen=matcher.history_frames)
+        self.latest = _Seen(None)
 
     def see(self, mask: NDArray[np.bool_] | None) -> None:
         """The latest frame's person mask (``None``: none)."""
-        self.latest = (
-            self.blank
-            if mask is None or not mask.any()
-            else silhouette_features(mask, descriptor=self.matcher.desc)
-        )
+        self.latest = _Seen(mask if mask is not None and mask.any() else None)
 
     def tick(self) -> None:
-        """One library frame on: the latest features into the history."""
+        """One library frame on: the latest mask into the history."""
         self.history.append(self.latest)
 
-    def window(self) -> FloatArray:
+    def features(self, last: int | None = None) -> FloatArray:
+        """The silhouette features ``(m, F)`` of the history (its ``last`` frames)."""
         n = len(self.history)
-        return np.array(list(itertools.islice(self.history, max(0, n - self.matcher.n), n)))
+        seen = itertools.islice(self.history, 0 if last is None else max(0, n - last), n)
+        return np.array([s.features(self.matcher.desc, self.blank) for s in seen])
 
     def decide(
         self, frame: int, recent: NDArray[np.int64] | None, costs: JumpCosts | None
@@ -119,5 +118,24 @@ class SilhouetteFallback:
             matcher.why = "filling buffer"
             return None
         if matcher.settings.jumps:
-            return matcher.decide(frame, np.array(self.history), recent, costs)
-        return matcher.decide(frame, self.window())
+            return matcher.decide(frame, self.features(), recent, costs)
+        return matcher.decide(frame, self.features(matcher.n))
+
+
+class _Seen:
+    """A frame's person mask, and its silhouette features, made on first use: the
+    features cost 1-6 ms a frame (a 720x1280 mask the most), and while the landmarks
+    serve they are never needed. A frame ticked twice into the history is one object,
+    its features made once."""
+
+    __slots__ = ("_features", "mask")
+
+    def __init__(self, mask: NDArray[np.bool_] | None) -> None:
+        self.mask = mask
+        self._features: FloatArray | None = None
+
+    def features(self, desc: Any, blank: FloatArray) -> FloatArray:
+        if self._features is None:
+            made = blank if self.mask is None else silhouette_features(self.mask, descriptor=desc)
+            self._features, self.mask = made, None  # (the mask is not needed again)
+        return self._features
