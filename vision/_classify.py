@@ -211,11 +211,9 @@ def choose_action(costs: FloatArray, log_proba: FloatArray | None, weight: float
     ok = np.isfinite(costs)
     if not ok.any():
         return -1
-    best = float(costs[ok].min())
     if log_proba is None or weight <= 0:
         return int(np.flatnonzero(ok)[np.argmin(costs[ok])])
-    score = np.where(ok, costs / max(best, 1e-12) - weight * log_proba, np.inf)
-    return int(np.argmin(score))
+    return int(np.argmin(action_score(costs, log_proba, weight)))
 
 
 class ClassifierFileError(ValueError):
