@@ -48,6 +48,9 @@ __all__ = ["MAX_COVER", "PerformResult", "PerformSettings", "Performance", "perf
 #: a silhouette mask covering more of the frame than this is no performer (a white
 #: frame, the lights going on under a background subtractor): treated as no silhouette
 MAX_COVER = 0.6
+#: why a frame has no pose when the pose model found nobody and a person is there all
+#: the same (``PersonSegmenter.unposed``: only part of a body in view, as a rule)
+UNPOSED = "a person in view, no body found in them"
 #: degrees a second the avatar's blended joints may turn in a frame beyond what their
 #: source frames turn (``control.graph.follow_turns``), and the rate of its leg IK's
 #: corrections (``TURN_RATE`` is 300 elsewhere). Its blends pile up (a jump every few
@@ -245,6 +248,8 @@ class Performance:
             h_px, w_px = frame.image.shape[:2] if frame.image is not None else (1, 1)
             self.latest = self.reader.read(lm, (w_px, h_px))
             self.why_blank = self.reader.why
+            if lm is None and getattr(self.segmenter, "unposed", False):
+                self.why_blank = UNPOSED
             if self.fallback is not None:
                 self.fallback.see(mask)
         elif mask is not None:

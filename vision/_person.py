@@ -60,6 +60,10 @@ log = logging.getLogger(__name__)
 
 PERSON_METHODS = ("selfie", "pose")
 
+#: the least share of the frame a person the pose model cannot read must fill
+#: (``PersonSegmenter.unposed``)
+UNPOSED_AREA = 0.01
+
 INSTALL = (
     "pip install --no-deps mediapipe==0.10.14 && "
     "pip install absl-py attrs flatbuffers 'protobuf>=4.25.3,<5' matplotlib"
@@ -155,6 +159,14 @@ class PersonSegmenter:
         #: blobs of the last mask at least ``RIVAL`` times the kept one's area (the
         #: selfie model's other people; the pose model follows one person)
         self.others = 0
+        #: the last mask is of a person in whom the pose model found no body (pose
+        #: only): the pose model's detector looks for a face and shoulders, so a
+        #: performer of whom only the legs are in view, or who is cut by the frame's top,
+        #: is nobody to it; the selfie model, asked on those frames only, still finds
+        #: them, and the loop then says that a person it cannot read is there rather
+        #: than that nobody is (and matches the mask, where it can)
+        self.unposed = False
+        self._finder: PersonSegmenter | None = None
         self._model = self._open(mp)
 
     def _open(self, mp: Any) -> Any:
@@ -214,6 +226,9 @@ class PersonSegmenter:
 
     def apply(self, image: NDArray[np.uint8]) -> NDArray[np.bool_] | None:
         prob = self._model_probability(image)
+        self.unposed = False
+        if prob is None and self.method == "pose":
+            return self._find_unposed(image)
         if prob is None:
             self.others = 0
             return None
@@ -223,8 +238,21 @@ class PersonSegmenter:
         size = (image.shape[1], image.shape[0])
         return cv2.resize(mask.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST) > 0
 
+    def _find_unposed(self, image: NDArray[np.uint8]) -> NDArray[np.bool_] | None:
+        """The selfie model's mask of a frame the pose model found nobody in (``None``
+        when it finds nobody either); a person must fill ``UNPOSED_AREA`` of the frame,
+        so that a scrap the selfie model takes for one in an empty room is not."""
+        if self._finder is None:
+            self._finder = PersonSegmenter("selfie", self.threshold, UNPOSED_AREA, self.max_side)
+        mask = self._finder.apply(image)
+        self.others = self._finder.others if mask is not None else 0
+        self.unposed = mask is not None
+        return mask
+
     def close(self) -> None:
         self._model.close()
+        if self._finder is not None:
+            self._finder.close()
 
 
 def resolve_segmentation(method: str, live: bool, landmarks: bool = False) -> str:

@@ -27,7 +27,7 @@ from vision import (
     record_clip,
     truth_for,
 )
-from vision._perform import Performance
+from vision._perform import UNPOSED, Performance
 
 
 @pytest.fixture(scope="module")
@@ -211,6 +211,94 @@ def test_a_performer_upside_down_is_still_rejected(
         )
         points = decision_points(r.decisions)
         assert points["decided"] <= 0.1 * points["points"], points
+
+
+def _frames(video: Path) -> list[np.ndarray]:
+    cap = cv2.VideoCapture(str(video))
+    frames = []
+    while True:
+        ok, img = cap.read()
+        if not ok:
+            break
+        frames.append(img)
+    cap.release()
+    return frames
+
+
+@pytest.mark.gl
+def test_a_performer_who_walks_out_and_back_is_followed_again(
+    setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
+) -> None:
+    # the room empty from 3 to 5 s: the frames seen last decide while they fill half the
+    # window, then nobody is there; back, half a window fills, and the performer is
+    # followed again
+    video = _film(mocap, tmp_path, (0.0, 9.0), azimuth=20.0)
+    seen = iter(range(10**6))
+
+    def away(img: np.ndarray) -> np.ndarray:
+        if 3.0 <= next(seen) / 15 < 5.0:
+            img[:] = RecordSettings().background
+        return img
+
+    report, decisions = _follow(setup, pose_bank, _rewrite(video, tmp_path / "away.mkv", away))
+    gone = [d for d in decisions if 3.6 <= d["t"] < 5.0]
+    assert gone and {d.get("reason") for d in gone} == {"nobody in view"}
+    back = [d for d in decisions if 5.0 <= d["t"] < 5.4]
+    assert back and {d.get("reason") for d in back} == {"filling buffer (back in view)"}
+    later = [d for d in decisions if d["t"] >= 6.0]
+    assert sum(d["decision"] is not None for d in later) >= 0.9 * len(later)
+    assert report["decision_points"]["person_in_view_undecided"] == 0
+    assert report["best_at_lag_le_1s"] >= 0.6, report["per_action_at_best_lag"]
+
+
+@pytest.mark.gl
+def test_a_performer_cut_at_the_waist_is_not_taken_for_nobody(
+    setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
+) -> None:
+    # the frame's top 45% hidden: the pose model's detector looks for a face and
+    # shoulders and finds nobody; the selfie model still finds the person, so the log
+    # says that someone it cannot read is there (a point that counts against the run),
+    # not that nobody is; their half silhouette matches nothing whole either
+    video = _film(mocap, tmp_path, (0.0, 9.0), azimuth=20.0)
+
+    def cut(img: np.ndarray) -> np.ndarray:
+        img[: int(img.shape[0] * 0.45)] = (60, 60, 60)
+        return img
+
+    report, decisions = _follow(setup, pose_bank, _rewrite(video, tmp_path / "cut.mkv", cut))
+    unread = [d for d in decisions if d.get("reason") == UNPOSED]
+    assert len(unread) >= len(decisions) // 3, report["decision_points"]
+    points = report["decision_points"]
+    assert points["person_in_view_undecided"] >= len(unread)
+
+
+@pytest.mark.gl
+def test_of_two_people_in_view_one_is_followed(
+    setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
+) -> None:
+    # 13_29's jumping jacks on the left and its squats on the right, side by side: the
+    # pose model follows one person, and the avatar does that person's action
+    films = []
+    for name, seconds in (("left", (0.0, 6.0)), ("right", (32.0, 38.0))):
+        (tmp_path / name).mkdir()
+        films.append(_film(mocap, tmp_path / name, seconds, azimuth=0.0))
+    left, right = (_frames(f) for f in films)
+    both = tmp_path / "both.mkv"
+    writer = cv2.VideoWriter(str(both), cv2.VideoWriter.fourcc(*"FFV1"), 15.0, (480, 360))
+    for a, b in zip(left, right, strict=False):
+        writer.write(np.ascontiguousarray(np.concatenate([a[:, 120:360], b[:, 120:360]], 1)))
+    writer.release()
+    lib, layer, _ = setup
+    r = perform(VideoSource(both), layer, pose_bank, lib.clips, PerformSettings(), seed=1)
+    points = decision_points(r.decisions)
+    assert points["decided"] >= 0.5 * points["points"], points
+    agree = []
+    for film in films:
+        truth = truth_for(film)
+        assert truth is not None
+        agree.append(evaluation(r.decisions, lib.clips, truth, r.media_seconds))
+    best = max(a["best_at_lag_le_1s"] for a in agree)
+    assert best >= 0.8, [a["per_action_at_best_lag"] for a in agree]
 
 
 def test_decision_points_count_each_reason_once_and_blame_only_a_person_in_view() -> None:
