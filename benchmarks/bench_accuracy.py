@@ -428,7 +428,10 @@ def fold(
     )
     assert g.clip_names == tuple(c.name for c in train)  # the graph's frames are train's
     # the take, and mirrored for the recordings that film it so (``MIRRORED``)
-    takes = load_library(root, fps=30, clips=[test], mirror=bool(MIRRORED & set(recordings)))
+    # (the performer's truth: the label file's own boundaries)
+    takes = load_library(
+        root, fps=30, clips=[test], mirror=bool(MIRRORED & set(recordings)), clean_labels=False
+    )
     perf_clip = takes.clip(test)
     other_side = next((c for c in takes.clips if c.mirrored), None)
     truth_q = perf_clip.motion.quats[:, joints]
@@ -463,7 +466,7 @@ def fold(
     actions = np.concatenate(
         [[c.label_at(i) or f"clip {c.name}" for i in range(c.motion.n_frames)] for c in train]
     )
-    at_lib = load_library(root, fps=g.fps, clips=[test]).clip(test)
+    at_lib = load_library(root, fps=g.fps, clips=[test], clean_labels=False).clip(test)
     out["pose_oracle"] = pose_oracle(
         lib_q,
         actions,

@@ -1,9 +1,11 @@
-"""``mimic library info`` and ``mimic library embed``."""
+"""``mimic library info``, ``mimic library labels`` and ``mimic library embed``."""
 
 from __future__ import annotations
 
 import argparse
+import csv
 import json
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -13,8 +15,11 @@ from control.motion import (
     EMBEDDED_LIBRARY,
     EMBEDDED_MAX_BYTES,
     Library,
+    atomic_write,
+    clean_labels,
     embed_library,
     load_library,
+    source_label_rows,
 )
 
 from .args import add_library_dir, library_dir, number
@@ -47,6 +52,25 @@ def add_library_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
     info.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
     info.add_argument("--json", action="store_true", help="print the summary as JSON")
     info.set_defaults(func=_info)
+    labels = lib_sub.add_parser(
+        "labels",
+        help="write the library's cleaned action labels (boundaries where the motion changes)",
+        description=(
+            "Move each boundary between two labelled actions of a clip to where the motion "
+            "changes (the cycle of one action gives way to the next's), as every command "
+            "does when it loads the library, and write the cleaned label files (the same "
+            "CSV format, source frames) to a folder of their own: the source labels stay."
+        ),
+    )
+    add_library_dir(labels)
+    labels.add_argument("--out", required=True, help="folder for the cleaned <clip>.csv files")
+    labels.add_argument(
+        "--fps",
+        type=number(float, 0, 240, above=True),
+        default=15.0,
+        help="the rate the boundaries are found at (default 15, the library's)",
+    )
+    labels.set_defaults(func=_labels)
     embed = lib_sub.add_parser(
         "embed",
         help="convert a few clips into the package's embedded default library",
@@ -74,6 +98,43 @@ def _embed(args: argparse.Namespace) -> int:
     print(f"wrote {len(sizes)} files to {args.out}: {total / 1e6:.2f} MB")
     if total > EMBEDDED_MAX_BYTES:
         print(f"warning: over the {EMBEDDED_MAX_BYTES / 1e6:g} MB the embedded library may use")
+    return 0
+
+
+def _labels(args: argparse.Namespace) -> int:
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: is a file, not a folder")
+    library = load_library(library_dir(args), fps=args.fps, clean_labels=False)
+    root = Path(library.root).resolve()
+    if out.resolve() == root or root in out.resolve().parents:
+        # (any labels/<clip>.csv under the library is read as its labels)
+        raise ValueError(
+            f"--out {out}: inside the library {library.root}, whose label files would be "
+            "replaced or read as its labels; the source labels stay, so write elsewhere"
+        )
+    written = 0
+    for clip in library.clips:
+        if clip.mirrored or not (clip.labels >= 0).any():
+            continue
+        cleaned, moves = clean_labels(clip.motion.quats, clip.labels, args.fps)
+        length = int(np.ceil(clip.source_frames[-1])) + 1
+        rows = source_label_rows(cleaned, clip.label_names, clip.source_frames, length)
+        with atomic_write(out / f"{clip.name}.csv") as fh:
+            w = csv.writer(fh, lineterminator="\n")
+            w.writerow(("first_frame", "last_frame", "action"))
+            w.writerows(rows)
+        written += 1
+        for m in moves:
+            at = clip.source_frames  # (seconds of the source, as the label file counts)
+            rate = clip.motion.fps * (at[-1] - at[0]) / max(clip.motion.n_frames - 1, 1)
+            t = [float(at[k]) / rate for k in (m.source, m.transition_start, m.cleaned)]
+            span = f"{t[1]:.2f}-{t[2]:.2f} s" if m.cleaned > m.transition_start else "none"
+            print(
+                f"{clip.name}: {clip.label_names[m.before]} -> {clip.label_names[m.after]} "
+                f"at {t[0]:.2f} s, moved {t[2] - t[0]:+.2f} s (transition {span})"
+            )
+    print(f"wrote {written} label files to {out}")
     return 0
 
 

@@ -93,7 +93,8 @@ def _record(args: argparse.Namespace) -> int:
         w, h = (int(v) for v in args.size.lower().split("x"))
     except ValueError as exc:
         raise ValueError(f"--size must be WIDTHxHEIGHT, not {args.size!r}") from exc
-    library = load_library(library_dir(args), fps=args.fps, clips=[args.clip])
+    # the sidecar is a ground truth: the label file's own boundaries
+    library = load_library(library_dir(args), fps=args.fps, clips=[args.clip], clean_labels=False)
     clip = library.clip(args.clip)
     start = round(args.start * args.fps)
     stop = clip.motion.n_frames if args.stop is None else round(args.stop * args.fps)

@@ -9,6 +9,7 @@ from ._amc import read_amc
 from ._arrays import read_motion_arrays, write_motion_arrays
 from ._asf import AsfSkeleton, read_asf
 from ._bvh import UNITS, read_bvh, write_bvh
+from ._clean_labels import Boundary, clean_labels, source_label_rows
 from ._contacts import FEET, Contacts, contact_events, detect_contacts, foot_points
 from ._digest import clips_digest
 from ._embedded import (
@@ -55,6 +56,7 @@ __all__ = [
     "ROLE_ALIASES",
     "UNITS",
     "AsfSkeleton",
+    "Boundary",
     "Clip",
     "Contacts",
     "FloatArray",
@@ -66,6 +68,7 @@ __all__ = [
     "Skeleton",
     "action_keys",
     "atomic_write",
+    "clean_labels",
     "clips_digest",
     "contact_events",
     "current_umask",
@@ -101,6 +104,7 @@ __all__ = [
     "rest_positions",
     "role_point",
     "slerp",
+    "source_label_rows",
     "write_bvh",
     "write_motion_arrays",
 ]

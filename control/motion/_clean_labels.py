@@ -10,16 +10,19 @@ vote reads a window of the transition as the next action.
 changes. A frame of a cyclic action recurs: a cycle later the performer is in nearly the
 same pose. Near a boundary between actions ``A`` and ``B`` (up to ``reach`` seconds
 either side, and at most half of either stretch), each frame is compared with the
-frames of ``A``'s stretch and of ``B``'s stretch away from the boundary (their cores:
-the cycles), and the boundary splits the frames into those that recur in ``A``, a
+frames of ``A``'s stretch and of ``B``'s stretch at least ``cycle`` seconds from it
+(where it recurs, a cycle earlier or later), and the boundary splits the frames into
+those that recur in ``A``, a
 transition that recurs in neither, and those that recur in ``B`` (one split, the least
 cost: a frame costs its distance to the cycle it is given, relative to how near that
 cycle's own frames come to each other). The transition is kept with ``A``: it is the
 way out of ``A``, and the next action begins where its cycle does.
 
-Only boundaries between two labelled stretches of one clip move; an unlabelled stretch
-and a clip's ends are left alone. The source labels are kept (``Clip.source_labels``);
-``mimic library labels`` writes the cleaned ones and says what moved.
+Only boundaries between two labelled stretches of one clip move; an unlabelled stretch,
+a stretch too short to hold a cycle and a clip's ends are left alone. The label files
+are never changed: ``load_library(clean_labels=False)`` reads them as they are (as a
+ground truth is read), and ``mimic library labels`` writes the cleaned ones and says
+what moved.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Boundary", "clean_labels", "pose_rows"]
+__all__ = ["Boundary", "clean_labels", "pose_rows", "source_label_rows"]
 
 #: a frame fits a cycle when it is nearer it than ``FIT`` times the cycle's own frames
 #: are to each other (their median); a transition frame costs ``FIT``, a frame given to
@@ -64,35 +67,25 @@ def pose_rows(quats: FloatArray) -> FloatArray:
     return q.reshape(q.shape[0], -1)
 
 
-def _nearest(rows: FloatArray, core: FloatArray) -> FloatArray:
-    """Each row's distance to the nearest row of ``core``."""
-    d2 = (rows**2).sum(1)[:, None] - 2.0 * rows @ core.T + (core**2).sum(1)[None, :]
+def _recurrence(rows: FloatArray, at: IntArray, lo: int, hi: int, gap: int) -> FloatArray:
+    """Each frame ``at``'s distance to the nearest frame of ``rows[lo:hi]`` at least
+    ``gap`` frames away from it (a cycle earlier or later; ``inf`` when none is)."""
+    span = rows[lo:hi]
+    d2 = (rows[at] ** 2).sum(1)[:, None] - 2.0 * rows[at] @ span.T + (span**2).sum(1)[None, :]
+    near = np.abs(at[:, None] - np.arange(lo, hi)[None, :]) < gap
+    d2[near] = np.inf
     return np.sqrt(np.maximum(d2.min(axis=1), 0.0))
-
-
-def _spread(core: FloatArray, gap: int) -> float:
-    """How near the frames of a cycle come to each other: the median distance of each
-    core frame to the nearest core frame at least ``gap`` frames away (a cycle later)."""
-    n = core.shape[0]
-    if n <= gap + 1:
-        return float("nan")
-    d2 = (core**2).sum(1)[:, None] - 2.0 * core @ core.T + (core**2).sum(1)[None, :]
-    idx = np.arange(n)
-    d2[np.abs(idx[:, None] - idx[None, :]) < gap] = np.inf
-    return float(np.median(np.sqrt(np.maximum(d2.min(axis=1), 0.0))))
 
 
 def _split(cost_a: FloatArray, cost_b: FloatArray) -> tuple[int, int]:
     """The split ``p <= q`` of a run of frames into ``A`` before ``p``, a transition in
     ``[p, q)`` and ``B`` from ``q`` with the least cost: a frame given to a cycle costs
-    its relative distance to it (capped at 2), a transition frame costs 1 (a frame nearer
-    a cycle than its own frames are to each other fits it)."""
+    its relative distance to it (at most ``CAP``), a transition frame ``FIT``."""
     n = cost_a.size
     a = np.concatenate([[0.0], np.cumsum(np.minimum(cost_a, CAP))])
     b = np.concatenate([[0.0], np.cumsum(np.minimum(cost_b, CAP))])
     best, where = np.inf, (0, 0)
     for p in range(n + 1):
-        # A before p, transition [p, q), B from q: a[p] + (q - p) + b[n] - b[q]
         q = np.arange(p, n + 1)
         total = a[p] + FIT * (q - p) + b[n] - b[q]
         k = int(np.argmin(total))
@@ -122,17 +115,44 @@ def clean_labels(
             continue
         lo = max(a0 + (b0 - a0) // 2, b0 - reach_n)
         hi = min(b0 + (b1 - b0) // 2, b0 + reach_n)
-        # (a cycle away from the frames compared, so that a frame is not near the core
-        # for being its neighbour in time)
-        core_a, core_b = rows[a0 : max(a0, lo - gap)], rows[min(b1, hi + gap) : b1]
-        spread_a, spread_b = _spread(core_a, gap), _spread(core_b, gap)
-        if not (np.isfinite(spread_a) and np.isfinite(spread_b)) or hi <= lo:
-            continue  # a stretch too short to have a cycle: left as labelled
-        near = rows[lo:hi]
-        cost_a = _nearest(near, core_a) / max(spread_a, 1e-9)
-        cost_b = _nearest(near, core_b) / max(spread_b, 1e-9)
+        if b0 - a0 <= 2 * gap or b1 - b0 <= 2 * gap or hi <= lo:
+            continue  # a stretch too short to hold a cycle: left as labelled
+        # how near each stretch's frames come to their own recurrences (the median)...
+        spread_a = np.median(_recurrence(rows, np.arange(a0, b0), a0, b0, gap))
+        spread_b = np.median(_recurrence(rows, np.arange(b0, b1), b0, b1, gap))
+        # ...and how near each frame about the boundary comes to a recurrence in each
+        near = np.arange(lo, hi)
+        cost_a = _recurrence(rows, near, a0, b0, gap) / max(float(spread_a), 1e-9)
+        cost_b = _recurrence(rows, near, b0, b1, gap) / max(float(spread_b), 1e-9)
         p, q = _split(cost_a, cost_b)
         out[lo : lo + q] = labels[a0]
         out[lo + q : hi] = labels[b0]
         moves.append(Boundary(int(labels[a0]), int(labels[b0]), b0, lo + p, lo + q))
     return out, moves
+
+
+def source_label_rows(
+    labels: IntArray, names: tuple[str, ...], source_frames: FloatArray, source_length: int
+) -> list[tuple[int, int, str]]:
+    """A clip's ``labels`` (one per frame of the library, whose frame ``k`` shows source
+    frame ``source_frames[k]``) as a label file's rows: ``(first, last, action)``, 1-based
+    frames of the source's ``source_length``, each source frame taking the label of the
+    library frame nearest it; unlabelled frames have no row."""
+    src = np.asarray(source_frames, dtype=np.float64)
+    at = np.clip(np.searchsorted(src, np.arange(source_length)), 0, src.size - 1)
+    before = np.clip(at - 1, 0, src.size - 1)
+    pick = np.where(
+        np.abs(src[before] - np.arange(source_length))
+        <= np.abs(src[at] - np.arange(source_length)),
+        before,
+        at,
+    )
+    per = np.asarray(labels, dtype=np.int64)[pick]
+    rows = []
+    start = 0
+    for i in range(1, source_length + 1):
+        if i == source_length or per[i] != per[start]:
+            if per[start] >= 0:
+                rows.append((start + 1, i, names[int(per[start])]))
+            start = i
+    return rows

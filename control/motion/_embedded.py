@@ -65,7 +65,8 @@ def embed_library(
     """
     from ._library import load_library  # the loader imports this module
 
-    lib = load_library(source, fps=fps, clips=list(clips))
+    # (the label files' own boundaries: the embedded library is cleaned when loaded)
+    lib = load_library(source, fps=fps, clips=list(clips), clean_labels=False)
     missing = sorted(set(clips) - {c.name for c in lib.clips})
     if missing:
         raise FileNotFoundError(f"{source}: no clip named {', '.join(missing)}")

@@ -35,6 +35,7 @@ from ..artifacts import (
     bound_cache,
     cache_root,
 )
+from ._clean_labels import clean_labels
 from ._contacts import Contacts, detect_contacts
 from ._embedded import EMBEDDED_LIBRARY
 from ._errors import MotionFormatError
@@ -182,7 +183,7 @@ def default_cache_dir() -> Path:
 class LibrarySpec:
     """What to load (``load_library``'s arguments but the cache, workers and progress):
     the folder, the clips, the rate, mirrored copies, the format preferred, BVH units and
-    the contact detector's options."""
+    the contact detector's options, and whether the labels are cleaned."""
 
     root: Path
     fps: float | None = 15.0
@@ -191,6 +192,7 @@ class LibrarySpec:
     bvh_units: str | float = "auto"
     clips: tuple[str, ...] | None = None
     contact_options: dict[str, float | str] = field(default_factory=dict)
+    clean_labels: bool = True
 
     def __post_init__(self) -> None:
         if self.prefer not in ("amc", "bvh"):
@@ -223,6 +225,7 @@ def load_library(
     contact_options: dict[str, float | str] | None = None,
     progress: Callable[[str], None] | None = None,
     clips: Sequence[str] | None = None,
+    clean_labels: bool = True,
 ) -> Library:
     """Load every clip under ``root`` at ``fps`` frames/s.
 
@@ -239,6 +242,9 @@ def load_library(
     contact_options : keyword arguments for ``detect_contacts``.
     progress : called with a short message per clip parsed.
     clips : keep only clips whose name matches one of these shell patterns (``"01_*"``).
+    clean_labels : each boundary between two labelled actions moved to where the motion
+        changes (``control.motion.clean_labels``); False: the label files' own
+        boundaries, as a ground truth is read.
 
     The first group of arguments is the ``LibrarySpec`` (what to load), the second how
     (the cache, processes, progress): ``load_spec(spec, ...)`` takes them so.
@@ -256,6 +262,7 @@ def load_library(
         bvh_units,
         tuple(clips) if clips is not None else None,
         dict(contact_options or {}),
+        clean_labels,
     )
     return load_spec(spec, cache_dir, use_cache, workers, progress)
 
@@ -368,6 +375,9 @@ def _library_of(spec: LibrarySpec, sources: list[Source], made: list[MadeClip]) 
                 else (np.full(m.source_length, -1, dtype=np.int64), ())
             )
             frame_labels = labels[np.rint(m.source_frames).astype(np.int64)]
+            if spec.clean_labels:
+                rate = m.motion.fps if spec.fps is None else float(spec.fps)
+                frame_labels, _ = clean_labels(m.motion.quats, frame_labels, rate)
             kept.append(
                 Clip(
                     m.motion,
