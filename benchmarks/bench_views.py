@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -71,7 +72,8 @@ def run_one(
     leave = f"{take.split('_')[0]}_*" if fold == "person" else take
     report = work / f"{video.stem}.evaluate.json"
     t0 = time.perf_counter()
-    _mimic("evaluate", str(video), str(library), "--leave-out", leave, "--json", str(report))
+    more = shlex.split(a.perform_args)
+    _mimic("evaluate", str(video), str(library), "--leave-out", leave, "--json", str(report), *more)
     t_eval = time.perf_counter() - t0
     r = json.loads(report.read_text())
     return {
@@ -117,6 +119,11 @@ def main() -> None:
         default=None,
         help="keep the recordings here, and use those already there (recorded with the "
         "same --fps, --size and --seconds)",
+    )
+    ap.add_argument(
+        "--perform-args",
+        default="",
+        help="more of mimic evaluate's flags, as one string: --perform-args '--vote-switch 0.02'",
     )
     ap.add_argument("--out", type=Path, default=HERE / "results" / "views.json")
     a = ap.parse_args()
