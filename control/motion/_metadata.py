@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._errors import MotionFormatError
+from ._parsed import library_files
 from ._text import decode, read_bytes
 
 __all__ = ["descriptions", "label_files", "read_labels"]
@@ -29,7 +30,8 @@ def _expand(cell: str, names: set[str]) -> list[str]:
 
 def descriptions(root: Path, names: set[str]) -> dict[str, str]:
     out: dict[str, str] = {}
-    for readme in sorted(root.rglob("README.md")):
+    files = library_files(root)
+    for readme in [p for p in files if p.name == "README.md"]:
         text = readme.read_text(encoding="utf-8", errors="replace")
         header: list[str] | None = None
         for line in text.splitlines():
@@ -49,7 +51,7 @@ def descriptions(root: Path, names: set[str]) -> dict[str, str]:
                 continue
             for n in _expand(cells[header.index("clip")], names):
                 out.setdefault(n, cells[header.index("description")])
-    for table in sorted(root.rglob("descriptions.csv")):
+    for table in [p for p in files if p.name == "descriptions.csv"]:
         try:
             data = table.read_bytes()
         except OSError as exc:
@@ -67,7 +69,9 @@ def descriptions(root: Path, names: set[str]) -> dict[str, str]:
 
 
 def label_files(root: Path) -> dict[str, Path]:
-    return {p.stem: p for p in sorted(root.rglob("*.csv")) if p.parent.name == "labels"}
+    return {
+        p.stem: p for p in library_files(root) if p.suffix == ".csv" and p.parent.name == "labels"
+    }
 
 
 def read_labels(path: Path, n_frames: int) -> tuple[NDArray[np.int64], tuple[str, ...]]:

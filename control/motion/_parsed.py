@@ -58,9 +58,11 @@ class Source:
 
 
 def library_files(root: Path) -> list[Path]:
-    """Every file under ``root`` (symlinked folders not followed, as ``Path.rglob``).
-    A folder that cannot be read is an error naming it: ``rglob`` skipped it without a
-    word, and the library silently lacked its clips."""
+    """Every file under ``root``. A folder that cannot be read is an error naming it:
+    ``Path.rglob`` skipped it without a word, and the library silently lacked its clips.
+    Symbolic links to folders are followed (the usual way to point a library at data kept
+    elsewhere), each folder read once however many links lead to it, so that a link
+    back up the tree ends rather than loops and no clip is found twice."""
 
     def unreadable(exc: OSError) -> None:
         raise MotionFormatError(
@@ -68,8 +70,14 @@ def library_files(root: Path) -> list[Path]:
             f"cannot read this folder of the library ({exc.strerror or exc})",
         )
 
+    seen: set[tuple[int, int]] = set()
     found = []
-    for folder, _, names in os.walk(root, onerror=unreadable):
+    for folder, subfolders, names in os.walk(root, onerror=unreadable, followlinks=True):
+        st = os.stat(folder)
+        if (st.st_dev, st.st_ino) in seen:
+            subfolders[:] = []  # (reached before, by another path: a loop or a second link)
+            continue
+        seen.add((st.st_dev, st.st_ino))
         found += [p for p in (Path(folder) / n for n in names) if p.is_file()]
     return sorted(found)
 

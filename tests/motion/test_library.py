@@ -214,6 +214,21 @@ def test_a_library_folder_that_cannot_be_read_is_named(
         load_library(small_lib, use_cache=False)
 
 
+def test_folders_linked_into_a_library_are_read_once(small_lib: Path, tmp_path: Path) -> None:
+    # the data kept elsewhere, linked in (twice, and with a link back up the tree): every
+    # clip, label and description is found, none twice, and the loop ends
+    root = tmp_path / "linked"
+    root.mkdir()
+    for name in ("asf", "bvh", "labels", "README.md"):
+        (root / name).symlink_to(small_lib / name)
+    (root / "again").symlink_to(small_lib / "asf")
+    (small_lib / "asf" / "up").symlink_to(small_lib)  # a loop, reached through the link
+    lib = load_library(root, fps=15, cache_dir=tmp_path / "c", workers=1)
+    assert [c.name for c in lib.clips] == ["02_03", "02_04", "09_01"]
+    jog = lib.clip("02_03")
+    assert jog.label_names == ("Jog", "Stop") and jog.description == "jog or jump"
+
+
 def test_label_file_errors(tmp_path: Path) -> None:
     p = tmp_path / "l.csv"
     for text, line, words in (
