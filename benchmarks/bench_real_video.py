@@ -174,9 +174,7 @@ def agreement(
     """Each labelled video replayed through ``mimic evaluate``'s own preparation
     (``mimic.run.prepare``: the library, graph, higher layer, bank, descriptor and
     settings it chooses, with ``run_args``, its flags), so that these figures are what a
-    user gets. Until 2026-12-05 this benchmark prepared its own, and the two drifted
-    apart (the command line ran without the vote on ``../shared/mocap`` while this gave
-    the figures with it)."""
+    user gets: a preparation of its own would drift apart from the command line's."""
     rows = read_labels(labels)
     names = sorted({r[0] for r in rows})
     per_video: dict[str, Any] = {}

@@ -175,14 +175,12 @@ def matcher_latency(
     # whole decisions with jumps, from random avatar frames with a played-on history
     avatar = Avatar(g, lib.clips, seed=0, anywhere=True)
     # as perform does before its first frame: the frame features of jump costs, the index,
-    # the vote (its classifier and each action's search) and the facing (until
-    # 2026-12-05 these decisions were timed without the vote, which perform has made by
-    # default since 2026-12-03)
+    # the vote (its classifier and each action's search) and the facing
     t0 = time.perf_counter()
     _ = avatar.jump_costs.features
     matcher.index()
-    # perform's throwaway decision, so that no timed one compiles a kernel (one took 443
-    # ms on a copy of the code without numba's cache, 2026-12-05), then the vote
+    # perform's throwaway decision, so that no timed one compiles a kernel (one takes
+    # hundreds of milliseconds without numba's cache), then the vote
     matcher.warm_up(avatar.frame, avatar.recent(matcher.recent_frames), avatar.jump_costs)
     ready_matcher(matcher, g.clips_of(lib.clips), PerformSettings().decide_every)
     out["vote"] = matcher.vote.actions is not None

@@ -100,10 +100,9 @@ class Avatar:
     jump_costs : the ``JumpCosts`` of ``graph`` to use (shared by avatars of one graph,
         so its frame features are computed once); by default its own.
     max_offset : metres a planted foot is held from where the blend puts it before it
-        slides (``synthesize``'s, there 0.2 m). 0.4 (2026-12-03): a direct jump's blend
-        carries the body further than a graph transition's; on 12 perform runs planted
-        feet slid 0.137 m/s against 0.168 at 0.2 (0.142 at 0.3, 0.151 at 0.6), junctions'
-        p99 26-43 degrees against 25-40, every decision the same.
+        slides (``synthesize``'s, there 0.2 m). 0.4: a direct jump's blend carries the
+        body further than a graph transition's, and planted feet slide least there
+        (``benchmarks/HISTORY.md``).
     feet : ``synthesize``'s: ``"held"`` (default), or ``"floor"`` (planted feet brought
         to the source's height; the vision interface's avatar, whose blends never end).
     turn_limit, ik_turn_rate : ``synthesize``'s: degrees a second a blended joint may

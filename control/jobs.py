@@ -11,12 +11,10 @@ need the project installed but no shared disk, and a bank built on a cluster is 
 build bit for bit. A worker lost mid-build has its jobs run again by the scheduler (up to
 ``RETRIES`` times); a build stopped altogether keeps the shards it wrote and resumes.
 
-Why Dask and not Ray (``benchmarks/bench_cluster.py``, 2026-12-02, the 2-core
-development machine, a local cluster of 2 workers, the 18-view bank of 13_29 + 13_30:
-9 shards and 8 metric renders): the render jobs took 8.8 s on Dask (through
-``run_jobs``) and 8.7 s on Ray (10.9 s for the whole local build with the process pool),
-and an empty task 1.6 ms against 0.6 ms, which does not matter for jobs of a second or
-more; a cluster started in 0.75 s against 3.3 s; Dask installs as 24 MB of pure Python
+Why Dask and not Ray (``benchmarks/bench_cluster.py``: a local cluster of 2 workers,
+the 18-view bank of 13_29 + 13_30): the render jobs take as long on either, an empty
+task's overhead (a millisecond or so on both) does not matter for jobs of a second or
+more, a Dask cluster starts several times faster; Dask installs as 24 MB of pure Python
 (Ray: 240 MB with its own daemon and object store), its client API is
 ``concurrent.futures``'s, and a worker is one command per machine (``dask worker
 tcp://scheduler:8786``).

@@ -5,6 +5,10 @@ grows past what a newcomer can read."""
 from __future__ import annotations
 
 import ast
+import io
+import re
+import subprocess
+import tokenize
 from pathlib import Path
 
 from tests.conftest import REPO
@@ -106,3 +110,48 @@ def test_no_file_over_500_lines_and_no_function_over_80() -> None:
                 if size > 80 and not kernel:
                     long.append(f"{p.relative_to(REPO)}:{node.lineno}: {node.name} {size} lines")
     assert not long, "\n".join(long)
+
+
+DATE = re.compile(r"\b20\d\d-[01]\d-[0-3]\d\b")
+
+
+def _dated_lines(paths: list[Path]) -> list[str]:
+    """``path:line`` of every comment or docstring line of ``paths`` with a date."""
+    found = []
+    for p in paths:
+        src = p.read_text()
+        lines = src.splitlines()
+        docs: set[int] = set()
+        for node in ast.walk(ast.parse(src)):
+            body = getattr(node, "body", None)
+            if isinstance(body, list) and body and isinstance(body[0], ast.Expr):
+                first = body[0].value
+                if isinstance(first, ast.Constant) and isinstance(first.value, str):
+                    docs.update(range(first.lineno, (first.end_lineno or first.lineno) + 1))
+        for tok in tokenize.generate_tokens(io.StringIO(src).readline):
+            if tok.type == tokenize.COMMENT and DATE.search(tok.string):
+                found.append(f"{p}:{tok.start[0]}")
+        found += [f"{p}:{n}" for n in sorted(docs) if DATE.search(lines[n - 1])]
+    return found
+
+
+def test_comments_say_what_is_not_when() -> None:
+    """History, with its dates, goes to git, ``CHANGELOG.md`` and ``benchmarks/HISTORY.md``:
+    no comment or docstring of the project's Python carries a date."""
+    files = [REPO / f for f in _tracked("*.py")]
+    assert not _dated_lines(files), "\n".join(_dated_lines(files))
+
+
+def test_the_date_check_finds_a_dated_comment(tmp_path: Path) -> None:
+    p = tmp_path / "m.py"
+    p.write_text(
+        '"""A module.\n\nMeasured 2026-12-04."""\n\nX = 1  # since 2026-12-05\nY = "2026-12-05"\n'
+    )
+    assert _dated_lines([p]) == [f"{p}:5", f"{p}:3"]  # (a string that is data is not)
+
+
+def _tracked(pattern: str) -> list[str]:
+    out = subprocess.run(
+        ["git", "ls-files", pattern], cwd=REPO, capture_output=True, text=True, check=True
+    )
+    return [line for line in out.stdout.splitlines() if line]

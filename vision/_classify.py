@@ -12,14 +12,10 @@ the window), fitted to the bank's windows with the action of their last frame.
 The decision's action is then the one with the least ``cost / best cost - WEIGHT * log p``
 (``choose_action``): its best window's DTW cost, relative to the best of all, less the
 classifier's log-probability of it (for the performer as seen or mirrored, whichever is
-more probable). On ``bench_recognition``'s leave-one-take-out folds (1 s windows, 9
-variations; 2026-12-04) this took the outline from 0.775 / 0.887 / 0.785 to 0.827 /
-0.895 / 0.804 and the pose descriptor from 0.811 / 0.880 / 0.794 to 0.846 / 0.874 /
-0.814 (at a weight of 0.03); in a harness of the same folds any ``WEIGHT`` from 0.01 to
-0.07 gave within a point of that, and the classifier alone 0.78 / 0.89 / 0.78 (outline):
-it is the two together that carry over. ``WEIGHT`` is 0.02, not 0.03, because following
-with noisier landmarks (6% of the torso length) and the silhouette checks held up better
-there (0.911 against 0.904, 0.881 against 0.868) and every other set was within 0.001.
+more probable). On ``bench_recognition``'s leave-one-take-out folds the two together
+recognise more windows than either alone, with either descriptor, and any ``WEIGHT``
+from 0.01 to 0.07 does about as well; 0.02 holds up best with noisier landmarks
+(``benchmarks/HISTORY.md``).
 """
 
 from __future__ import annotations

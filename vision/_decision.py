@@ -54,16 +54,10 @@ class MatchSettings:
     #: clip). The own cost is that of the library window that plays into the avatar's
     #: frame (``own_from_library``: what the search scores every window by; right after
     #: a jump the frames shown still hold the motion it jumped from), or of the last
-    #: ``window`` seconds it has shown. Defaults (2026-12-02, ``own_from_library``,
-    #: ``hold`` 0.3, ``jump_ratio`` 0.95, ``blend_weight`` 0.1; before: frames shown,
-    #: 1.0, 1.0, 0.3): label agreement 0.738 against 0.700 over 3 held-out takes x 11
-    #: recordings, better on 26 of the 33, with 51 action switches a minute against 39.
-    #: Since 2026-12-03 (with the vote, which keeps the action): ``hold`` 0.1,
-    #: ``jump_ratio`` 1.0, ``blend_weight`` 0, so the avatar keeps in step with the
-    #: performer. DTW lets an out-of-step window cost nearly what an in-step one does, so
-    #: any margin kept it out of step: pose score (either side) 0.687 -> 0.719 on 3 takes
-    #: x 4 recordings and 0.676 -> 0.699 on 18 others, label agreement the same (a blend
-    #: weight of 0.03 gave 0.707, 0.1 gave 0.692 with ``hold`` 0.3)
+    #: ``window`` seconds it has shown. With the vote keeping the action, no margin
+    #: (``jump_ratio`` 1, ``blend_weight`` 0) keeps the avatar in step with the
+    #: performer: DTW lets an out-of-step window cost nearly what an in-step one does, so
+    #: any margin kept it out of step (``benchmarks/HISTORY.md``, "The matcher's settings")
     jumps: bool = True
     top: int = 8
     blend_weight: float = 0.0
@@ -71,11 +65,8 @@ class MatchSettings:
     own_from_library: bool = True
     #: no jump until the avatar has played ``hold`` seconds on since its last move (it
     #: would flicker between windows of near cost); at a clip's end it jumps anyway.
-    #: Measured 2026-12-05 (``bench_accuracy``'s 12 runs, landmarks / silhouettes; actions
-    #: the avatar shows for under 0.5 s a minute, and pose score): 0.1 s 10.2 / 7.4 and
-    #: 0.784 / 0.686; 0.3 s 9.1 / 5.2 and 0.756 / 0.653; 0.5 s 1.9 / 1.0 and 0.681 /
-    #: 0.628: the brief stays keep the avatar in step, so 0.1 is the default and a longer
-    #: hold (``mimic perform --hold``) a choice for a steadier avatar
+    #: Short: the brief stays keep the avatar in step; a longer hold (``mimic perform
+    #: --hold``) makes a steadier avatar at the cost of its pose
     hold: float = 0.1
     #: with jumps, when no jump is taken: ``True``, the paper's cluster paths (their
     #: future against the performer's past); ``False`` (default: as accurate on the
@@ -87,22 +78,15 @@ class MatchSettings:
     #: most voted for (which changes only when another has more votes; when none of the
     #: best windows shows it, the best that do are searched for), leaving another when
     #: it shows one or will have played on into one within half a window, unless
-    #: another fits far better (``vote_margin``) (0: no vote). 15 (1.5 s of decisions;
-    #: 2026-12-03): label agreement 0.853 against 0.790 over 3 held-out takes x 4
-    #: recordings (10: 0.838, 20: 0.844 in an earlier form), and 0.826 against 0.764 on
-    #: 18 recordings not used to choose it
+    #: another fits far better (``vote_margin``) (0: no vote). 15: 1.5 s of decisions
     vote: int = 15
     #: with the vote: windows of another action than the one voted for may be jumped
     #: into too, at ``1 + vote_margin`` times their cost, and the avatar's own motion,
-    #: when it shows another action, costs as much more, played on or held still (since
-    #: 2026-12-04 20:00 weighed alike wherever it is taken) (``math.inf``: never, as until
-    #: 2026-12-04: the avatar jumps only into the voted action, and leaves another at
-    #: once). The library's labels are coarser than its poses: a window of another action
-    #: is sometimes far nearer the performer's pose. 0.2 (2026-12-04, bench_accuracy's 12
-    #: runs, margins inf / 0.3 / 0.2 / 0.1, see benchmarks/HISTORY.md): landmarks' label
-    #: agreement 0.932 / 0.898 / 0.882 / -, pose score 0.710 / 0.776 / 0.783 / -;
-    #: silhouettes' 0.909 / 0.900 / 0.883 / 0.854, 0.657 / 0.671 / 0.684 / 0.703; the
-    #: shared squat clip, the one real performer, 0.872 / 0.872 / 0.949 / 0.923
+    #: when it shows another action, costs as much more, played on or held still
+    #: (``math.inf``: never: the avatar jumps only into the voted action, and leaves
+    #: another at once). The library's labels are coarser than its poses: a window of
+    #: another action is sometimes far nearer the performer's pose; a margin trades
+    #: label agreement for the pose score and flicker (``benchmarks/HISTORY.md``)
     vote_margin: float = 0.2
     #: > 0: the voted action is filtered online by a hidden Markov model over the
     #: library's actions (``ActionVote.filter``) rather than counted over the last
@@ -122,20 +106,14 @@ class MatchSettings:
     #: a jump's target (the frame after its window) moves by up to ``phase`` frames to
     #: where the library's last frames before it are nearest the performer's last 0.2 s
     #: (``vision._windows.phased_targets``; 0: off): DTW places a window's end loosely,
-    #: and the avatar then plays out of step. 6 frames, 3 compared (2026-12-04, the 12
-    #: landmark runs of ``bench_accuracy``): pose score 0.676 -> 0.701, label agreement
-    #: the same decision for decision (3 frames moved: 0.692; 10: 0.696; 2, 5 or 8
-    #: compared: 0.701, 0.696, 0.682)
+    #: and the avatar then plays out of step (3 frames are compared)
     phase: int = 6
     #: the action vote also reads the performer at these tempos against the library's
     #: (0.6: the performer moves at 0.6 times its speed, so their last ``window / 0.6``
     #: seconds are resampled to a window; ``vision._windows.tempo_readings``); where the
-    #: avatar lands stays by the performer as seen. Off by default: (0.6,) measured on
-    #: 2026-12-04 (bench_accuracy, landmarks, 3 takes x 4 recordings at tempos 1, 0.7,
-    #: 0.5 and 1.3) lifted label agreement 0.907 -> 0.923 (the takes at 0.5: 0.843 ->
-    #: 0.897) but cost pose score 0.714 -> 0.707, and the shared squat clip (its squats at
-    #: 0.45) lost one decision of 39 at lag <= 1 s; with silhouettes a decision's p99 went
-    #: over 5 ms (5.2-7.6) and 13_29 lost agreement (0.907 -> 0.879)
+    #: avatar lands stays by the performer as seen. Off by default: it helps slow
+    #: performers' labels but costs the pose score, a real squat clip and (silhouettes)
+    #: time (``benchmarks/HISTORY.md``)
     tempos: tuple[float, ...] = ()
     #: with jumps, the avatar may hold its frame still (``Matcher.held``) when that
     #: matches a performer standing still better than any jump or playing on
@@ -143,24 +121,15 @@ class MatchSettings:
     #: for silhouettes read as seen and mirrored: windows that only the performer facing
     #: the other way explains (``vision._facing``: facing the camera by default, then as
     #: the evidence says) cost ``1 + facing`` times as much (0: off), so that the avatar
-    #: raises the knee the performer raises, not the other. 0.3 (2026-12-04,
-    #: ``bench_accuracy``, the 12 silhouette runs): label agreement 0.903 -> 0.911, pose
-    #: score 0.623 -> 0.656 (weighing every window, not only those that show a side:
-    #: 0.911 and 0.659 at 0.3, 0.908 and 0.649 at 0.1, 0.911 and 0.659 at 1.0)
+    #: raises the knee the performer raises, not the other
     facing: float = 0.3
     #: DTW weighs the performer's last frames more than the first of the window
     #: (``control.dtw``'s ``recency``: the last frame ``1 + recency`` times the first,
     #: linearly between, 1 on average; 0: every frame alike), so that the window whose
     #: end fits what the performer does now wins over one whose start fits what they did
-    #: a second ago. Off by default: measured 2026-12-04 (``bench_accuracy``, recency 0 /
-    #: 1 / 2 / 4 on the 12 runs) it lifted the pose score (silhouettes 0.686 / 0.701 /
-    #: 0.708 / 0.707, landmarks 0.784 / 0.797 / 0.804 / 0.808, and at 2 on every other
-    #: set but the silhouettes' mirrored takes), but the one real performer
-    #: (``bench_real_video``, the shared squat clip) lost decisions at any value from 1
-    #: (landmarks 37 -> 34 of 39, silhouettes 24 -> 22) and switched action 61 times a
-    #: minute instead of 38; the silhouettes' label agreement fell on every set (by
-    #: 0.003-0.016). Our folds are takes of the library's own performer; the gain did not
-    #: carry over to another.
+    #: a second ago. Off by default: it lifted the pose score on takes of the library's
+    #: own performer, and the gain did not carry over to a real one
+    #: (``benchmarks/HISTORY.md``)
     recency: float = 0.0
 
     def __post_init__(self) -> None:

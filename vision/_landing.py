@@ -88,7 +88,7 @@ class Landing:
         margin = self.settings.vote_margin
         voting = self.vote.actions is not None and self.vote.size > 0 and math.isfinite(margin)
         if voting and self.vote.leaves(frame, frame):  # (held: the frame shows no other)
-            cost *= 1.0 + margin  # (until 2026-12-04 20:00 held at its plain cost)
+            cost *= 1.0 + margin  # (weighed as the avatar's own motion is, however taken)
         if not cost < self.settings.jump_ratio * against:
             return None
         frames = np.full(self.n + 1, frame, dtype=np.int64)
@@ -174,8 +174,8 @@ class Landing:
     ) -> Gate:
         """The frames after windows ``got`` (placed by the performer's last frames,
         ``phased_targets``), which a jump from ``frame`` may land on, and which the avatar
-        is at anyway, within 2 frames in its run (up to a window ahead before 2026-12-04:
-        pose score 0.701 -> 0.708 on bench_accuracy's 12 landmark runs)."""
+        is at anyway, within 2 frames in its run (not a window ahead: a jump a few frames
+        on keeps the avatar in step)."""
         target = np.array([g[0] for g in got], dtype=np.int64) + self.n
         views = np.array([g[1] for g in got], dtype=np.int64)
         shape = self._global_tables()[0]

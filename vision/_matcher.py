@@ -331,8 +331,7 @@ class Matcher(CandidatePaths, Landing):
         got, target, ok, weight, own_weight = gated
         # (strict vote) the avatar leaves an action the performer is not voted to do
         leave = math.isinf(own_weight)
-        # the avatar's own cost, however it is taken, weighed alike (until 2026-12-04 20:00
-        # these two were not weighed by the margin)
+        # the avatar's own cost, however it is taken, weighed alike
         mine = 1.0 if leave else own_weight
         if at:  # the avatar does one of the best windows: its cost is its own
             self.last_own = mine * min(at)

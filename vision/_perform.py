@@ -456,9 +456,7 @@ class Performance:
         t = 0.0
         stopped = ""
         # the numeric libraries on one thread: a decision's small matrix products spread
-        # over threads waited on one another (bench_accuracy's 12 landmark runs,
-        # 2026-12-05: decision p99 2.1-6.1 ms alone, 1.3-2.6 ms on one thread; beside
-        # another benchmark 7.6-15 ms, 1.4-6.1 ms)
+        # over threads waited on one another (its p99 about halves on one thread)
         with one_thread():
             try:
                 while True:

@@ -21,9 +21,8 @@ A frame larger than ``MAX_SIDE`` pixels on its longest side is scaled down first
 (``cv2.INTER_AREA``): the models look at 256x256 crops whatever the frame, but converting,
 segmenting at and cleaning the frame's own size cost a 720x1280 frame about 6 ms of the
 loop's 36. The landmarks are image fractions, so they mean the same; the mask is cleaned at the
-model's size and scaled back to the frame's (nearest pixel). On ``bench_real_video``
-(2026-12-04, the shared clips; the squats are 720x1280) every decision was the same with
-either descriptor, and the squats' loop ran at 28-33 frames/s against 23-29.
+model's size and scaled back to the frame's (nearest pixel): on ``bench_real_video``
+every decision is the same as at the frame's own size, and the loop faster.
 
 The pose model smooths its mask from frame to frame and, given a frame of another size
 than the last (a camera reconfigured, files played one after another), fails on that

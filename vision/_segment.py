@@ -71,8 +71,8 @@ _MARGIN = 4 * math.ceil(SMOOTH) + 2
 def _largest_blob(m: NDArray[np.uint8], min_pixels: float) -> tuple[NDArray[np.bool_] | None, int]:
     # a vote of each pixel's neighbourhood (a Gaussian of 1 pixel, kept where more than
     # half): ragged edges smoothed, speckle and pinholes gone, and limbs a few pixels
-    # wide kept (a 3x3 opening, before 2026-12-02, cut them where the edge was ragged:
-    # following a performer 90 pixels tall fell to 0.30-0.62)
+    # wide kept (a 3x3 opening cuts them where the edge is ragged, and a performer 90
+    # pixels tall is then followed far worse)
     # (in 8 bits: as fast as the opening, five times faster than in floats); with the
     # largest blob, how many others are at least RIVAL times its area
     m = (cv2.GaussianBlur(m * 255, (0, 0), SMOOTH) > 127).astype(np.uint8)

@@ -10,13 +10,12 @@ keeps to the action most voted for over the last ``MatchSettings.vote`` decision
 voted for by the last third of them, all alike: a new action is taken up in 0.5 s, not
 when it has outvoted the old one), and leaves a motion that is not that action, or will
 have played on out of it within half a window. When none of a decision's best windows
-shows the voted action, the matcher searches the windows that do (``starts``). Since
-2026-12-04 the vote weighs rather than forbids (``MatchSettings.vote_margin``, 0.2): a
-window of another action, and the avatar's own motion of another action, cost 1.2 times
-as much, so the avatar takes one only where it fits the performer far better (the
-library's labels are coarser than its poses); with the margin infinite the avatar never
-jumps into an action the performer is not voted to do (until 2026-12-03 it jumped into
-the best window then, whatever its action). A source slower than the decisions has
+shows the voted action, the matcher searches the windows that do (``starts``). The vote
+weighs rather than forbids (``MatchSettings.vote_margin``, 0.2): a window of another
+action, and the avatar's own motion of another action, cost 1.2 times as much, so the
+avatar takes one only where it fits the performer far better (the library's labels are
+coarser than its poses); with the margin infinite the avatar never jumps into an action
+the performer is not voted to do. A source slower than the decisions has
 decision points skipped (``missed``); each vote then stands for them too, so that the
 vote spans the same time at any frame rate.
 

@@ -53,16 +53,16 @@ SOFT_REACH = 0.97
 #: by at most the first, none from the second, in proportion between. A folded leg
 #: (a deep squat) can need a swing near a half turn to reach a target a few centimetres
 #: away, and there the swing's axis flips from one frame to the next: a jump blended
-#: into a squat turned a thigh 170 degrees in one frame (2026-12-03); the foot slides
-#: there instead.
+#: into a squat could turn a thigh 170 degrees in one frame; the foot slides there
+#: instead.
 SWING_LIMIT = (40.0, 80.0)
 
 #: degrees a second: how fast ``solve_leg``'s correction of the hip and of the knee may
 #: turn from one frame to the next (with its frames given). A nearly straight knee must
 #: bend tens of degrees to bring the ankle a few centimetres nearer the hip, so a blend
-#: that carried the pelvis 5 cm a frame away from a planted foot bent the knee 50-88
-#: degrees in one frame (junctions of 13_29 side, 2026-12-03; the library's 99th
-#: percentile is 31); the foot slides there instead.
+#: that carries the pelvis 5 cm a frame away from a planted foot would bend the knee
+#: 50-88 degrees in one frame (the library's 99th percentile is 31); the foot slides
+#: there instead.
 TURN_RATE = 300.0
 
 

@@ -348,8 +348,8 @@ def test_a_blend_near_a_half_turn_does_not_swing_the_limb(
     """A transition whose offset in one joint is close to a half turn, the last two
     offsets on either side of it (their rotation vectors point opposite ways): the blend
     turns the joint back smoothly, never much faster than a half turn over the blend
-    (before 2026-12-02 the offset's rate was the difference of those vectors, near
-    2 pi, and the arm swung by up to 150 degrees a frame)."""
+    (taking the offset's rate as the difference of those vectors, near 2 pi, would swing
+    the arm by up to 150 degrees a frame)."""
     room = _edges_with_room(graph, 5, 40)
     e = next(
         int(e)

@@ -170,8 +170,8 @@ def test_right_after_a_jump_the_own_cost_is_the_window_played_into(setup) -> Non
         dtw_batch(q, m._bank_sequences(window), None, st.band, st.recency).min() for q in queries
     )
     assert m.own_cost(queries, window) == pytest.approx(by_bank, rel=1e-5)
-    # the frames shown, as before 2026-12-02; and at a clip's first frames, which have no
-    # window of their own, those too
+    # without own_from_library, the frames shown; and at a clip's first frames, which
+    # have no window of their own, those too
     before = Matcher(layer, bank, MatchSettings(own_from_library=False))
     assert np.array_equal(before.own_frames(j, shown), shown)
     assert np.array_equal(m.own_frames(3, shown), shown)

@@ -195,7 +195,7 @@ def test_a_clip_of_another_skeleton_in_the_library_leaves_the_vote_on(
     """The shared library holds a BVH of another skeleton (09_01), which the graph leaves
     out. Given to the loop beside the graph's clips, it put the vote's per-frame actions
     (and the facing's headings) out of line with the graph's frames, and both went off
-    without a word: `mimic perform` on ../shared/mocap ran without them until 2026-12-05."""
+    without a word."""
     from vision._perform import Performance
 
     lib, layer, bank = setup

@@ -202,7 +202,7 @@ def test_clean_mask_keeps_a_thin_arm_with_ragged_edges() -> None:
     """A performer far from the camera: a body and an arm 3 pixels wide held out, the
     mask's edges ragged (a pixel either side flipped at random, as ``mimic record``
     makes them). The arm must stay whole: the outline descriptor reads how far it
-    reaches (a 3x3 opening, before 2026-12-02, cut it short on 16 of 20 masks; now 2)."""
+    reaches (a 3x3 opening cuts it short on most such masks)."""
     rng = np.random.default_rng(0)
     short = 0
     for _ in range(20):
