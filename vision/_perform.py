@@ -163,6 +163,7 @@ class Performance:
         self.blank = np.full(matcher.n_features, np.nan)  # a frame without a silhouette
         self.latest = self.blank
         self.latest_mask: NDArray[np.bool_] | None = None
+        self.picture: tuple[Any, Any] = (None, None)  # the latest colour frame, landmarks
         self.next_tick = 0.0
         self.next_decision = settings.decide_every
         self.t_avatar = 0.0
@@ -257,6 +258,7 @@ class Performance:
         else:
             self.latest, self.why_blank = self.blank, problem or "no silhouette"
         self.latest_mask = mask
+        self.picture = (frame.image, getattr(self.segmenter, "landmarks", None))
         return mask
 
     def window(self) -> NDArray[np.float64]:
@@ -275,7 +277,7 @@ class Performance:
             self.avatar.step()
             self.t_avatar += self.period
             if self.tape is not None:
-                self.tape.append(self.latest_mask)
+                self.tape.append(self.latest_mask, *self.picture)
             self.views.append(self.view)
 
     def place_avatar(self, t: float, entry: dict[str, Any]) -> None:
@@ -296,7 +298,7 @@ class Performance:
         self.t_start = t
         if self.tape is not None:  # the avatar restarts: so does its video
             self.tape.reset()
-            self.tape.append(self.latest_mask)
+            self.tape.append(self.latest_mask, *self.picture)
         entry.update(frame=self.avatar.frame, located=round(got[2], 4))
         entry["clip"], entry["clip_frame"] = self.graph.locate(self.avatar.frame)
 

@@ -1,7 +1,10 @@
-"""The side-by-side video of a performance: the performer's silhouette beside the avatar.
+"""The side-by-side video of a performance: the performer beside the avatar.
 
-The performer's masks are streamed during the run onto a ``MaskTape`` (a lossless FFV1
-file in a temporary folder, at the pane's size), not kept in memory; at the end they are
+The performer's pane is what the loop saw: for a colour source the frame itself, dimmed,
+with the person mask it found tinted over it and the pose model's landmarks drawn (the
+joints it could not see in grey); for a silhouette source the white mask. The panes are
+streamed during the run onto a ``MaskTape`` (a lossless FFV1 file in a temporary folder,
+at the pane's size), not kept in memory; at the end they are
 played back beside the avatar's synthesized motion, drawn by pyrender on a floor grid by
 one camera that follows the avatar's smoothed path (it never switches views). Each pane
 has a caption: media time; the avatar's clip:frame, its action label, the match cost,
@@ -25,7 +28,7 @@ from scipy.ndimage import gaussian_filter1d
 from control.motion import Clip
 from silhouette_bank import Bank, CameraRing
 
-__all__ = ["PANE", "MaskTape", "write_video"]
+__all__ = ["PANE", "MaskTape", "performer_pane", "write_video"]
 
 #: width, height of each pane (the video is two panes side by side)
 PANE = (640, 480)
@@ -35,9 +38,19 @@ _TEXT = (235, 235, 235)
 _MARK = (60, 60, 230)
 
 
+#: MediaPipe Pose's bones among the joints the pose descriptor reads (its landmark indices)
+BONES = (
+    (11, 12), (11, 13), (13, 15), (12, 14), (14, 16), (11, 23), (12, 24),
+    (23, 24), (23, 25), (25, 27), (24, 26), (26, 28),
+)  # fmt: skip
+_MASK_TINT = (255, 190, 120)  # BGR, a light blue over the person found
+_BONE = (80, 220, 255)
+_HIDDEN = (150, 150, 150)
+
+
 class MaskTape:
-    """The performer's mask per avatar frame, written to a temporary lossless video as
-    they come (letterboxed into a ``PANE``-sized grey image; no mask: black)."""
+    """The performer's pane per avatar frame, written to a temporary lossless video as
+    they come (letterboxed into ``PANE``; nothing seen: black)."""
 
     def __init__(self, size: tuple[int, int] = PANE, fps: float = 15.0) -> None:
         self.size = size
@@ -52,7 +65,7 @@ class MaskTape:
         if self._writer is not None:
             self._writer.release()
         fourcc = cv2.VideoWriter.fourcc(*"FFV1")
-        self._writer = cv2.VideoWriter(str(self._path), fourcc, self.fps, self.size, False)
+        self._writer = cv2.VideoWriter(str(self._path), fourcc, self.fps, self.size, True)
         if not self._writer.isOpened():
             raise OSError(f"{self._path}: cannot write an FFV1 video here")
         self._n = 0
@@ -60,17 +73,16 @@ class MaskTape:
     def __len__(self) -> int:
         return self._n
 
-    def append(self, mask: NDArray[np.bool_] | None) -> None:
-        w, h = self.size
-        img = np.zeros((h, w), dtype=np.uint8)
-        if mask is not None and mask.size:
-            mh, mw = mask.shape
-            scale = min(w / mw, h / mh)
-            size = (max(1, round(mw * scale)), max(1, round(mh * scale)))
-            small = cv2.resize(mask.astype(np.uint8) * 255, size, interpolation=cv2.INTER_NEAREST)
-            x0, y0 = (w - size[0]) // 2, (h - size[1]) // 2
-            img[y0 : y0 + size[1], x0 : x0 + size[0]] = small
-        self._writer.write(img)
+    def append(
+        self,
+        mask: NDArray[np.bool_] | None,
+        image: NDArray[np.uint8] | None = None,
+        landmarks: NDArray[np.float64] | None = None,
+    ) -> None:
+        """One frame of the pane: the ``mask`` alone (white on black), or over the colour
+        ``image`` it was found in, with the pose model's ``landmarks`` ``(33, 3)`` (x, y
+        as image fractions, visibility) drawn."""
+        self._writer.write(performer_pane(self.size, mask, image, landmarks))
         self._n += 1
 
     def reset(self) -> None:
@@ -78,7 +90,7 @@ class MaskTape:
         self._open()
 
     def frames(self) -> Iterator[NDArray[np.uint8]]:
-        """The masks written, as grey images, in order (the tape is then closed for
+        """The panes written, as BGR images, in order (the tape is then closed for
         writing)."""
         if self._writer is not None:
             self._writer.release()
@@ -89,7 +101,7 @@ class MaskTape:
                 ok, img = cap.read()
                 if not ok:
                     break
-                yield np.asarray(img[..., 0] if img.ndim == 3 else img, dtype=np.uint8)
+                yield np.asarray(img if img.ndim == 3 else cv2.cvtColor(img, cv2.COLOR_GRAY2BGR))
         finally:
             cap.release()
 
@@ -104,6 +116,48 @@ class MaskTape:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def performer_pane(
+    size: tuple[int, int],
+    mask: NDArray[np.bool_] | None,
+    image: NDArray[np.uint8] | None = None,
+    landmarks: NDArray[np.float64] | None = None,
+) -> NDArray[np.uint8]:
+    """The performer's pane of ``size`` (width, height): ``image`` (BGR) or, without one,
+    ``mask`` in white on black, letterboxed; over an image the mask is tinted and the
+    landmarks drawn (see ``MaskTape.append``)."""
+    w, h = size
+    pane = np.zeros((h, w, 3), dtype=np.uint8)
+    src = image if image is not None else mask
+    if src is None or not src.size:
+        return pane
+    sh, sw = src.shape[:2]
+    scale = min(w / sw, h / sh)
+    fit = (max(1, round(sw * scale)), max(1, round(sh * scale)))
+    x0, y0 = (w - fit[0]) // 2, (h - fit[1]) // 2
+    inside = pane[y0 : y0 + fit[1], x0 : x0 + fit[0]]
+    small = None
+    if mask is not None and mask.shape[:2] == (sh, sw):
+        small = cv2.resize(mask.astype(np.uint8), fit, interpolation=cv2.INTER_NEAREST) > 0
+    if image is None:
+        assert small is not None  # (the mask is the source)
+        inside[small] = 255
+        return pane
+    inside[:] = cv2.resize(image, fit, interpolation=cv2.INTER_AREA) // 2  # dimmed
+    if small is not None:
+        tint = np.array(_MASK_TINT, dtype=np.uint16)
+        inside[small] = ((inside[small].astype(np.uint16) + tint) // 2).astype(np.uint8)
+    if landmarks is not None:
+        pts = np.asarray(landmarks, dtype=np.float64)
+        xy = np.rint(pts[:, :2] * np.array(fit) + np.array([x0, y0])).astype(int)
+        for a, b in BONES:
+            seen = min(pts[a, 2], pts[b, 2]) >= 0.5
+            cv2.line(pane, tuple(xy[a]), tuple(xy[b]), _BONE if seen else _HIDDEN, 2, cv2.LINE_AA)
+        for k in {j for bone in BONES for j in bone}:
+            colour = _BONE if pts[k, 2] >= 0.5 else _HIDDEN
+            cv2.circle(pane, tuple(xy[k]), 4, colour, -1, cv2.LINE_AA)
+    return pane
 
 
 def _grid_lines(centre: NDArray[np.float64], extent: float = 6.0, step: float = 0.5) -> list:
@@ -218,12 +272,8 @@ def write_video(
     def frames() -> Iterator[np.ndarray]:
         performer = tape.frames()
         for i, shaded in enumerate(avatar_frames):
-            grey = next(performer, None)
-            left = (
-                np.zeros((PANE[1], PANE[0], 3), np.uint8)
-                if grey is None
-                else cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR)
-            )
+            seen = next(performer, None)
+            left = np.zeros((PANE[1], PANE[0], 3), np.uint8) if seen is None else seen.copy()
             t = t0 + i / fps
             _caption(left, [f"performer  {t:6.2f} s"])
             right = _floor(ring, poses[i], path_xz[i])

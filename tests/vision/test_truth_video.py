@@ -17,7 +17,7 @@ from vision import (
     brief_actions_per_minute,
     truth_for,
 )
-from vision._video import PANE, MaskTape, _frame_decisions
+from vision._video import PANE, MaskTape, _frame_decisions, performer_pane
 
 
 def test_a_recordings_sidecar_is_its_truth() -> None:
@@ -106,15 +106,41 @@ def test_the_mask_tape_plays_back_what_was_written(rng: np.random.Generator) -> 
             tape.append(m)
         tape.append(None)
         got = list(tape.frames())
-    assert len(got) == 4 and all(g.shape == (PANE[1], PANE[0]) for g in got)
-    # letterboxed 4x: each mask pixel is a 4x4 block, lossless
-    np.testing.assert_array_equal(got[0][::4, ::4] > 127, masks[0])
+    assert len(got) == 4 and all(g.shape == (PANE[1], PANE[0], 3) for g in got)
+    # letterboxed 4x: each mask pixel is a 4x4 block of white, lossless
+    np.testing.assert_array_equal(got[0][::4, ::4, 1] > 127, masks[0])
     assert not got[3].any()
     with MaskTape() as tape:
         tape.append(masks[0])
         tape.reset()
         tape.append(None)
         assert len(tape) == 1 and len(list(tape.frames())) == 1
+
+
+def test_a_colour_frame_is_shown_with_its_mask_and_landmarks() -> None:
+    # a 320x240 frame of flat grey, the person's mask a box in its middle, and the pose
+    # model's landmarks: the shoulders seen, the left wrist hidden
+    image = np.full((240, 320, 3), 200, np.uint8)
+    mask = np.zeros((240, 320), bool)
+    mask[60:200, 130:190] = True
+    lm = np.zeros((33, 3))
+    lm[:, :2] = 0.5
+    lm[11] = (0.45, 0.3, 0.9)
+    lm[12] = (0.55, 0.3, 0.9)
+    lm[15] = (0.3, 0.6, 0.1)
+    pane = performer_pane(PANE, mask, image, lm)
+    assert pane.shape == (PANE[1], PANE[0], 3)
+    # letterboxed 2x: the frame dimmed to half, the mask tinted blue-white
+    assert tuple(pane[20, 20]) == (100, 100, 100)
+    assert pane[350, 330, 0] > pane[350, 330, 2]  # (BGR) tinted: more blue than red
+    shoulder = pane[round(0.3 * 480), round(0.45 * 640)]
+    assert tuple(shoulder) == (80, 220, 255)  # a joint seen, in the bones' colour
+    wrist = pane[round(0.6 * 480), round(0.3 * 640)]
+    assert tuple(wrist) == (150, 150, 150)  # a joint the model could not see, in grey
+    # without a frame, the mask alone, white on black, as a silhouette source gives it
+    alone = performer_pane(PANE, mask, None, None)
+    assert tuple(alone[240, 320]) == (255, 255, 255) and not alone[20, 20].any()
+    assert not performer_pane(PANE, None, None, None).any()
 
 
 def test_the_video_marks_jumps_and_starts() -> None:
