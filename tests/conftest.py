@@ -70,9 +70,24 @@ def _close_dask() -> None:
         cluster.close()
 
 
+#: session fixtures that build a library's graph, layer or bank, start a cluster or a
+#: pose model: a test that uses one is ``slow`` (``pytest -m "not slow"``, the inner loop)
+HEAVY = frozenset(
+    {
+        "actions", "banks", "chainer", "dask_cluster", "exercise", "graph", "lib",
+        "medium_lib", "playground", "playground_lib", "pose_bank", "setup", "squats",
+        "walk", "walk_lib", "walks",
+    }
+)  # fmt: skip
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     users = [i.nodeid for i in items if "dask_cluster" in getattr(i, "fixturenames", ())]
     _DASK["last"] = users[-1] if users else None
+    for item in items:
+        heavy = HEAVY & set(getattr(item, "fixturenames", ()))
+        if heavy or item.get_closest_marker("gl") is not None:
+            item.add_marker(pytest.mark.slow)
 
 
 @pytest.hookimpl(trylast=True)

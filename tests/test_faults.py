@@ -30,6 +30,7 @@ from mimic.cli import main
 from tests.faults import GOOD, sweep, table
 
 
+@pytest.mark.slow
 def test_every_damaged_artifact_is_rebuilt_or_named(mocap: Path) -> None:
     outcomes = sweep(mocap, flips=5, truncations=2, seed=19)
     bad = [o for o in outcomes if o.outcome not in GOOD]

@@ -11,6 +11,8 @@ import subprocess
 import tokenize
 from pathlib import Path
 
+import pytest
+
 from tests.conftest import REPO
 
 PACKAGES = ("control", "silhouette_bank", "vision", "mimic")
@@ -96,6 +98,7 @@ def test_the_command_line_lives_in_mimic_alone() -> None:
             assert "mimic" not in names, f"{p.relative_to(REPO)} imports the command line"
 
 
+@pytest.mark.slow
 def test_no_file_over_500_lines_and_no_function_over_80() -> None:
     """Rooms a newcomer can read: numba kernels may be long, nothing else."""
     long = []
@@ -135,6 +138,7 @@ def _dated_lines(paths: list[Path]) -> list[str]:
     return found
 
 
+@pytest.mark.slow
 def test_comments_say_what_is_not_when() -> None:
     """History, with its dates, goes to git, ``CHANGELOG.md`` and ``benchmarks/HISTORY.md``:
     no comment or docstring of the project's Python carries a date."""

@@ -84,6 +84,7 @@ def test_outputs_that_collide_are_refused_naming_both(
     assert sorted(p.name for p in d.iterdir()) == ["in.mkv", "in.mkv.json"]
 
 
+@pytest.mark.slow
 def test_an_unwritable_output_is_found_before_the_performance(
     mocap: Path, video: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -145,6 +146,7 @@ def test_a_video_that_fails_to_write_replaces_nothing(
     assert {p.name: _sum(p) for p in folder.iterdir()} == before  # no temporary file left
 
 
+@pytest.mark.slow
 def test_a_full_disk_names_the_file_and_keeps_the_previous_set(
     mocap: Path, video: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -161,6 +163,7 @@ def test_a_full_disk_names_the_file_and_keeps_the_previous_set(
     assert {p.name: _sum(p) for p in folder.iterdir()} == before  # the old log too
 
 
+@pytest.mark.slow
 def test_a_run_writes_its_set_and_says_only_what_it_wrote(
     mocap: Path, video: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -183,6 +186,7 @@ def test_a_run_writes_its_set_and_says_only_what_it_wrote(
     assert "wrote" not in captured.out and not (folder / "r.jsonl").exists()
 
 
+@pytest.mark.slow
 def test_a_source_that_gives_nothing_is_not_called_a_camera(
     mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -159,6 +159,7 @@ def test_gl_bank_agrees_with_raster(lib: Library, tmp_path: Path) -> None:
     assert np.abs(a.features[..., 7:] - b.features[..., 7:]).mean() < 0.01
 
 
+@pytest.mark.slow
 def test_cli_build_info_show(
     mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -55,6 +55,7 @@ def _square_or_die(job: tuple[int, str]) -> int:
     return i * i
 
 
+@pytest.mark.slow
 def test_a_job_whose_worker_dies_is_run_again_on_another(tmp_path: Path) -> None:
     marker = str(tmp_path / "died")
     got: dict[int, int] = {}

@@ -4,6 +4,7 @@ the bank's side views against what a side view hides."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from control.motion import Library
 from silhouette_bank import POSE_JOINTS, CameraRing, joint_visibility, pose_visibility
@@ -32,6 +33,7 @@ def _slow_visibility(
     return out
 
 
+@pytest.mark.slow
 def test_a_joint_behind_a_capsule_is_hidden_and_beside_it_seen(rng: np.random.Generator) -> None:
     # the camera at 0 looking down -z; a torso capsule 3 m away, a wrist behind it
     torso = np.array([[[0.0, -0.3, -3.0], [0.0, 0.3, -3.0]]])

@@ -59,6 +59,7 @@ def test_region_limits_the_options(playground, playground_lib: Library) -> None:
     assert offer(layer, avatar, data, region=(here[0] + 100.0, here[2], 1.0)) == []
 
 
+@pytest.mark.slow
 def test_scripted_two_minute_session(
     mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

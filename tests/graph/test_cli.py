@@ -36,6 +36,7 @@ def test_build_prints_table_and_writes_graph(
     assert "N/A" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_walk_writes_a_bvh_that_other_tools_read(
     mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

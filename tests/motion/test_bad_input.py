@@ -224,6 +224,7 @@ def _mutate(data: bytes, rng: np.random.Generator) -> bytes:
     return b"\n".join(lines)
 
 
+@pytest.mark.slow
 def test_fuzz_real_files_raise_only_motion_format_error(
     tmp_path: Path, rng: np.random.Generator
 ) -> None:

@@ -82,6 +82,7 @@ def _mimic(*args: str) -> subprocess.CompletedProcess[str]:
     )
 
 
+@pytest.mark.slow
 def test_the_library_loads_cleaned_labels_and_the_command_writes_them(
     mocap: Path, tmp_path: Path
 ) -> None:

@@ -81,6 +81,7 @@ def _readme_frame_counts() -> dict[str, int]:
     return counts
 
 
+@pytest.mark.slow
 def test_every_amc_loads_with_the_readme_frame_count(mocap: Path) -> None:
     counts = _readme_frame_counts()
     amcs = sorted((mocap / "cmu" / "subjects").rglob("*.amc"))

@@ -231,6 +231,7 @@ def test_first_approach_avoids_obstacles_and_checks_its_inputs(walks, actions) -
 # --- the command --------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_cli_sketch_writes_bvh_png(mocap: Path, tmp_path: Path, capsys) -> None:
     out, png = tmp_path / "s.bvh", tmp_path / "s.png"
     clips = [a for c in WALKS for a in ("--clips", c)]

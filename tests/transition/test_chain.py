@@ -126,6 +126,7 @@ def test_cli_chain_writes_a_bvh_others_read(mocap: Path, tmp_path: Path, capsys)
     assert "unknown action" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_player_frame_by_frame_equals_the_batch_chain(mocap: Path, tmp_path_factory) -> None:
     from control.transition._chain import ChainPlayer
 

@@ -148,6 +148,7 @@ def test_mimic_chain_takes_a_target_and_says_how_close_it_got(
     assert "unknown action" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_a_turning_step_turns_by_the_angle_asked(
     mocap: Path, tmp_path_factory: pytest.TempPathFactory
 ) -> None:

@@ -40,6 +40,7 @@ def test_clips_that_leave_the_floor_are_found(mocap: Path) -> None:
     assert abs(floor_level(lib.clips)) < 0.1
 
 
+@pytest.mark.slow
 def test_the_defaults_keep_the_avatar_on_the_floor(mocap: Path, tmp_path: Path, capsys) -> None:
     """A performer sitting up on something (01_08's climbing frame, which the avatar's
     world lacks): the avatar must not follow them into the air."""
@@ -67,6 +68,7 @@ def _agreement(decisions: list[dict], side: dict, labels_of, lag: float) -> floa
     return float(np.mean(hits))
 
 
+@pytest.mark.slow
 def test_the_defaults_follow_a_recording_of_a_library_clip(
     mocap: Path, tmp_path: Path, capsys
 ) -> None:
@@ -225,6 +227,7 @@ def test_bad_jump_settings_are_refused(bad) -> None:
         MatchSettings(**bad)
 
 
+@pytest.mark.slow
 def test_the_playgrounds_climbs_are_left_out(mocap: Path, tmp_path: Path, capsys) -> None:
     """Before issue 17, ``mimic perform`` with no flags on the whole shared library played
     the playground's climbs (both feet 0.3-0.8 m up for seconds). Here every playground

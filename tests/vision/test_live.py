@@ -21,6 +21,7 @@ from tests.vision.conftest import RECORDING
 from vision import LivePainter, LiveView, MatchSettings, PerformSettings, VideoSource, perform
 
 
+@pytest.mark.slow
 def test_page_state_frames_and_the_mjpeg_stream() -> None:
     with LiveView(port=0) as view:
         with pytest.raises(urllib.error.HTTPError, match="404"):
@@ -40,6 +41,7 @@ def test_page_state_frames_and_the_mjpeg_stream() -> None:
         assert b"--frame" in head and b"\xff\xd8" in head  # a JPEG follows the boundary
 
 
+@pytest.mark.slow
 def test_the_server_caps_its_threads_and_closes_idle_sockets() -> None:
     before = threading.active_count()
     with LiveView(port=0, max_clients=4, idle_timeout=0.5) as view:
@@ -67,6 +69,7 @@ def test_the_server_caps_its_threads_and_closes_idle_sockets() -> None:
             assert r.status == 200
 
 
+@pytest.mark.slow
 def test_close_ends_the_streams_and_frees_the_port() -> None:
     view = LiveView(port=0)
     view.update(np.zeros((8, 8, 3), dtype=np.uint8))
@@ -141,6 +144,7 @@ def test_a_browser_shows_the_performer_and_the_avatar(setup, tmp_path: Path) -> 
     assert '<b id="c">-</b>' not in dom and '<b id="l">-</b>' not in dom
 
 
+@pytest.mark.slow
 def test_perform_serves_the_live_view_while_it_runs(mocap: Path, tmp_path: Path) -> None:
     from mimic.cli import main
 

@@ -402,6 +402,7 @@ def test_a_camera_that_fails_mid_run_does_not_stop_the_avatar(setup) -> None:
     assert opened["n"] >= 2 and cam.reconnects == 1
 
 
+@pytest.mark.slow
 def test_cli_perform_writes_bvh_log_and_video(mocap: Path, tmp_path: Path, capsys) -> None:
     # outputs into folders that do not exist yet
     out, log, video = tmp_path / "a" / "a.bvh", tmp_path / "b" / "d.jsonl", tmp_path / "c" / "v.mp4"
@@ -645,6 +646,7 @@ def test_the_default_descriptor_follows_the_source(mocap: Path) -> None:
     colour.close()
 
 
+@pytest.mark.slow
 def test_the_demo_runs_on_the_embedded_library_where_no_other_exists(
     mocap: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys
 ) -> None:
@@ -679,6 +681,7 @@ def test_the_avatar_blends_over_the_blend_asked_for(setup) -> None:
     assert r.avatar.motion().motion.n_frames == r.avatar.n_frames
 
 
+@pytest.mark.slow
 def test_perform_uses_a_bank_built_with_other_settings(mocap: Path, tmp_path: Path, capsys) -> None:
     folder = tmp_path / "bank12"
     build = [

@@ -131,6 +131,7 @@ def test_frames_that_change_size_start_the_pose_model_again(
     selfie.close()
 
 
+@pytest.mark.slow
 def test_a_plate_subtractor_loses_a_person_who_is_there_from_the_start(mocap: Path) -> None:
     """The measured fact behind the person segmenter: with no empty frames to learn from,
     MOG2 (learning over the first 30 frames, as by default) learns the person into the

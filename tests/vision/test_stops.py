@@ -44,6 +44,7 @@ def _wait_for(path: Path, proc: subprocess.Popen[str], lines: int, timeout: floa
     pytest.fail("no decisions logged in time")
 
 
+@pytest.mark.slow
 def test_a_stopped_perform_writes_what_was_performed(mocap: Path, tmp_path: Path) -> None:
     """SIGTERM (exit 143) and Ctrl-C (SIGINT, exit 0), each to its own run: both runs go
     side by side (they pace themselves to the media's clock)."""
@@ -81,6 +82,7 @@ def test_a_failed_start_keeps_the_old_log(mocap: Path, tmp_path: Path) -> None:
     assert log.read_text() == "an old log\n" and not list(tmp_path.glob(".*.tmp*"))
 
 
+@pytest.mark.slow
 def test_sigterm_during_graph_walk_leaves_no_temporary_file(mocap: Path, tmp_path: Path) -> None:
     out = tmp_path / "walk.bvh"
     argv = [

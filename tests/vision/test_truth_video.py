@@ -156,6 +156,7 @@ def test_the_video_marks_jumps_and_starts() -> None:
     assert latest[0]["cost"] == 2.0 and latest[5]["cost"] == 3.0  # the last one made
 
 
+@pytest.mark.slow
 def test_mimic_evaluate_writes_agreement_confusion_and_a_plot(
     mocap: Path, tmp_path: Path, capsys
 ) -> None:
