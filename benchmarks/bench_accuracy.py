@@ -302,6 +302,13 @@ def _run_figures(
         "decisions_made": len(made),
         "direct_jumps": sum("jump" in d for d in made),
         "curve": curve,
+        # the performer's action and the avatar's at each decision point (for a plot a
+        # person would look at: benchmarks/plot_timelines.py)
+        "timeline": {
+            "t": [round(float(x), 3) for x in times],
+            "performer": [x or None for x in performer_labels],
+            "avatar": [x or None for x in avatar_labels],
+        },
         "switches_per_minute": {
             "avatar": round(_switches_per_minute(avatar_labels, seconds), 2),
             "performer": round(_switches_per_minute(performer_labels, seconds), 2),

@@ -20,6 +20,7 @@ from ._evaluate import (
     decision_points,
     evaluation,
     plot_evaluation,
+    plot_timeline,
 )
 from ._index import (
     INDEX_VERSION,
@@ -190,6 +191,7 @@ __all__ = [
     "performer_sequence",
     "person_segmentation_available",
     "plot_evaluation",
+    "plot_timeline",
     "read_span_labels",
     "record_clip",
     "resolve_segmentation",

@@ -30,6 +30,7 @@ __all__ = [
     "decision_points",
     "evaluation",
     "plot_evaluation",
+    "plot_timeline",
 ]
 
 #: an action the avatar shows for less than this (seconds) is flicker: it is gone before
@@ -179,6 +180,27 @@ def _patch(colour: Any, name: str) -> Any:
     from matplotlib.patches import Patch
 
     return Patch(color=colour, label=name)
+
+
+def plot_timeline(timeline: dict[str, list[Any]], path: str | Path, title: str = "") -> None:
+    """The performer's actions over the avatar's on one time axis (``timeline``: ``t``,
+    ``performer`` and ``avatar``, one entry a decision point), as a PNG written through a
+    temporary file."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(12, 2.4))
+    _timeline(fig.add_subplot(1, 1, 1), timeline)
+    if title:
+        fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    try:
+        with atomic_write(path, "wb") as fh:
+            fig.savefig(fh, format="png", dpi=100)
+    finally:
+        plt.close(fig)
 
 
 def plot_evaluation(report: dict[str, Any], path: str | Path, title: str = "") -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -15,6 +16,7 @@ from vision import (
     action_runs,
     agreement,
     brief_actions_per_minute,
+    plot_timeline,
     truth_for,
 )
 from vision._video import PANE, MaskTape, _frame_decisions, performer_pane
@@ -141,6 +143,24 @@ def test_a_colour_frame_is_shown_with_its_mask_and_landmarks() -> None:
     alone = performer_pane(PANE, mask, None, None)
     assert tuple(alone[240, 320]) == (255, 255, 255) and not alone[20, 20].any()
     assert not performer_pane(PANE, None, None, None).any()
+
+
+def test_a_timeline_is_drawn_with_a_row_for_each(tmp_path: Path) -> None:
+    t = [round(0.1 * i, 1) for i in range(100)]
+    timeline = {
+        "t": t,
+        "performer": ["jumpjack"] * 50 + ["twist"] * 50,
+        "avatar": [None] * 5 + ["jumpjack"] * 52 + ["twist"] * 43,
+    }
+    path = tmp_path / "timeline.png"
+    plot_timeline(timeline, path, "a title")
+    img = cv2.imread(str(path))
+    assert img is not None and img.shape[1] == 1200
+    # two rows of colour: the performer's above, the avatar's below
+    coloured = (img.max(axis=2).astype(int) - img.min(axis=2)) > 60
+    rows = np.flatnonzero(coloured[:, img.shape[1] // 3])
+    assert rows.size and rows.max() - rows.min() > img.shape[0] // 4
+    assert not list(tmp_path.glob(".*"))  # (written through a temporary file)
 
 
 def test_the_video_marks_jumps_and_starts() -> None:
