@@ -27,6 +27,8 @@ from numpy.typing import NDArray
 
 from control.motion import Clip
 
+from ._video import performer_pane
+
 __all__ = ["LivePainter", "LiveView"]
 
 _PAGE = b"""<!doctype html><html><head><meta charset="utf-8"><title>mimic live</title>
@@ -254,9 +256,11 @@ class LiveView:
 
 
 class LivePainter:
-    """Feeds a ``LiveView`` from ``perform``: ``on_frame`` draws the performer's mask
-    (white on black) beside the avatar's current library frame (its silhouette from the
-    bank's camera that matched, orange on blue) at most ``fps`` times a second;
+    """Feeds a ``LiveView`` from ``perform``: ``on_frame`` draws the performer as the
+    side-by-side video does (``vision._video.performer_pane``: a colour frame with the
+    person mask and the landmarks over it, or the mask in white) beside the avatar's
+    current library frame (its silhouette from the bank's camera that matched, orange on
+    blue) at most ``fps`` times a second;
     ``on_decision`` sets the state (action, match cost, decision latency)."""
 
     PANE = (480, 360)
@@ -273,17 +277,20 @@ class LivePainter:
         self._last = -1.0
         self._period = view._period
 
-    def on_frame(self, t: float, mask: NDArray[np.bool_] | None, avatar: Any) -> None:
+    def on_frame(
+        self,
+        t: float,
+        mask: NDArray[np.bool_] | None,
+        avatar: Any,
+        picture: tuple[Any, Any] = (None, None),
+    ) -> None:
         if t - self._last < self._period - 1e-9:
             return
         self._last = t
         from silhouette_bank import motion_silhouettes
 
         w, h = self.PANE
-        left = np.zeros((h, w, 3), dtype=np.uint8)
-        if mask is not None and mask.size:
-            m = cv2.resize(mask.astype(np.uint8) * 255, (w, h), interpolation=cv2.INTER_NEAREST)
-            left[m > 0] = 255
+        left = performer_pane((w, h), mask, *picture)
         clip_name, f = self.graph.locate(avatar.frame)
         clip = self.by_name[clip_name]
         sil = motion_silhouettes(clip.motion, self.bodies[clip_name], self.ring, np.array([f]))

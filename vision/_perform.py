@@ -86,7 +86,7 @@ def perform(
     seed: int = 0,
     log: IO[str] | None = None,
     tape: MaskTape | None = None,
-    on_frame: Callable[[float, NDArray[np.bool_] | None, Avatar], None] | None = None,
+    on_frame: Callable[[float, NDArray[np.bool_] | None, Avatar, Any], None] | None = None,
     on_decision: Callable[[dict[str, Any]], None] | None = None,
     stop: Callable[[], str] | None = None,
     fallback: Bank | None = None,
@@ -94,8 +94,10 @@ def perform(
     """Run the loop until the source ends (or ``settings.seconds`` of media time).
 
     ``tape``: the performer's mask at every avatar frame is appended to it (for the
-    side-by-side video, ``vision._video.write_video``). ``on_frame(t, mask, avatar)`` is
-    called for every media frame, ``on_decision(entry)`` with every decision log entry
+    side-by-side video, ``vision._video.write_video``). ``on_frame(t, mask, avatar,
+    picture)`` is called for every media frame (``picture``: the colour frame and the
+    pose model's landmarks, each ``None`` when there are none), ``on_decision(entry)``
+    with every decision log entry
     (the live view uses both). ``stop()`` is asked before every frame: a non-empty
     answer (why) ends the run there, and what was performed is returned as usual.
     ``fallback``: with a pose ``bank``, a silhouette bank of the same clips, whose
@@ -446,7 +448,7 @@ class Performance:
         self,
         log: IO[str] | None = None,
         tape: MaskTape | None = None,
-        on_frame: Callable[[float, NDArray[np.bool_] | None, Avatar], None] | None = None,
+        on_frame: Callable[[float, NDArray[np.bool_] | None, Avatar, Any], None] | None = None,
         on_decision: Callable[[dict[str, Any]], None] | None = None,
         stop: Callable[[], str] | None = None,
     ) -> PerformResult:
@@ -479,7 +481,7 @@ class Performance:
                     ):
                         n_media += 1
                     if on_frame is not None:
-                        on_frame(t, mask, self.avatar)
+                        on_frame(t, mask, self.avatar, self.picture)
                     self.advance(t)
                     if self.next_decision <= t + 1e-9:
                         entry = self.decide(t)
