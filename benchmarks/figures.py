@@ -1,0 +1,170 @@
+"""The headline figures of following, made from ``benchmarks/results/*.json``: the table
+in ``README.md`` and ``benchmarks/README.md`` is this script's output, so that the figures
+a reader sees cannot drift from the results (``tests/test_figures.py`` fails when they do).
+
+Usage: python -m benchmarks.figures [--write]
+
+Without ``--write`` the table is printed; with it, the block between the markers
+``<!-- figures:start -->`` and ``<!-- figures:end -->`` of each of the two files is
+replaced (through a temporary file). A results file that is missing or lacks a figure
+is an error naming it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+PAGES = (HERE.parent / "README.md", HERE / "README.md")
+START, END = "<!-- figures:start -->", "<!-- figures:end -->"
+
+
+def _load(name: str) -> dict[str, Any]:
+    path = RESULTS / name
+    try:
+        return dict(json.loads(path.read_text()))
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path}: cannot be read ({exc})") from None
+
+
+def _runs(name: str) -> dict[str, float]:
+    """Means over a ``bench_accuracy`` result's runs: agreement (actions the library
+    has, the best lag within 1 s), pose score, the avatar's and the performers' action
+    switches a minute, and the brief ones."""
+    agree, pose, avatar, brief, performer = [], [], [], [], []
+    try:
+        for fold in _load(name)["folds"]:
+            for run in fold["runs"]:
+                curve = [c for c in run["curve"] if c["lag"] <= 1.0]
+                agree.append(max(c["label_agreement_known_actions"] or 0.0 for c in curve))
+                pose.append(max(c["score"] for c in curve))
+                sw = run["switches_per_minute"]
+                avatar.append(sw["avatar"])
+                brief.append(sw["avatar_brief_actions_under_0.5s"])
+                performer.append(sw["performer"])
+    except (KeyError, TypeError) as exc:
+        raise ValueError(f"{RESULTS / name}: not a bench_accuracy result ({exc})") from None
+    if not agree:
+        raise ValueError(f"{RESULTS / name}: no runs")
+    return {
+        "runs": len(agree),
+        "agreement": float(np.mean(agree)),
+        "pose": float(np.mean(pose)),
+        "switches": float(np.mean(avatar)),
+        "brief": float(np.mean(brief)),
+        "performer": float(np.mean(performer)),
+    }
+
+
+def _views() -> tuple[str, float, float]:
+    """Agreement by azimuth (``views.json``), and the avatar's and the performers'
+    switches a minute."""
+    data = _load("views.json")
+    try:
+        by = sorted(data["by_azimuth"].items(), key=lambda kv: float(kv[0]))
+        cells = " / ".join(f"{v['agreement_mean']:.2f}" for _, v in by)
+        azimuths = " / ".join(f"{float(k):g}" for k, _ in by)
+        avatar = float(np.mean([r["switches_per_minute"]["avatar"] for r in data["runs"]]))
+        performer = float(np.mean([r["switches_per_minute"]["performer"] for r in data["runs"]]))
+    except (KeyError, TypeError) as exc:
+        raise ValueError(f"{RESULTS / 'views.json'}: not a bench_views result ({exc})") from None
+    return f"{cells} (azimuth {azimuths} degrees)", avatar, performer
+
+
+def _squats() -> tuple[float, float]:
+    """The real squat clip's agreement at the best lag within 1 s, and that lag."""
+    data = _load("real_video.json")
+    try:
+        clip = data["agreement"]["per_video"]["pose_squats.mp4"]
+        by_lag = {float(k): v for k, v in clip["agreement_by_lag_s"].items() if float(k) <= 1}
+    except (KeyError, TypeError) as exc:
+        raise ValueError(f"{RESULTS / 'real_video.json'}: no squat clip ({exc})") from None
+    lag = max(by_lag, key=lambda k: (by_lag[k], -k))
+    return float(clip["best_at_lag_le_1s"]), lag
+
+
+def table() -> str:
+    """The headline table (Markdown)."""
+    takes, sil = _runs("accuracy_pose_recordings.json"), _runs("accuracy_recordings.json")
+    person, sil_person = _runs("accuracy_pose_person.json"), _runs("accuracy_person.json")
+    views, v_avatar, v_performer = _views()
+    squats, squat_lag = _squats()
+    rows = [
+        (
+            f"other takes of the same person, simulated landmarks ({takes['runs']} runs)",
+            f"{takes['agreement']:.3f}",
+            f"pose score {takes['pose']:.3f}; {takes['switches']:.0f} action switches a "
+            f"minute ({takes['brief']:.0f} brief) against the performer's "
+            f"{takes['performer']:.0f}",
+        ),
+        (
+            f"the same, silhouette videos ({sil['runs']} runs)",
+            f"{sil['agreement']:.3f}",
+            f"pose score {sil['pose']:.3f}; {sil['switches']:.0f} switches a minute",
+        ),
+        (
+            f"another person, simulated landmarks ({person['runs']} runs)",
+            f"{person['agreement']:.3f}",
+            f"{person['switches']:.0f} switches a minute against {person['performer']:.0f}",
+        ),
+        (
+            f"another person, silhouettes ({sil_person['runs']} runs)",
+            f"{sil_person['agreement']:.3f}",
+            "silhouettes do not carry over to another body",
+        ),
+        (
+            "another person read by MediaPipe, by camera azimuth",
+            views,
+            f"{v_avatar:.0f} switches a minute against {v_performer:.0f}",
+        ),
+        (
+            "a real person squatting (`../shared/video/pose_squats.mp4`)",
+            f"{squats:.3f}",
+            f"at a lag of {squat_lag:g} s",
+        ),
+    ]
+    lines = ["| performer | agreement | note |", "|---|---|---|"]
+    lines += [f"| {a} | {b} | {c} |" for a, b, c in rows]
+    return "\n".join(lines) + "\n"
+
+
+def replaced(text: str, block: str, name: str) -> str:
+    """``text`` with the block between the markers replaced by ``block``."""
+    if text.count(START) != 1 or text.count(END) != 1 or text.index(START) > text.index(END):
+        raise ValueError(f"{name}: needs one {START} and one {END} after it")
+    head, rest = text.split(START)
+    _, tail = rest.split(END)
+    return f"{head}{START}\n{block}{END}{tail}"
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--write", action="store_true", help="replace the tables in the pages")
+    a = ap.parse_args()
+    try:
+        block = table()
+        if not a.write:
+            print(block, end="")
+            return 0
+        from control.artifacts import atomic_write
+
+        for page in PAGES:
+            new = replaced(page.read_text(), block, str(page))
+            with atomic_write(page) as fh:
+                fh.write(new)
+            print(f"wrote the table into {page}")
+    except (OSError, ValueError) as exc:
+        print(f"figures: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
