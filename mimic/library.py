@@ -17,6 +17,7 @@ from control.motion import (
     Library,
     atomic_write,
     clean_labels,
+    default_library_path,
     embed_library,
     load_library,
     source_label_rows,
@@ -105,14 +106,16 @@ def _labels(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out}: is a file, not a folder")
-    library = load_library(library_dir(args), fps=args.fps, clean_labels=False)
-    root = Path(library.root).resolve()
+    given = library_dir(args)
+    root = Path(given if given is not None else default_library_path()).resolve()
     if out.resolve() == root or root in out.resolve().parents:
-        # (any labels/<clip>.csv under the library is read as its labels)
+        # (checked before the library loads; any labels/<clip>.csv under the library is
+        # read as its labels)
         raise ValueError(
-            f"--out {out}: inside the library {library.root}, whose label files would be "
+            f"--out {out}: inside the library {root}, whose label files would be "
             "replaced or read as its labels; the source labels stay, so write elsewhere"
         )
+    library = load_library(root, fps=args.fps, clean_labels=False)
     written = 0
     for clip in library.clips:
         if clip.mirrored or not (clip.labels >= 0).any():

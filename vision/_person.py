@@ -160,10 +160,10 @@ class PersonSegmenter:
         self.others = 0
         #: the last mask is of a person in whom the pose model found no body (pose
         #: only): the pose model's detector looks for a face and shoulders, so a
-        #: performer of whom only the legs are in view, or who is cut by the frame's top,
-        #: is nobody to it; the selfie model, asked on those frames only, still finds
-        #: them, and the loop then says that a person it cannot read is there rather
-        #: than that nobody is (and matches the mask, where it can)
+        #: performer cut at the waist by the frame's top is nobody to it; the selfie
+        #: model, asked on those frames only, still finds them, and the loop then says
+        #: that a person it cannot read is there rather than that nobody is (and matches
+        #: the mask, where it can). Legs alone neither model finds
         self.unposed = False
         self._finder: PersonSegmenter | None = None
         self._model = self._open(mp)
