@@ -55,6 +55,7 @@ __all__ = [
     "build_lock",
     "cache_entries",
     "cache_limit",
+    "cache_lock",
     "cache_root",
     "checksum",
     "clear_cache",
@@ -62,9 +63,11 @@ __all__ = [
     "is_locked",
     "read_checked_npz",
     "read_npz",
+    "stamp",
     "touch",
     "verify_checksum",
     "write_checked_npz",
+    "written_since",
 ]
 
 log = logging.getLogger(__name__)
@@ -327,6 +330,41 @@ def build_lock(folder: str | Path) -> Iterator[None]:
         finally:
             if fcntl is not None:
                 fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+
+
+@contextmanager
+def cache_lock(folder: str | Path) -> Iterator[None]:
+    """``build_lock`` of a cache folder, or none where the folder cannot hold one (a
+    read-only cache only costs speed: two processes may then build the same entry, and
+    the atomic writes leave one good file)."""
+    try:
+        lock = build_lock(folder)
+        lock.__enter__()
+    except OSError as exc:
+        log.info("building without a lock in %s: %s", folder, exc)
+        yield
+        return
+    try:
+        yield
+    finally:
+        lock.__exit__(None, None, None)
+
+
+def written_since(path: Path, seen: int | None) -> bool:
+    """Whether ``path`` exists and was written after ``seen`` (its ``st_mtime_ns`` when
+    last looked at; ``None``: it did not exist then): another process built it."""
+    try:
+        return path.stat().st_mtime_ns != seen
+    except OSError:
+        return False
+
+
+def stamp(path: Path) -> int | None:
+    """``path``'s ``st_mtime_ns`` (``None``: no such file), for ``written_since``."""
+    try:
+        return path.stat().st_mtime_ns
+    except OSError:
+        return None
 
 
 def is_locked(folder: str | Path) -> bool:

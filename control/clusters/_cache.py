@@ -19,7 +19,17 @@ from typing import Any
 
 import numpy as np
 
-from ..artifacts import atomic_write, bound_cache, checksum, read_npz, touch, verify_checksum
+from ..artifacts import (
+    atomic_write,
+    bound_cache,
+    cache_lock,
+    checksum,
+    read_npz,
+    stamp,
+    touch,
+    verify_checksum,
+    written_since,
+)
 from ..graph import MotionGraph, graph_cache_dir
 from ..motion import Clip
 from ._forest import ClusterForest, ClusterTree, lazy_forest
@@ -213,6 +223,17 @@ def _check_arrays(a: dict[str, np.ndarray], n: int, path: Path, lazy: bool) -> N
         raise LayerFileError(path, "arrays of inconsistent shapes or values")
 
 
+def _load_cached(path: Path, graph: MotionGraph) -> HigherLayer | None:
+    """The cached layer at ``path`` when it loads, else ``None`` (with a warning)."""
+    try:
+        layer = load_layer(path, graph)
+        touch(path)
+        return layer
+    except LayerFileError as exc:
+        log.warning("rebuilding the higher layer: %s", exc)
+    return None
+
+
 def cached_higher_layer(
     graph: MotionGraph,
     clips: Sequence[Clip],
@@ -242,17 +263,21 @@ def cached_higher_layer(
     key = _key(graph, settings)
     folder = Path(cache_dir) if cache_dir is not None else graph_cache_dir()
     path = folder / f"layer-{key}.npz"
-    if path.is_file() and not rebuild:
-        try:
-            layer = load_layer(path, graph)
-            touch(path)
-            return layer, path, False
-        except LayerFileError as exc:
-            log.warning("rebuilding the higher layer: %s", exc)
-    layer = build_higher_layer(
-        graph, clips, k, ks, seeding, seed, bound_seconds, max_nodes, max_states, cluster
-    )
-    save_layer(layer, path, key)
+    seen = stamp(path)
+    if seen is not None and not rebuild:
+        got = _load_cached(path, graph)
+        if got is not None:
+            return got, path, False
+    # one process builds it; another that asks meanwhile waits, then loads it
+    with cache_lock(folder):
+        if not rebuild and written_since(path, seen):
+            got = _load_cached(path, graph)
+            if got is not None:
+                return got, path, False
+        layer = build_higher_layer(
+            graph, clips, k, ks, seeding, seed, bound_seconds, max_nodes, max_states, cluster
+        )
+        save_layer(layer, path, key)
     if cache_dir is None:
         bound_cache(keep=[path])
     return layer, path, True

@@ -17,11 +17,14 @@ import numpy as np
 from ..artifacts import (
     atomic_write,
     bound_cache,
+    cache_lock,
     cache_root,
     checksum,
     read_npz,
+    stamp,
     touch,
     verify_checksum,
+    written_since,
 )
 from ..motion import Clip
 from ._graph import (
@@ -139,6 +142,20 @@ def _graph_of(manifest: dict[str, Any], arrays: dict[str, np.ndarray], path: Pat
     )
 
 
+def _load_cached(path: Path, digest: str) -> MotionGraph | None:
+    """The cached graph at ``path`` when it loads and is of the library ``digest``, else
+    ``None`` (with a warning naming the file)."""
+    try:
+        graph = load_graph(path)
+        if graph.library_digest == digest:
+            touch(path)
+            return graph
+        log.warning("rebuilding the graph: %s was built from another library", path)
+    except GraphFileError as exc:
+        log.warning("rebuilding the graph: %s", exc)
+    return None
+
+
 def cached_graph(
     clips: Sequence[Clip],
     options: GraphOptions | None = None,
@@ -157,17 +174,19 @@ def cached_graph(
     digest = clips_digest(chosen)
     folder = Path(cache_dir) if cache_dir is not None else graph_cache_dir()
     path = folder / f"graph-{_key(options, digest)}.npz"
-    if path.is_file() and not rebuild:
-        try:
-            graph = load_graph(path)
-            if graph.library_digest == digest:
-                touch(path)
-                return graph, path, False
-            log.warning("rebuilding the graph: %s was built from another library", path)
-        except GraphFileError as exc:
-            log.warning("rebuilding the graph: %s", exc)
-    graph = build_graph(clips, options, cluster=cluster)
-    save_graph(graph, path)
+    seen = stamp(path)
+    if seen is not None and not rebuild:
+        got = _load_cached(path, digest)
+        if got is not None:
+            return got, path, False
+    # one process builds it; another that asks meanwhile waits, then loads it
+    with cache_lock(folder):
+        if not rebuild and written_since(path, seen):
+            got = _load_cached(path, digest)
+            if got is not None:
+                return got, path, False
+        graph = build_graph(clips, options, cluster=cluster)
+        save_graph(graph, path)
     if cache_dir is None:
         bound_cache(keep=[path])
     return graph, path, True
