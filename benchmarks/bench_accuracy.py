@@ -59,7 +59,7 @@ from benchmarks._landmarks import LandmarkSource, simulated_landmarks
 from benchmarks._oracle import pose_oracle
 from benchmarks._report import machine, save
 from benchmarks._takes import held_since, hold_figures, paused_clip, retimed_clip, styled_clip
-from control.clusters import cached_higher_layer
+from control.clusters import LayerSettings, cached_higher_layer
 from control.dtw import dtw_best_window
 from control.graph import (
     GraphOptions,
@@ -415,7 +415,7 @@ def fold(
     # trees slow to build)
     t0 = time.perf_counter()
     layer, _, _ = cached_higher_layer(
-        g, train, bound_seconds=max(2.0, max(a for _, a in settings) + 0.5)
+        g, train, LayerSettings(bound_seconds=max(2.0, max(a for _, a in settings) + 0.5))
     )
     took = time.perf_counter() - t0
     print(f"{test}: graph {g.n_edges} edges, layer built in {took:.0f} s", flush=True)

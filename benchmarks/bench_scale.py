@@ -117,14 +117,14 @@ def _graph(root: Path, n: int) -> dict[str, Any]:
 
 
 def _layer(root: Path, n: int) -> dict[str, Any]:
-    from control.clusters import build_higher_layer
+    from control.clusters import LayerSettings, build_higher_layer
     from control.graph import GraphOptions, build_graph
 
     clips = synthetic_clips(root, n)
     g = build_graph(clips, GraphOptions())
     before = _peak_mb()
     t = time.perf_counter()
-    layer = build_higher_layer(g, clips, bound_seconds=2.0)
+    layer = build_higher_layer(g, clips, LayerSettings(bound_seconds=2.0))
     return {
         "frames": g.n_frames,
         "seconds": round(time.perf_counter() - t, 2),

@@ -32,7 +32,7 @@ import numpy as np
 
 from benchmarks._report import machine, save
 from control.avatar import Avatar
-from control.clusters import cached_higher_layer
+from control.clusters import LayerSettings, cached_higher_layer
 from control.graph import GraphOptions, build_graph
 from control.kernels import one_thread
 from control.motion import default_library_path, load_library
@@ -128,7 +128,7 @@ def matcher_latency(
 ) -> dict[str, Any]:
     lib = load_library(root, clips=patterns)
     g = build_graph(lib.clips, GraphOptions(coords="relative"))
-    layer, _, _ = cached_higher_layer(g, lib.clips, bound_seconds=2.0)
+    layer, _, _ = cached_higher_layer(g, lib.clips, LayerSettings(bound_seconds=2.0))
     bank, _ = ensure_bank(lib.clips, bank_settings or BankSettings())
     src = VideoSource(RECORDING, silhouette=True)
     feats = []
@@ -206,7 +206,7 @@ def matcher_latency(
 def replay(root: Path, bank_settings: BankSettings) -> dict[str, Any]:
     lib = load_library(root, clips=["13_30"])
     g = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.03))
-    layer, _, _ = cached_higher_layer(g, lib.clips, bound_seconds=2.0)
+    layer, _, _ = cached_higher_layer(g, lib.clips, LayerSettings(bound_seconds=2.0))
     bank, _ = ensure_bank(lib.clips, bank_settings)
     with tempfile.TemporaryDirectory() as tmp:
         clip = load_library(root, fps=30, clips=["13_29"]).clip("13_29")

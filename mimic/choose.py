@@ -12,7 +12,7 @@ import numpy as np
 
 from control.avatar import Avatar
 from control.choice import Option, offer
-from control.clusters import DEFAULT_KS, HigherLayer, cached_higher_layer
+from control.clusters import DEFAULT_KS, HigherLayer, LayerSettings, cached_higher_layer
 from control.graph import FrameData, MotionGraph
 from control.motion import Library, write_bvh
 from control.progress import step
@@ -225,15 +225,10 @@ def _choose(args: argparse.Namespace) -> int:
     ks = parse_ks(args.ks) if args.k is None else list(DEFAULT_KS)
     library, graph, _, _ = graph_for(args)
     with step("higher layer (clusters and trees)"):
-        layer, _, _ = cached_higher_layer(
-            graph,
-            library.clips,
-            k=args.k,
-            ks=ks,
-            seeding=args.seeding,
-            seed=args.seed,
-            bound_seconds=args.bound,
+        settings = LayerSettings(
+            k=args.k, ks=tuple(ks), seeding=args.seeding, seed=args.seed, bound_seconds=args.bound
         )
+        layer, _, _ = cached_higher_layer(graph, library.clips, settings)
     print(
         f"{layer.clustering.k} clusters; {layer.forest.report['trees']} cluster trees "
         f"(median {layer.forest.report['nodes']['median']:.0f} nodes)"

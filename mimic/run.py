@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from control.clusters import cached_higher_layer
+from control.clusters import LayerSettings, cached_higher_layer
 from control.graph import cached_graph
 from control.progress import bar, step
 from silhouette_bank import (
@@ -290,7 +290,9 @@ def prepare(args: argparse.Namespace, source: Any) -> Prepared:
     # (the paper's 15 s trees of a dense graph are truncated, and slow to build)
     bound = max(2.0, args.lookahead + 0.5)
     with step("higher layer (clusters and trees)"):
-        layer, _, layer_built = cached_higher_layer(graph, clips, k=args.k, bound_seconds=bound)
+        layer, _, layer_built = cached_higher_layer(
+            graph, clips, LayerSettings(k=args.k, bound_seconds=bound)
+        )
     print(
         f"library: {len(graph.clip_names)} clips, {graph.n_frames} frames "
         f"({int(graph.in_scc.sum())} reachable); graph coords {graph.options.coords}; "

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from control.clusters import HigherLayer, cached_higher_layer
+from control.clusters import HigherLayer, LayerSettings, cached_higher_layer
 from control.graph import CapturedTerrain, MotionGraph, terrain_options
 from control.motion import Library, write_bvh
 from control.progress import step
@@ -128,7 +128,9 @@ def _sketch(args: argparse.Namespace) -> int:
             raise ValueError("--approach actions does not handle block terrain")
         with step("higher layer (clusters and trees)"):
             layer, _, _ = cached_higher_layer(
-                graph, library.clips, k=args.k, bound_seconds=args.bound, max_nodes=args.tree_nodes
+                graph,
+                library.clips,
+                LayerSettings(k=args.k, bound_seconds=args.bound, max_nodes=args.tree_nodes),
             )
     # (name, c, layer): the chosen approach first; --baseline adds its comparison (eq. 8
     # without the facing term, or for actions the eq. 8 search)

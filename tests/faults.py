@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from control.clusters import LayerFileError, cached_higher_layer
+from control.clusters import LayerFileError, LayerSettings, cached_higher_layer
 from control.graph import GraphFileError, cached_graph, load_graph
 from control.motion import (
     MotionFormatError,
@@ -158,8 +158,10 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
     motion_cache = root / "motion"
     lib = load_library(mocap, clips=CLIPS, cache_dir=motion_cache, workers=1)
     graph, _, _ = cached_graph(lib.clips, cache_dir=root / "graph")
-    cached_higher_layer(graph, lib.clips, k=LAYER_K, cache_dir=root / "graph")
-    layer, _, _ = cached_higher_layer(graph, lib.clips, k=LAYER_K, cache_dir=root / "graph")
+    cached_higher_layer(graph, lib.clips, LayerSettings(k=LAYER_K), cache_dir=root / "graph")
+    layer, _, _ = cached_higher_layer(
+        graph, lib.clips, LayerSettings(k=LAYER_K), cache_dir=root / "graph"
+    )
     bank, _ = ensure_bank(lib.clips, SMALL_BANK, root / "bank", workers=1)
     matcher = Matcher(layer, bank, MatchSettings())
     index = matcher.index()  # stored in the bank's folder, and the tables beside it
@@ -182,7 +184,9 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
         return cached_graph(lib.clips, cache_dir=r / "graph")[0]
 
     def load_layer(r: Path) -> Any:
-        return cached_higher_layer(graph, lib.clips, k=LAYER_K, cache_dir=r / "graph")[0]
+        return cached_higher_layer(
+            graph, lib.clips, LayerSettings(k=LAYER_K), cache_dir=r / "graph"
+        )[0]
 
     def load_bank(r: Path) -> Any:
         return ensure_bank(lib.clips, SMALL_BANK, r / "bank", workers=1)[0]

@@ -30,21 +30,21 @@ def build(part: str) -> None:
     from tests.conftest import MOCAP
 
     if part == "playground":  # tests/clusters/test_choice.py: playground
-        from control.clusters import cached_higher_layer
+        from control.clusters import LayerSettings, cached_higher_layer
         from control.graph import GraphOptions, cached_graph
 
         lib = load_library(MOCAP, clips=["01_*"])
         graph, _, _ = cached_graph(lib.clips, GraphOptions())
-        cached_higher_layer(graph, lib.clips, k=25)
+        cached_higher_layer(graph, lib.clips, LayerSettings(k=25))
     elif part == "walks":  # tests/sketch/test_sketch.py: walks and actions
-        from control.clusters import cached_higher_layer
+        from control.clusters import LayerSettings, cached_higher_layer
         from control.graph import GraphOptions, build_graph
         from tests.sketch.test_sketch import ACTIONS_LAYER, WALKS
 
         lib = load_library(MOCAP, clips=WALKS)
         graph = build_graph(lib.clips, GraphOptions(coords="relative"))
         cache = Path(os.environ["MIMIC_CACHE"]) / "graph"
-        cached_higher_layer(graph, lib.clips, cache_dir=cache, **ACTIONS_LAYER)
+        cached_higher_layer(graph, lib.clips, ACTIONS_LAYER, cache_dir=cache)
     elif part == "bank":  # tests/vision/conftest.py: setup
         from silhouette_bank import BankSettings, ensure_bank
 

@@ -12,7 +12,7 @@ from ._gmm import (
     keyframe_seeds,
     select_by_bic,
 )
-from ._layer import DEFAULT_KS, HigherLayer, build_higher_layer
+from ._layer import DEFAULT_KS, HigherLayer, LayerSettings, build_higher_layer
 from ._paths import ProbableMotion, most_probable_motion, transition_log_probs
 from ._state import orientation_distance, reference_orientation, state_vectors
 
@@ -25,6 +25,7 @@ __all__ = [
     "Clustering",
     "HigherLayer",
     "LayerFileError",
+    "LayerSettings",
     "ProbableMotion",
     "build_forest",
     "build_higher_layer",

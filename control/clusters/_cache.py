@@ -34,7 +34,7 @@ from ..graph import MotionGraph, graph_cache_dir
 from ..motion import Clip
 from ._forest import ClusterForest, ClusterTree, lazy_forest
 from ._gmm import Clustering
-from ._layer import DEFAULT_KS, HigherLayer, build_higher_layer
+from ._layer import HigherLayer, LayerSettings, build_higher_layer
 from ._paths import transition_log_probs
 
 __all__ = ["LAYER_VERSION", "LayerFileError", "cached_higher_layer", "load_layer", "save_layer"]
@@ -237,30 +237,17 @@ def _load_cached(path: Path, graph: MotionGraph) -> HigherLayer | None:
 def cached_higher_layer(
     graph: MotionGraph,
     clips: Sequence[Clip],
-    k: int | None = None,
-    ks: Sequence[int] = DEFAULT_KS,
-    seeding: str = "keyframes",
-    seed: int = 0,
-    bound_seconds: float = 15.0,
-    max_nodes: int = 4096,
-    max_states: int = 200_000,
+    settings: LayerSettings | None = None,
     cache_dir: str | Path | None = None,
     rebuild: bool = False,
     cluster: str | None = None,
 ) -> tuple[HigherLayer, Path, bool]:
-    """The higher layer of ``graph`` from the cache (beside the graphs), built and stored
-    when missing, stale or unreadable (with a warning naming the file; its trees built on
-    ``cluster`` where one is named). Returns ``(layer, path, built)``."""
-    settings = {
-        "k": k,
-        "ks": list(ks),
-        "seeding": seeding,
-        "seed": seed,
-        "bound_seconds": bound_seconds,
-        "max_nodes": max_nodes,
-        "max_states": max_states,
-    }
-    key = _key(graph, settings)
+    """The higher layer of ``graph`` with ``settings`` from the cache (beside the
+    graphs), built and stored when missing, stale or unreadable (with a warning naming
+    the file; its trees built on ``cluster`` where one is named). Returns ``(layer, path,
+    built)``."""
+    settings = settings or LayerSettings()
+    key = _key(graph, settings.key())
     folder = Path(cache_dir) if cache_dir is not None else graph_cache_dir()
     path = folder / f"layer-{key}.npz"
     seen = stamp(path)
@@ -274,9 +261,7 @@ def cached_higher_layer(
             got = _load_cached(path, graph)
             if got is not None:
                 return got, path, False
-        layer = build_higher_layer(
-            graph, clips, k, ks, seeding, seed, bound_seconds, max_nodes, max_states, cluster
-        )
+        layer = build_higher_layer(graph, clips, settings, cluster)
         save_layer(layer, path, key)
     if cache_dir is None:
         bound_cache(keep=[path])

@@ -16,9 +16,62 @@ from ._gmm import Clustering, fit_mixture, select_by_bic
 from ._paths import ProbableMotion, most_probable_motion, transition_log_probs
 from ._state import state_vectors
 
-__all__ = ["DEFAULT_KS", "HigherLayer", "build_higher_layer"]
+__all__ = ["DEFAULT_KS", "HigherLayer", "LayerSettings", "build_higher_layer"]
 
 DEFAULT_KS = tuple(range(5, 61, 5))
+SEEDINGS = ("keyframes", "random")
+
+
+@dataclass(frozen=True)
+class LayerSettings:
+    """How the higher layer is built (Lee et al. §4), as ``GraphOptions`` says how the
+    graph is.
+
+    Attributes
+    ----------
+    k : the number of clusters; ``None``: chosen by effective BIC among ``ks``.
+    ks : the candidate numbers of clusters of the BIC search.
+    seeding : how the mixture's means start: ``"keyframes"`` (frames far apart in pose)
+        or ``"random"``.
+    seed : the random seed of the mixture's fits.
+    bound_seconds : how far ahead a cluster tree reaches (its time bound).
+    max_nodes : the most nodes a cluster tree may have.
+    max_states : the most search states a tree's build may visit.
+    """
+
+    k: int | None = None
+    ks: tuple[int, ...] = DEFAULT_KS
+    seeding: str = "keyframes"
+    seed: int = 0
+    bound_seconds: float = 15.0
+    max_nodes: int = 4096
+    max_states: int = 200_000
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "ks", tuple(int(k) for k in self.ks))
+        object.__setattr__(self, "bound_seconds", float(self.bound_seconds))
+        if self.k is not None and self.k < 1:
+            raise ValueError(f"k must be at least 1, not {self.k}")
+        if self.k is None and (not self.ks or min(self.ks) < 1):
+            raise ValueError(f"ks must be numbers of clusters of at least 1, not {self.ks}")
+        if self.seeding not in SEEDINGS:
+            raise ValueError(f"seeding must be one of {', '.join(SEEDINGS)}, not {self.seeding!r}")
+        if not self.bound_seconds > 0 or self.max_nodes < 1 or self.max_states < 1:
+            raise ValueError("bound_seconds, max_nodes and max_states must be positive")
+
+    def key(self) -> dict[str, Any]:
+        """The settings as the layer cache's key names them."""
+        return {
+            "k": self.k,
+            "ks": list(self.ks),
+            "seeding": self.seeding,
+            "seed": self.seed,
+            "bound_seconds": self.bound_seconds,
+            "max_nodes": self.max_nodes,
+            "max_states": self.max_states,
+        }
+
+
 FloatArray = NDArray[np.float64]
 
 
@@ -84,19 +137,15 @@ class HigherLayer:
 def build_higher_layer(
     graph: MotionGraph,
     clips: Sequence[Clip],
-    k: int | None = None,
-    ks: Sequence[int] = DEFAULT_KS,
-    seeding: str = "keyframes",
-    seed: int = 0,
-    bound_seconds: float = 15.0,
-    max_nodes: int = 4096,
-    max_states: int = 200_000,
+    settings: LayerSettings | None = None,
     cluster: str | None = None,
 ) -> HigherLayer:
-    """Cluster the graph's frames (``k`` clusters, or chosen by effective BIC over ``ks``)
-    and build the cluster forest with a ``bound_seconds`` time bound (the BIC search's
-    fits and the trees as jobs on ``cluster``, or ``$MIMIC_CLUSTER``, where one is named:
-    ``select_by_bic``, ``build_forest``)."""
+    """Cluster the graph's frames (``settings.k`` clusters, or chosen by effective BIC
+    over ``settings.ks``) and build the cluster forest with its time bound (the BIC
+    search's fits and the trees as jobs on ``cluster``, or ``$MIMIC_CLUSTER``, where one
+    is named: ``select_by_bic``, ``build_forest``)."""
+    st = settings or LayerSettings()
+    k, seeding, seed = st.k, st.seeding, st.seed
     chosen = graph.clips_of(clips)
     feat = frame_features(chosen, graph.options.coords)
     x, q_hat = state_vectors(feat)
@@ -106,9 +155,11 @@ def build_higher_layer(
         curve: dict[str, Any] = {"k": [k], "bic": [best.bic], "chosen_k": k}
     else:
         best, fits, curve = select_by_bic(
-            x, ks, seeding=seeding, seed=seed, clip_start=feat.clip_start, cluster=cluster
+            x, st.ks, seeding=seeding, seed=seed, clip_start=feat.clip_start, cluster=cluster
         )
-    forest = build_forest(graph, best.labels, bound_seconds, max_nodes, max_states, cluster)
+    forest = build_forest(
+        graph, best.labels, st.bound_seconds, st.max_nodes, st.max_states, cluster
+    )
     return HigherLayer(
         graph, x, q_hat, best, tuple(fits), curve, forest, transition_log_probs(graph)
     )

@@ -7,7 +7,7 @@ import logging
 import numpy as np
 import pytest
 
-from control.clusters import LayerFileError, cached_higher_layer, load_layer
+from control.clusters import LayerFileError, LayerSettings, cached_higher_layer, load_layer
 from control.graph import GraphOptions, build_graph
 
 
@@ -17,16 +17,16 @@ def graph(walk_lib):
 
 
 #: small layers (2 s trees): these tests are about the cache, not the trees
-SMALL = {"bound_seconds": 2.0}
+SMALL = {"bound_seconds": 2.0}  # (with k, a LayerSettings)
 
 
 def test_a_cached_layer_is_the_built_one(graph, walk_lib, tmp_path) -> None:
     built, path, was_built = cached_higher_layer(
-        graph, walk_lib.clips, k=4, cache_dir=tmp_path, **SMALL
+        graph, walk_lib.clips, LayerSettings(k=4, **SMALL), cache_dir=tmp_path
     )
     assert was_built and path.is_file()
     again, path2, was_built2 = cached_higher_layer(
-        graph, walk_lib.clips, k=4, cache_dir=tmp_path, **SMALL
+        graph, walk_lib.clips, LayerSettings(k=4, **SMALL), cache_dir=tmp_path
     )
     assert path2 == path and not was_built2
     assert np.array_equal(again.labels, built.labels)
@@ -44,14 +44,18 @@ def test_a_cached_layer_is_the_built_one(graph, walk_lib, tmp_path) -> None:
     if m1 is not None and m2 is not None:
         assert np.array_equal(m1.frames, m2.frames)
     # another setting is another file
-    _, path3, built3 = cached_higher_layer(graph, walk_lib.clips, k=5, cache_dir=tmp_path, **SMALL)
+    _, path3, built3 = cached_higher_layer(
+        graph, walk_lib.clips, LayerSettings(k=5, **SMALL), cache_dir=tmp_path
+    )
     assert built3 and path3 != path
 
 
 def test_a_damaged_or_foreign_layer_is_rebuilt_with_a_warning(
     graph, walk_lib, tmp_path, caplog
 ) -> None:
-    _, path, _ = cached_higher_layer(graph, walk_lib.clips, k=4, cache_dir=tmp_path, **SMALL)
+    _, path, _ = cached_higher_layer(
+        graph, walk_lib.clips, LayerSettings(k=4, **SMALL), cache_dir=tmp_path
+    )
     data = bytearray(path.read_bytes())
     data[len(data) // 2] ^= 0xFF
     path.write_bytes(bytes(data))
@@ -59,7 +63,7 @@ def test_a_damaged_or_foreign_layer_is_rebuilt_with_a_warning(
         load_layer(path, graph)
     with caplog.at_level(logging.WARNING):
         layer, _, built = cached_higher_layer(
-            graph, walk_lib.clips, k=4, cache_dir=tmp_path, **SMALL
+            graph, walk_lib.clips, LayerSettings(k=4, **SMALL), cache_dir=tmp_path
         )
     assert built and str(path) in caplog.text
     assert load_layer(path, graph).clustering.k == layer.clustering.k
@@ -76,18 +80,20 @@ def test_a_lazy_layer_builds_the_eager_trees_before_and_after_the_cache(
 ) -> None:
     from control.clusters import _forest
 
-    eager, _, _ = cached_higher_layer(graph, walk_lib.clips, k=4, cache_dir=tmp_path, **SMALL)
+    eager, _, _ = cached_higher_layer(
+        graph, walk_lib.clips, LayerSettings(k=4, **SMALL), cache_dir=tmp_path
+    )
     assert not eager.forest.report["lazy"] and eager.forest.lazy is None
     # a forest projected past LAZY_SECONDS (here: any) is lazy
     monkeypatch.setattr(_forest, "LAZY_SECONDS", 0.0)
     monkeypatch.setattr(_forest, "_SAMPLE", 4)
     lazy, _, built = cached_higher_layer(
-        graph, walk_lib.clips, k=4, cache_dir=tmp_path / "lazy", **SMALL
+        graph, walk_lib.clips, LayerSettings(k=4, **SMALL), cache_dir=tmp_path / "lazy"
     )
     assert built and lazy.forest.report["lazy"] and lazy.forest.report["sampled"] == 4
     assert lazy.forest.trees == () and lazy.forest.n_trees == eager.forest.n_trees
     again, _, built_again = cached_higher_layer(
-        graph, walk_lib.clips, k=4, cache_dir=tmp_path / "lazy", **SMALL
+        graph, walk_lib.clips, LayerSettings(k=4, **SMALL), cache_dir=tmp_path / "lazy"
     )
     assert not built_again and again.forest.lazy is not None and not again.forest.lazy.built
     np.testing.assert_array_equal(again.forest.tree_of, eager.forest.tree_of)

@@ -9,7 +9,7 @@ import pytest
 
 from control.avatar import Avatar
 from control.choice import offer
-from control.clusters import HigherLayer, cached_higher_layer
+from control.clusters import HigherLayer, LayerSettings, cached_higher_layer
 from control.graph import FrameData, GraphOptions, MotionGraph, cached_graph
 from control.motion import Library, read_bvh
 from mimic.cli import main
@@ -21,7 +21,7 @@ def playground(playground_lib: Library, prebuild) -> tuple[MotionGraph, HigherLa
     --clips '01_*' --k 25` loads (tests/prebuild.py builds them in the background)."""
     prebuild.wait("playground")
     g, _, _ = cached_graph(playground_lib.clips, GraphOptions())
-    layer, _, _ = cached_higher_layer(g, playground_lib.clips, k=25)
+    layer, _, _ = cached_higher_layer(g, playground_lib.clips, LayerSettings(k=25))
     return g, layer, FrameData(g, playground_lib.clips)
 
 

@@ -14,14 +14,14 @@ from tests.conftest import REPO
 
 CHILD = """
 import json, sys, time
-from control.clusters import cached_higher_layer
+from control.clusters import LayerSettings, cached_higher_layer
 from control.graph import GraphOptions, cached_graph
 from control.motion import load_library
 lib = load_library(sys.argv[1], clips=["13_30"])
 while time.time() < float(sys.argv[3]):  # (both start together)
     time.sleep(0.005)
 g, _, built_g = cached_graph(lib.clips, GraphOptions(coords="relative"), cache_dir=sys.argv[2])
-layer, _, built_l = cached_higher_layer(g, lib.clips, k=12, cache_dir=sys.argv[2])
+layer, _, built_l = cached_higher_layer(g, lib.clips, LayerSettings(k=12), cache_dir=sys.argv[2])
 print(json.dumps({"graph": built_g, "layer": built_l, "k": int(layer.clustering.k)}))
 """
 

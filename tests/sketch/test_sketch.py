@@ -12,7 +12,7 @@ import pytest
 from matplotlib.path import Path as MplPath
 from scipy.spatial import cKDTree
 
-from control.clusters import cached_higher_layer
+from control.clusters import LayerSettings, cached_higher_layer
 from control.graph import GraphOptions, build_graph
 from control.motion import Library, load_library, read_bvh
 from control.sketch import (
@@ -187,7 +187,7 @@ def test_dead_end_is_backed_out_of_or_reported(walks) -> None:
 
 #: the walks' higher layer: ``mimic sketch --approach actions --k 10 --bound 3
 #: --tree-nodes 512`` (``tests/prebuild.py`` builds it in the background)
-ACTIONS_LAYER = {"k": 10, "bound_seconds": 3.0, "max_nodes": 512}
+ACTIONS_LAYER = LayerSettings(k=10, bound_seconds=3.0, max_nodes=512)
 
 
 @pytest.fixture(scope="module")
@@ -197,7 +197,7 @@ def actions(walks, session_cache: Path, prebuild):
     lib, g = walks
     prebuild.wait("walks")
     cache = session_cache / "graph"
-    return cached_higher_layer(g, lib.clips, cache_dir=cache, **ACTIONS_LAYER)[0]
+    return cached_higher_layer(g, lib.clips, ACTIONS_LAYER, cache_dir=cache)[0]
 
 
 @pytest.mark.parametrize("side", [1.0, -1.0])

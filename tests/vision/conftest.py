@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from control.clusters import HigherLayer, build_higher_layer
+from control.clusters import HigherLayer, LayerSettings, build_higher_layer
 from control.graph import GraphOptions, build_graph
 from control.motion import Library, load_library
 from silhouette_bank import Bank, BankSettings, ensure_bank
@@ -23,7 +23,7 @@ def setup(mocap: Path, prebuild: Prebuild) -> tuple[Library, HigherLayer, Bank]:
     # rather than build it again; tests/prebuild.py builds it in the background
     lib = load_library(mocap, clips=["13_30"])
     g = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.03))
-    layer = build_higher_layer(g, lib.clips, k=12)
+    layer = build_higher_layer(g, lib.clips, LayerSettings(k=12))
     prebuild.wait("bank")
     bank, _ = ensure_bank(lib.clips, BankSettings(), workers=2)
     return lib, layer, bank
