@@ -116,7 +116,7 @@ def test_a_video_that_fails_to_write_replaces_nothing(
 
     real = cv2.VideoWriter
 
-    class Dropping:  # the MP4's writer only (the run's own tape is lossless MKV)
+    class Dropping:  # the MP4's writer only (not the run's own tape)
         fourcc = staticmethod(real.fourcc)
 
         def __init__(self, *args: Any) -> None:
@@ -125,6 +125,9 @@ def test_a_video_that_fails_to_write_replaces_nothing(
 
         def isOpened(self) -> bool:  # (OpenCV's name)
             return bool(self.writer.isOpened())
+
+        def set(self, prop: int, value: float) -> bool:
+            return bool(self.writer.set(prop, value))
 
         def write(self, img: np.ndarray) -> None:
             self.n += 1

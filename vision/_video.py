@@ -3,7 +3,7 @@
 The performer's pane is what the loop saw: for a colour source the frame itself, dimmed,
 with the person mask it found tinted over it and the pose model's landmarks drawn (the
 joints it could not see in grey); for a silhouette source the white mask. The panes are
-streamed during the run onto a ``MaskTape`` (a lossless FFV1 file in a temporary folder,
+streamed during the run onto a ``MaskTape`` (an MJPG file in a temporary folder,
 at the pane's size), not kept in memory; at the end they are
 played back beside the avatar's synthesized motion, drawn by pyrender on a floor grid by
 one camera that follows the avatar's smoothed path (it never switches views). Each pane
@@ -48,15 +48,21 @@ _BONE = (80, 220, 255)
 _HIDDEN = (150, 150, 150)
 
 
+#: the tape's JPEG quality: a colour pane costs about a quarter of its lossless (FFV1)
+#: size, some 10-40 kB, so that a ten-minute session's tape is a few hundred megabytes
+#: at most, and a mask's black and white come back black and white
+TAPE_QUALITY = 95
+
+
 class MaskTape:
-    """The performer's pane per avatar frame, written to a temporary lossless video as
-    they come (letterboxed into ``PANE``; nothing seen: black)."""
+    """The performer's pane per avatar frame, written to a temporary MJPG video as they
+    come (letterboxed into ``PANE``; nothing seen: black)."""
 
     def __init__(self, size: tuple[int, int] = PANE, fps: float = 15.0) -> None:
         self.size = size
         self.fps = fps
         self._dir = Path(tempfile.mkdtemp(prefix="mimic-masks-"))
-        self._path = self._dir / "masks.mkv"
+        self._path = self._dir / "panes.avi"
         self._writer: Any = None
         self._n = 0
         self._open()
@@ -64,10 +70,11 @@ class MaskTape:
     def _open(self) -> None:
         if self._writer is not None:
             self._writer.release()
-        fourcc = cv2.VideoWriter.fourcc(*"FFV1")
+        fourcc = cv2.VideoWriter.fourcc(*"MJPG")
         self._writer = cv2.VideoWriter(str(self._path), fourcc, self.fps, self.size, True)
         if not self._writer.isOpened():
-            raise OSError(f"{self._path}: cannot write an FFV1 video here")
+            raise OSError(f"{self._path}: cannot write an MJPG video here")
+        self._writer.set(cv2.VIDEOWRITER_PROP_QUALITY, TAPE_QUALITY)
         self._n = 0
 
     def __len__(self) -> int:

@@ -109,7 +109,7 @@ def test_the_mask_tape_plays_back_what_was_written(rng: np.random.Generator) -> 
         tape.append(None)
         got = list(tape.frames())
     assert len(got) == 4 and all(g.shape == (PANE[1], PANE[0], 3) for g in got)
-    # letterboxed 4x: each mask pixel is a 4x4 block of white, lossless
+    # letterboxed 4x: each mask pixel is a 4x4 block, white or black through the JPEG
     np.testing.assert_array_equal(got[0][::4, ::4, 1] > 127, masks[0])
     assert not got[3].any()
     with MaskTape() as tape:
