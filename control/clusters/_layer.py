@@ -12,14 +12,13 @@ from numpy.typing import NDArray
 from ..graph import MotionGraph, frame_features
 from ..motion import Clip
 from ._forest import ClusterForest, build_forest
-from ._gmm import Clustering, fit_mixture, select_by_bic
+from ._gmm import SEEDINGS, Clustering, fit_mixture, select_by_bic
 from ._paths import ProbableMotion, most_probable_motion, transition_log_probs
 from ._state import state_vectors
 
 __all__ = ["DEFAULT_KS", "HigherLayer", "LayerSettings", "build_higher_layer"]
 
 DEFAULT_KS = tuple(range(5, 61, 5))
-SEEDINGS = ("keyframes", "random")
 
 
 @dataclass(frozen=True)
