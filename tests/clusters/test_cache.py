@@ -104,3 +104,19 @@ def test_a_lazy_layer_builds_the_eager_trees_before_and_after_the_cache(
             for name in ("parent", "cluster", "arrival"):
                 np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
         assert len(forest.lazy.built) == eager.forest.n_trees  # each built once, then kept
+
+
+def test_layer_settings_are_checked_and_keyed_as_before() -> None:
+    for bad in ({"k": 0}, {"ks": ()}, {"seeding": "kmeans++"}, {"bound_seconds": 0.0}):
+        with pytest.raises(ValueError):
+            LayerSettings(**bad)  # type: ignore[arg-type]
+    # (the cache's key of the defaults is what the eight keyword arguments made)
+    assert LayerSettings(bound_seconds=15).key() == {
+        "k": None,
+        "ks": list(range(5, 61, 5)),
+        "seeding": "keyframes",
+        "seed": 0,
+        "bound_seconds": 15.0,
+        "max_nodes": 4096,
+        "max_states": 200_000,
+    }
