@@ -41,7 +41,7 @@ from collections.abc import Callable, Collection, Iterable, Iterator, Mapping, S
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, TypeVar
 
 import numpy as np
 
@@ -55,22 +55,22 @@ __all__ = [
     "build_lock",
     "cache_entries",
     "cache_limit",
-    "cache_lock",
     "cache_root",
+    "cached_entry",
     "checksum",
     "clear_cache",
     "current_umask",
     "is_locked",
     "read_checked_npz",
     "read_npz",
-    "stamp",
     "touch",
     "verify_checksum",
     "write_checked_npz",
-    "written_since",
 ]
 
 log = logging.getLogger(__name__)
+
+T = TypeVar("T")
 
 ENV_CACHE = "MIMIC_CACHE"
 ENV_LIMIT = "MIMIC_CACHE_MAX_GB"
@@ -333,7 +333,7 @@ def build_lock(folder: str | Path) -> Iterator[None]:
 
 
 @contextmanager
-def cache_lock(folder: str | Path) -> Iterator[None]:
+def _cache_lock(folder: Path) -> Iterator[None]:
     """``build_lock`` of a cache folder, or none where the folder cannot hold one (a
     read-only cache only costs speed: two processes may then build the same entry, and
     the atomic writes leave one good file)."""
@@ -350,21 +350,34 @@ def cache_lock(folder: str | Path) -> Iterator[None]:
         lock.__exit__(None, None, None)
 
 
-def written_since(path: Path, seen: int | None) -> bool:
-    """Whether ``path`` exists and was written after ``seen`` (its ``st_mtime_ns`` when
-    last looked at; ``None``: it did not exist then): another process built it."""
-    try:
-        return path.stat().st_mtime_ns != seen
-    except OSError:
-        return False
-
-
-def stamp(path: Path) -> int | None:
-    """``path``'s ``st_mtime_ns`` (``None``: no such file), for ``written_since``."""
+def _stamp(path: Path) -> int | None:
+    """``path``'s ``st_mtime_ns`` (``None``: no such file)."""
     try:
         return path.stat().st_mtime_ns
     except OSError:
         return None
+
+
+def cached_entry(
+    path: Path, load: Callable[[], T | None], make: Callable[[], T], rebuild: bool = False
+) -> tuple[T, bool]:
+    """The cache entry at ``path``: ``load()`` it (``None``: missing, stale or damaged,
+    said by ``load``), else ``make()`` it (which builds and stores it), under the lock of
+    its folder, so that of two processes asking at once one builds it and the other
+    waits and loads it. ``rebuild``: make it whatever is there. Returns ``(entry,
+    built)``."""
+    seen = _stamp(path)
+    if seen is not None and not rebuild:
+        got = load()
+        if got is not None:
+            return got, False
+    with _cache_lock(path.parent):
+        # written since it was looked at: another process built it meanwhile
+        if not rebuild and _stamp(path) not in (None, seen):
+            got = load()
+            if got is not None:
+                return got, False
+        return make(), True
 
 
 def is_locked(folder: str | Path) -> bool:

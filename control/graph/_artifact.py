@@ -17,14 +17,12 @@ import numpy as np
 from ..artifacts import (
     atomic_write,
     bound_cache,
-    cache_lock,
     cache_root,
+    cached_entry,
     checksum,
     read_npz,
-    stamp,
     touch,
     verify_checksum,
-    written_since,
 )
 from ..motion import Clip
 from ._graph import (
@@ -174,19 +172,13 @@ def cached_graph(
     digest = clips_digest(chosen)
     folder = Path(cache_dir) if cache_dir is not None else graph_cache_dir()
     path = folder / f"graph-{_key(options, digest)}.npz"
-    seen = stamp(path)
-    if seen is not None and not rebuild:
-        got = _load_cached(path, digest)
-        if got is not None:
-            return got, path, False
-    # one process builds it; another that asks meanwhile waits, then loads it
-    with cache_lock(folder):
-        if not rebuild and written_since(path, seen):
-            got = _load_cached(path, digest)
-            if got is not None:
-                return got, path, False
+
+    def make() -> MotionGraph:
         graph = build_graph(clips, options, cluster=cluster)
         save_graph(graph, path)
-    if cache_dir is None:
+        return graph
+
+    graph, built = cached_entry(path, lambda: _load_cached(path, digest), make, rebuild)
+    if built and cache_dir is None:
         bound_cache(keep=[path])
-    return graph, path, True
+    return graph, path, built
