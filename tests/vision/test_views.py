@@ -49,20 +49,25 @@ def _film(mocap: Path, folder: Path, seconds: tuple[float, float], **how: Any) -
     return video
 
 
-def _rewrite(video: Path, out: Path, change: Callable[[np.ndarray], np.ndarray]) -> Path:
-    """``video`` with ``change`` made to every frame, as ``out``, with its sidecar."""
+def _frames(video: Path) -> list[np.ndarray]:
     cap = cv2.VideoCapture(str(video))
-    writer = None
+    frames = []
     while True:
         ok, img = cap.read()
         if not ok:
             break
-        if writer is None:
-            size = (img.shape[1], img.shape[0])
-            writer = cv2.VideoWriter(str(out), cv2.VideoWriter.fourcc(*"FFV1"), 15.0, size)
-        writer.write(np.ascontiguousarray(change(img)))
+        frames.append(img)
     cap.release()
-    assert writer is not None
+    return frames
+
+
+def _rewrite(video: Path, out: Path, change: Callable[[np.ndarray], np.ndarray]) -> Path:
+    """``video`` with ``change`` made to every frame, as ``out``, with its sidecar."""
+    frames = _frames(video)
+    size = (frames[0].shape[1], frames[0].shape[0])
+    writer = cv2.VideoWriter(str(out), cv2.VideoWriter.fourcc(*"FFV1"), 15.0, size)
+    for img in frames:
+        writer.write(np.ascontiguousarray(change(img)))
     writer.release()
     out.with_name(out.name + ".json").write_text(video.with_name(video.name + ".json").read_text())
     return out
@@ -211,18 +216,6 @@ def test_a_performer_upside_down_is_still_rejected(
         )
         points = decision_points(r.decisions)
         assert points["decided"] <= 0.1 * points["points"], points
-
-
-def _frames(video: Path) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(video))
-    frames = []
-    while True:
-        ok, img = cap.read()
-        if not ok:
-            break
-        frames.append(img)
-    cap.release()
-    return frames
 
 
 @pytest.mark.gl
