@@ -2,7 +2,7 @@
 and the choice of background subtractor, by measurement.
 
 Usage: python -m benchmarks.bench_vision [LIBRARY_DIR] [--out FILE] [--variants]
-       [--descriptor multigrid|grid|hu]
+       [--descriptor multigrid|grid|hu] [--page]
 
 - Subtractors (MOG2, KNN and opencv-contrib's bgsegm CNT, GSOC, LSBP, GMG, MOG) on a
   640x480 composite: the committed recording's silhouettes, filled with a textured
@@ -17,6 +17,9 @@ Usage: python -m benchmarks.bench_vision [LIBRARY_DIR] [--out FILE] [--variants]
   ``--descriptor``: the banks' descriptor (default: the bank's default, multigrid).
 - A 60 s silhouette recording (13_29, made here) replayed offline through `perform`:
   wall time and real-time factor.
+- ``--page`` (alone; default out ``benchmarks/results/page.json``): the live page end to
+  end, a headless Chromium's fake camera playing real clips into ``mimic perform
+  --camera browser`` (``benchmarks/_page.py``): camera-to-avatar time, frames a second.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from benchmarks._page import page
 from benchmarks._report import machine, save
 from control.avatar import Avatar
 from control.clusters import LayerSettings, cached_higher_layer
@@ -239,8 +243,13 @@ def main() -> None:
         choices=[d for d in DESCRIPTORS if d != "pose"],  # it replays silhouettes
         help="the banks' silhouette descriptor (default multigrid)",
     )
+    ap.add_argument("--page", action="store_true", help="only the live page, end to end")
     args = ap.parse_args()
     root = Path(args.root)
+    if args.page:
+        out = args.out if args.out != ap.get_default("out") else "benchmarks/results/page.json"
+        save({"machine": machine(), "date": time.strftime("%Y-%m-%d"), **page(root)}, out)
+        return
     base = BankSettings(descriptor=args.descriptor)
     result: dict[str, Any] = {
         "machine": machine(),

@@ -25,6 +25,7 @@ from .library import add_library_commands
 from .perform import add_perform_command
 from .record import add_record_command
 from .sketch import add_sketch_command
+from .vendor import add_vendor_command
 
 __all__ = ["build_parser", "main"]
 
@@ -46,6 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_chain_command(sub)
     add_sketch_command(sub)
     add_cache_command(sub)
+    add_vendor_command(sub)
     return parser
 
 

@@ -20,10 +20,10 @@ from control.artifacts import atomic_write
 from control.motion import write_bvh
 from vision import (
     METHODS,
-    LivePainter,
-    LiveView,
     MaskTape,
     SourceError,
+    Stage,
+    StagePainter,
     Truth,
     agreement,
     library_actions,
@@ -56,7 +56,12 @@ def add_perform_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]
         "against the avatar's possible next actions (the silhouette bank); the best is taken.",
     )
     src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--camera", type=number(int, 0, 1000), help="webcam index")
+    src.add_argument(
+        "--camera",
+        type=_camera,
+        help="a webcam's index, or 'browser': the live page's camera (open the page it "
+        "prints; the browser asks to use the camera)",
+    )
     src.add_argument("--video", help="a video file (colour, or a silhouette video)")
     src.add_argument("--masks", help="a folder of mask images")
     add_run_args(p)
@@ -74,9 +79,15 @@ def add_perform_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]
         "--live-port",
         type=number(int, 0, 65535),
         default=8765,
-        help="with --camera or --realtime, a live view at http://127.0.0.1:PORT/ (0: none)",
+        help="with --camera or --realtime, the live page at http://127.0.0.1:PORT/: the "
+        "performer, the avatar in 3D, its actions (0: none; --camera browser needs one)",
     )
     p.set_defaults(func=_perform)
+
+
+def _camera(text: str) -> int | str:
+    """``--camera``: a webcam index, or ``browser``."""
+    return "browser" if text == "browser" else int(number(int, 0, 1000)(text))
 
 
 _SIGNALS = {"SIGINT": 2, "SIGHUP": 1, "SIGTERM": 15}
@@ -185,27 +196,36 @@ def _perform(args: argparse.Namespace) -> int:
         raise ValueError("--labels needs --video (the labels name its file)")
     truth = truth_for(args.video, args.labels) if args.video else None  # bad: LabelFileError
     outputs = _outputs(args)  # a clash or an unwritable place: said before any work
-    source = open_source(
-        args.camera,
-        args.video,
-        args.masks,
-        silhouette=silhouette_flag(args),
-        realtime=args.realtime,
-    )
-    if args.camera is not None and args.seconds is None:
-        print("a camera never ends: stop with Ctrl-C (or give --seconds)", file=sys.stderr)
-    ready = prepare(args, source)
-    plate = args.segmentation in METHODS or (
-        args.segmentation == "auto" and ready.descriptor != "pose"
-    )
-    if args.camera is not None and plate:
-        print(
-            "step out of view for two seconds so that the background can be learned",
-            file=sys.stderr,
+    browser = args.camera == "browser"
+    if browser and args.live_port == 0:
+        raise ValueError("--camera browser needs the live page: give --live-port a port, not 0")
+    with contextlib.ExitStack() as stack:
+        stage = _stage(args, stack, camera=browser)  # (the page may open while loading)
+        source = (
+            stage.camera
+            if stage is not None and stage.camera is not None
+            else open_source(
+                args.camera,
+                args.video,
+                args.masks,
+                silhouette=silhouette_flag(args),
+                realtime=args.realtime,
+            )
         )
-    with outputs:
-        result = _run(args, source, ready, outputs)
-        written = outputs.commit()
+        if args.camera is not None and args.seconds is None:
+            print("a camera never ends: stop with Ctrl-C (or give --seconds)", file=sys.stderr)
+        ready = prepare(args, source)
+        plate = args.segmentation in METHODS or (
+            args.segmentation == "auto" and ready.descriptor != "pose"
+        )
+        if args.camera is not None and plate:
+            print(
+                "step out of view for two seconds so that the background can be learned",
+                file=sys.stderr,
+            )
+        with outputs:
+            result = _run(args, source, ready, outputs, stage, truth)
+            written = outputs.commit()
     _summary(args, source, ready, result, truth, written)
     if result.stopped and result.frames_with_media == 0:
         print(
@@ -218,12 +238,31 @@ def _perform(args: argparse.Namespace) -> int:
     return 0 if result.stopped in ("", "SIGINT") else 128 + _SIGNALS[result.stopped]
 
 
-def _run(args: argparse.Namespace, source: Any, ready: Prepared, outputs: OutputSet) -> Any:
-    """The performance, with its log, tape, live view and signal handling; its outputs
+def _stage(args: argparse.Namespace, stack: contextlib.ExitStack, camera: bool) -> Stage | None:
+    """The live page, served for a camera or a paced file (``--live-port``; none for a
+    file read as fast as it goes: nobody could watch it)."""
+    if args.live_port == 0 or not (args.camera is not None or args.realtime):
+        return None
+    try:
+        stage = stack.enter_context(Stage(port=args.live_port, camera=camera))
+    except OSError as exc:
+        raise OSError(f"--live-port {args.live_port}: cannot serve the live page ({exc})") from None
+    print(f"live page: {stage.url} (this machine only)", file=sys.stderr, flush=True)
+    return stage
+
+
+def _run(
+    args: argparse.Namespace,
+    source: Any,
+    ready: Prepared,
+    outputs: OutputSet,
+    stage: Stage | None,
+    truth: Truth | None,
+) -> Any:
+    """The performance, with its log, tape, live page and signal handling; its outputs
     (BVH and timing, MP4, log) written to ``outputs``' temporary files, also after a
     stop."""
     clips, graph, layer, bank = ready.clips, ready.graph, ready.layer, ready.bank
-    live = args.live_port != 0 and (args.camera is not None or args.realtime)
     log_out = outputs.find("--log")
     with contextlib.ExitStack() as stack:
         log: Any = (
@@ -233,16 +272,7 @@ def _run(args: argparse.Namespace, source: Any, ready: Prepared, outputs: Output
         )
         tape = stack.enter_context(MaskTape(fps=graph.fps)) if args.video_out else None
         stops = stack.enter_context(StopOnSignal())
-        painter = None
-        if live:
-            try:
-                view = stack.enter_context(LiveView(port=args.live_port))
-            except OSError as exc:
-                raise OSError(
-                    f"--live-port {args.live_port}: cannot serve the live view ({exc})"
-                ) from None
-            painter = LivePainter(view, clips, graph, bank)
-            print(f"live view: {view.url} (this machine only)", file=sys.stderr, flush=True)
+        painter = StagePainter(stage, clips, graph, truth) if stage is not None else None
         try:
             result = perform(
                 source,
@@ -264,6 +294,7 @@ def _run(args: argparse.Namespace, source: Any, ready: Prepared, outputs: Output
         if result.frames_with_media == 0 and not result.stopped:
             raise SourceError(_nothing_read(args, source, result))
         warn_source(source)
+        _say_page(stage)
         if result.stopped:
             print(
                 f"stopped by {result.stopped} at {result.media_seconds:.1f} s of media: "
@@ -277,8 +308,26 @@ def _run(args: argparse.Namespace, source: Any, ready: Prepared, outputs: Output
     return result
 
 
+def _say_page(stage: Stage | None) -> None:
+    """How the page's camera did: why it ended, its latency and frame rate."""
+    camera = stage.camera if stage is not None else None
+    if camera is None:
+        return
+    if camera.ended and camera.ended != "stopped":
+        print(f"{camera.name}: {camera.ended}: writing what was performed", file=sys.stderr)
+    got = stage.page_stats if stage is not None else {}
+    if got.get("p50_ms") is not None:
+        print(
+            f"the page: camera frame to avatar pose p50 {got['p50_ms']:.0f} ms, "
+            f"p99 {got['p99_ms']:.0f} ms over its last 10 s; it sent {got['fps']:.1f} "
+            f"frames a second ({got['frames']:.0f} in all, {camera.refused} refused)"
+        )
+
+
 def _nothing_read(args: argparse.Namespace, source: Any, result: Any) -> str:
     """Why a source gave no frame, as its kind says."""
+    if args.camera == "browser":
+        return f"{source.name}: no frame came from the page in {result.media_seconds:.1f} s"
     if args.camera is not None:
         return (
             f"{source.name}: no frame came from the camera in {result.media_seconds:.1f} s "

@@ -5,6 +5,7 @@ ground truth and evaluation, and synthetic recordings."""
 
 from __future__ import annotations
 
+from ._browser import BrowserCamera
 from ._classify import (
     ActionClassifier,
     cached_action_classifier,
@@ -40,10 +41,7 @@ from ._library import (
     floor_level,
     on_the_floor,
 )
-from ._live import (
-    LivePainter,
-    LiveView,
-)
+from ._live import StagePainter
 from ._matcher import (
     EARLY_WINDOWS,
     Matcher,
@@ -86,6 +84,7 @@ from ._sources import (
     looks_like_silhouettes,
     open_source,
 )
+from ._stage import Stage
 from ._tables import (
     KEEP_TABLES,
     TABLES_VERSION,
@@ -104,6 +103,7 @@ from ._truth import (
     read_span_labels,
     truth_for,
 )
+from ._vendor import THREE_VERSION, vendor_three
 from ._video import (
     PANE,
     MaskTape,
@@ -133,17 +133,17 @@ __all__ = [
     "PANE",
     "PERSON_METHODS",
     "TABLES_VERSION",
+    "THREE_VERSION",
     "UNSEEN_REASONS",
     "VISION_COORDS",
     "ActionClassifier",
     "ActionVote",
+    "BrowserCamera",
     "CameraSource",
     "Decision",
     "Frame",
     "IndexFileError",
     "LabelFileError",
-    "LivePainter",
-    "LiveView",
     "MaskFolderSource",
     "MaskTape",
     "MatchSettings",
@@ -156,6 +156,8 @@ __all__ = [
     "Segmenter",
     "Source",
     "SourceError",
+    "Stage",
+    "StagePainter",
     "Truth",
     "VideoSource",
     "WindowIndex",
@@ -197,6 +199,7 @@ __all__ = [
     "resolve_segmentation",
     "shape_stats",
     "truth_for",
+    "vendor_three",
     "window_tables",
     "write_video",
 ]

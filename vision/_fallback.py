@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from control.avatar import Avatar, JumpCosts
 from control.clusters import HigherLayer
-from control.motion import Clip
+from control.motion import Clip, action_names
 from silhouette_bank import Bank, silhouette_features
 
 from ._decision import Decision
@@ -53,6 +53,7 @@ def ready_matcher(matcher: Matcher, clips: Sequence[Clip], period: float) -> Non
     actions = action_keys(clips)
     if actions is not None:
         matcher.vote.actions = actions
+        matcher.vote.names = action_names(clips)
         if matcher.settings.jumps and matcher.settings.vote > 0:
             matcher.classifier()
             matcher.index().prepare(matcher.vote.window_actions(matcher.n))

@@ -40,7 +40,7 @@ from ._landmarks import PoseReader
 from ._matcher import Matcher
 from ._person import make_segmenter, resolve_segmentation
 from ._segment import clean_mask_others
-from ._sources import CameraSource, Frame, Source
+from ._sources import Frame, Source
 from ._video import MaskTape
 
 __all__ = ["MAX_COVER", "PerformResult", "PerformSettings", "Performance", "perform"]
@@ -177,9 +177,7 @@ class Performance:
         self.en_route = 0.0  # media time at which the avatar reaches a relocation's window
         background = settings.background_search
         if background is None:
-            background = isinstance(source, CameraSource) or bool(
-                getattr(source, "realtime", False)
-            )
+            background = bool(getattr(source, "live", False) or getattr(source, "realtime", False))
         # with jumps the fast index answers within the decision; without, relocation's
         # brute force search may run in a thread
         self.searcher = (
@@ -232,7 +230,7 @@ class Performance:
             if self.segmenter is None:
                 method = resolve_segmentation(
                     self.settings.segmentation,
-                    isinstance(self.source, CameraSource),
+                    bool(getattr(self.source, "live", False)),  # a camera
                     self.landmarks,
                 )
                 self.segmenter = make_segmenter(method, self.settings.learn_frames)
@@ -440,6 +438,8 @@ class Performance:
             candidates=d.candidates,
             latency_ms=round(d.latency_ms, 3),
         )
+        if 0 <= matcher.vote.voted < len(matcher.vote.names):  # the action voted for
+            entry["voted"] = matcher.vote.names[matcher.vote.voted]
         if self.matcher.facing is not None:  # which way the performer is taken to face
             entry["facing"] = "camera" if self.matcher.facing.toward else "away"
         return entry

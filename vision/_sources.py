@@ -191,6 +191,8 @@ class CameraSource:
     camera, or one in use: retrying that forever helped nobody). ``opener`` replaces
     ``cv2.VideoCapture(index)`` (tests)."""
 
+    live = True  # frames come as they happen (segmentation and search choose by it)
+
     def __init__(
         self,
         index: int,

@@ -61,6 +61,8 @@ class ActionVote:
         #: the action of every graph frame (``vision.action_keys``); ``None``: the library
         #: names no actions, and nothing is voted
         self.actions: IntArray | None = None
+        #: the name of each action number (``control.motion.action_names``)
+        self.names: list[str] = []
         self._votes: deque[int] = deque(maxlen=max(1, size))
         #: the action most voted for (-1: none yet)
         self.voted = -1

@@ -116,6 +116,15 @@ def action_keys(clips: Sequence[Clip]) -> NDArray[np.int64] | None:
     return np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
 
 
+def action_names(clips: Sequence[Clip]) -> list[str]:
+    """The name of each of ``action_keys``' numbers: the labels, then each clip's own
+    name (its unlabelled frames' action)."""
+    names: dict[str, None] = {}
+    for c in clips:
+        names.update(dict.fromkeys(c.label_names))
+    return [*names, *(c.name for c in clips)]
+
+
 @dataclass(frozen=True, eq=False)
 class Library:
     """The clips of a library, all at ``fps`` frames/s (``None``: each at its own rate)."""

@@ -1,184 +1,228 @@
-"""The live view: a page, its state and frames on localhost, a bounded server, and a
-real browser showing both panes of a performance."""
+"""The live page in a real browser (headless Chromium): its camera drives the avatar as a
+video file does, the 3D avatar is drawn where its joints are, the latency is shown, and a
+page without a camera is told why; a paced file's run shows on the same page."""
 
 from __future__ import annotations
 
 import json
-import shutil
 import socket
 import subprocess
+import sys
 import threading
 import time
-import urllib.error
 import urllib.request
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
 import pytest
 
+from benchmarks._chromium import Chromium, write_y4m
+from control.motion import load_library
 from tests.vision.conftest import RECORDING
-from vision import LivePainter, LiveView, MatchSettings, PerformSettings, VideoSource, perform
+from vision import (
+    MatchSettings,
+    PerformSettings,
+    Stage,
+    StagePainter,
+    VideoSource,
+    agreement,
+    library_actions,
+    perform,
+    truth_for,
+)
+
+REPO = Path(__file__).resolve().parents[2]
+SQUATS = REPO.parent / "shared" / "video" / "pose_squats.mp4"
+LABELS = REPO / "benchmarks" / "videos" / "shared_labels.csv"
+ORANGE = np.array((40, 150, 255))  # the avatar's colour, BGR (0xff9628), before shading
 
 
-@pytest.mark.slow
-def test_page_state_frames_and_the_mjpeg_stream() -> None:
-    with LiveView(port=0) as view:
-        with pytest.raises(urllib.error.HTTPError, match="404"):
-            urllib.request.urlopen(view.url + "frame.jpg", timeout=5)
-        view.update(np.full((24, 32, 3), 200, dtype=np.uint8), t=1.5, action="Squat", cost=0.5)
-        with urllib.request.urlopen(view.url, timeout=5) as r:
-            page = r.read()
-        assert b"/frame.jpg" in page and b"/state.json" in page
-        with urllib.request.urlopen(view.url + "state.json", timeout=5) as r:
-            state = json.loads(r.read())
-        assert state == {"t": 1.5, "action": "Squat", "cost": 0.5, "frame": 0}
-        with urllib.request.urlopen(view.url + "frame.jpg", timeout=5) as r:
-            img = cv2.imdecode(np.frombuffer(r.read(), np.uint8), cv2.IMREAD_COLOR)
-        assert img.shape == (24, 32, 3) and abs(int(img.mean()) - 200) < 3
-        with urllib.request.urlopen(view.url + "stream", timeout=5) as r:
-            head = r.read(200)
-        assert b"--frame" in head and b"\xff\xd8" in head  # a JPEG follows the boundary
-
-
-@pytest.mark.slow
-def test_the_server_caps_its_threads_and_closes_idle_sockets() -> None:
-    before = threading.active_count()
-    with LiveView(port=0, max_clients=4, idle_timeout=0.5) as view:
-        most = 0
-        socks = []
-        for _ in range(50):  # 50 clients that connect and say nothing
-            socks.append(socket.create_connection(("127.0.0.1", view.port), timeout=5))
-            most = max(most, threading.active_count() - before)
-        # each is answered 503 at once (the server is full) or served, and then closed
-        # after the idle timeout: none is left hanging
-        answers = []
-        for s in socks:
-            s.settimeout(5.0)
-            answers.append(s.recv(64))
-            most = max(most, threading.active_count() - before)
-            s.close()
-        # the server's thread plus at most 4 serving threads, however many connect
-        assert most <= 1 + 4
-        assert all(a == b"" or a.startswith(b"HTTP/1.0 503") for a in answers)
-        assert sum(a.startswith(b"HTTP/1.0 503") for a in answers) >= 10
-        time.sleep(0.3)
-        assert threading.active_count() - before <= 1
-        # and it still serves
-        with urllib.request.urlopen(view.url, timeout=5) as r:
-            assert r.status == 200
-
-
-@pytest.mark.slow
-def test_close_ends_the_streams_and_frees_the_port() -> None:
-    view = LiveView(port=0)
-    view.update(np.zeros((8, 8, 3), dtype=np.uint8))
-    r = urllib.request.urlopen(view.url + "stream", timeout=5)
-    assert b"--frame" in r.read(64)
-    t0 = time.perf_counter()
-    view.close()
-    rest = b""
-    while chunk := r.read(4096):  # the stream ends: no frames after close()
-        rest += chunk
-        assert time.perf_counter() - t0 < 3.0
-    r.close()
-    assert time.perf_counter() - t0 < 3.0
-    with socket.socket() as s:  # nothing listens there any more (as a restart would bind)
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        s.bind(("127.0.0.1", view.port))
-
-
-def _chromium() -> str:
-    for name in ("chromium", "chromium-browser", "google-chrome"):
-        if path := shutil.which(name):
-            return path
-    pytest.fail("no headless Chromium here: apt-get install chromium (.ci/run does)")
-
-
-def test_a_browser_shows_the_performer_and_the_avatar(setup, tmp_path: Path) -> None:
-    lib, layer, bank = setup
-    with LiveView(port=0) as view:
-        painter = LivePainter(view, lib.clips, layer.graph, bank)
-        perform(
-            VideoSource(RECORDING, silhouette=True),
-            layer,
-            bank,
-            lib.clips,
-            PerformSettings(match=MatchSettings(), seconds=3.0),
-            on_frame=painter.on_frame,
-            on_decision=painter.on_decision,
-        )
-        state = view.state()
-        assert state["frame"] > 10 and state["action"] and state["cost"] is not None
-        shot = tmp_path / "live.png"
-        cmd = [
-            _chromium(),
-            "--headless=new",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--hide-scrollbars",
-            f"--user-data-dir={tmp_path / 'profile'}",
-            "--window-size=1200,800",
-            "--virtual-time-budget=5000",
-        ]
-        # one browser run: the screenshot, and the page's DOM on stdout
-        dom = subprocess.run(
-            [*cmd, f"--screenshot={shot}", "--dump-dom", view.url],
-            timeout=120,
-            check=True,
-            capture_output=True,
-            text=True,
-        ).stdout
-    img = cv2.imread(str(shot))
-    assert img is not None and img.shape[:2] == (800, 1200)
-    # the picture spans 96% of the width: its left half holds the performer's white
-    # silhouette, its right half the avatar's orange one on blue
-    white = (img > 235).all(axis=2)
-    orange = np.abs(img.astype(int) - (40, 150, 255)).sum(axis=2) < 60
-    blue = np.abs(img.astype(int) - (70, 40, 20)).sum(axis=2) < 30
-    assert white[:, :600].mean() > 0.01 and white[:, 600:].mean() < 0.002
-    assert orange[:, 600:].mean() > 0.005 and orange[:, :600].mean() < 0.001
-    assert blue[:, 600:].mean() > 0.2
-    # the state line is filled in from /state.json
-    assert f'<b id="a">{state["action"]}</b>' in dom
-    assert '<b id="c">-</b>' not in dom and '<b id="l">-</b>' not in dom
-
-
-@pytest.mark.slow
-def test_perform_serves_the_live_view_while_it_runs(mocap: Path, tmp_path: Path) -> None:
-    from mimic.cli import main
-
+def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    argv = [
-        "perform",
-        "--video",
-        str(RECORDING),
-        str(mocap),
-        "--clips",
-        "13_30",
-        "--k",
-        "12",
-        "--realtime",
-        "--seconds",
-        "2",
-        "--live-port",
-        str(port),
-    ]
+        return int(s.getsockname()[1])
+
+
+def _state(port: int) -> dict[str, Any]:
+    with urllib.request.urlopen(f"http://127.0.0.1:{port}/state.json", timeout=2) as r:
+        return dict(json.loads(r.read()))
+
+
+def _squats_y4m(path: Path) -> float:
+    """pose_squats.mp4 as the fake camera's file (360x640, its own 5 frames/s)."""
+    cap = cv2.VideoCapture(str(SQUATS))
+    fps = float(cap.get(cv2.CAP_PROP_FPS))
+    frames = []
+    while (got := cap.read())[0]:
+        frames.append(cv2.resize(got[1], (360, 640), interpolation=cv2.INTER_AREA))
+    cap.release()
+    write_y4m(frames, path, fps)
+    return len(frames) / fps
+
+
+def _avatar_at_joints(shot: np.ndarray, joints: list[list[float]]) -> float:
+    """The share of projected joints with the avatar's orange within 6 px."""
+    warm = (shot[..., 2].astype(int) - shot[..., 0] > 60) & (shot[..., 2] > 120)
+    hits = 0
+    for x, y in joints:
+        xi, yi = round(x), round(y)
+        hits += bool(warm[max(0, yi - 6) : yi + 7, max(0, xi - 6) : xi + 7].any())
+    return hits / max(1, len(joints))
+
+
+@pytest.mark.slow
+def test_the_pages_camera_drives_the_avatar_as_the_video_does(
+    mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from mimic.cli import main
+
+    seconds = _squats_y4m(tmp_path / "squats.y4m")
+    lib = ["--clips", "13_30", "--k", "12"]
+    # the same clip as a file, through mimic evaluate: the figure the page must match
+    evaluated = tmp_path / "evaluate.json"
+    assert (
+        main(
+            [
+                "evaluate",
+                str(SQUATS),
+                str(mocap),
+                *lib,
+                "--labels",
+                str(LABELS),
+                "--json",
+                str(evaluated),
+            ]
+        )
+        == 0
+    )
+    port = _free_port()
+    log, bvh = tmp_path / "log.jsonl", tmp_path / "avatar.bvh"
+    argv = ["perform", "--camera", "browser", str(mocap), *lib]  # no --seconds: the page ends it
+    argv += ["--live-port", str(port), "--log", str(log), "--out", str(bvh)]
+    done: dict[str, int] = {}
+    run = threading.Thread(target=lambda: done.update(rc=main(argv)))
+    run.start()
+    try:
+        t0 = time.monotonic()
+        while True:  # the loop reads before the page opens: its first frame is the clip's
+            assert run.is_alive() and time.monotonic() - t0 < 120
+            try:
+                if _state(port).get("camera") == "no page yet":
+                    break
+            except OSError:
+                pass
+            time.sleep(0.1)
+        with Chromium(f"http://127.0.0.1:{port}/", tmp_path / "squats.y4m") as browser:
+            browser.wait_for("window.mimic.role === 'camera' && window.mimic.frames > 3", 60)
+            browser.wait_for("window.mimic.stats && window.mimic.stats.n > 10", 60)
+            time.sleep(1.0)
+            joints = browser.evaluate("window.mimic.joints()")
+            shot = browser.screenshot()
+            status = browser.evaluate("document.getElementById('status').innerText")
+            while _state(port)["t"] < seconds - 0.3:  # the clip played once: close the page
+                assert run.is_alive()
+                time.sleep(0.05)
+    finally:
+        run.join(timeout=120)
+    cv2.imwrite(str(tmp_path / "page.png"), shot)
+    assert done.get("rc") == 0
+    # the 3D avatar: orange where its joints project, on the right half of the page
+    assert len(joints) > 20 and all(x > shot.shape[1] / 2 for x, _ in joints)
+    assert _avatar_at_joints(shot, joints) > 0.8
+    assert "camera to avatar p50" in status and " - / " not in status
+    # the page closed mid-run: the run waited for it, then ended and wrote its work
+    err = capsys.readouterr().err
+    assert "the camera page closed at" in err and "did not come back in 5 s" in err
+    # decisions from the page's frames, agreeing with the labels as the file's run does
+    decisions = [json.loads(line) for line in log.read_text().splitlines()]
+    made = [d for d in decisions if d.get("decision") is not None]
+    assert len(made) > 40
+    clips = load_library(mocap, clips=["13_30"]).clips
+    truth = truth_for(str(SQUATS), str(LABELS))
+    got = agreement(decisions, clips, truth, known=library_actions(clips))
+    want = json.loads(evaluated.read_text())["best_at_lag_le_1s"]
+    assert got["best_at_lag_le_1s"] == pytest.approx(want, abs=0.05)
+    check = REPO.parent / "shared" / "tools" / "check_bvh.py"
+    subprocess.run([sys.executable, str(check), str(bvh)], check=True, capture_output=True)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("allow", "fake", "error"),
+    [(False, True, "NotAllowedError"), (True, False, "NotFoundError")],
+    ids=["permission denied", "no camera"],
+)
+def test_a_page_without_a_camera_says_why_here_and_there(
+    allow: bool, fake: bool, error: str
+) -> None:
+    said: list[str] = []
+    with Stage(port=0, camera=True, say=said.append) as stage:
+        assert stage.camera is not None
+        stage.camera.read()
+        with Chromium(stage.url, camera=fake, allow_camera=allow) as browser:
+            notes = browser.wait_for(
+                "document.getElementById('notes').innerText.includes('did not open') && "
+                "document.getElementById('notes').innerText",
+                30,
+            )
+            t0 = time.monotonic()
+            while not any(error in s for s in said) and time.monotonic() - t0 < 10:
+                time.sleep(0.1)
+    assert error in notes
+    assert any(f"could not open a camera: {error}" in s for s in said), said
+
+
+@pytest.mark.slow
+def test_a_paced_files_run_shows_on_the_page(setup: Any, tmp_path: Path) -> None:
+    lib, layer, bank = setup
+    with Stage(port=0) as stage:
+        painter = StagePainter(stage, lib.clips, layer.graph)
+        with Chromium(stage.url, camera=False) as browser:
+            browser.wait_for("window.mimic.role === 'viewer'", 30)
+            perform(
+                VideoSource(RECORDING, silhouette=True, realtime=True),
+                layer,
+                bank,
+                lib.clips,
+                PerformSettings(match=MatchSettings(), seconds=4.0),
+                on_frame=painter.on_frame,
+                on_decision=painter.on_decision,
+            )
+            browser.wait_for("document.getElementById('you').naturalWidth > 0", 10)
+            time.sleep(0.5)
+            joints = browser.evaluate("window.mimic.joints()")
+            shot = browser.screenshot()
+            action = browser.evaluate("document.getElementById('action').innerText")
+    state = stage.state()
+    assert state["action"] and state["cost"] is not None and action == state["action"]
+    # left: the performer's white silhouette; right: the 3D avatar at its joints
+    white = (shot > 235).all(axis=2)
+    half = shot.shape[1] // 2
+    assert white[:, :half].mean() > 0.01
+    assert _avatar_at_joints(shot, joints) > 0.8
+
+
+@pytest.mark.slow
+def test_perform_serves_the_page_while_a_paced_file_runs(mocap: Path) -> None:
+    from mimic.cli import main
+
+    port = _free_port()
+    argv = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "13_30", "--k", "12"]
+    argv += ["--realtime", "--seconds", "2", "--live-port", str(port)]
     done: dict[str, int] = {}
     run = threading.Thread(target=lambda: done.update(rc=main(argv)))
     run.start()
     seen = None
     while run.is_alive() and seen is None:
         try:
-            with urllib.request.urlopen(f"http://127.0.0.1:{port}/state.json", timeout=2) as r:
-                state = json.loads(r.read())
-            if state["frame"] >= 0 and state["t"] > 0:
+            state = _state(port)
+            if state["t"] > 0 and state.get("action"):
                 seen = state
         except OSError:
             time.sleep(0.1)
     run.join(timeout=120)
-    assert done.get("rc") == 0 and seen is not None and seen["t"] > 0
+    assert done.get("rc") == 0 and seen is not None
     with pytest.raises(OSError):  # closed with the run
-        urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=2)
+        _state(port)
