@@ -23,6 +23,7 @@ from .evaluate import add_evaluate_command
 from .graph import add_graph_commands
 from .library import add_library_commands
 from .perform import add_perform_command
+from .play import add_play_command
 from .record import add_record_command
 from .sketch import add_sketch_command
 from .vendor import add_vendor_command
@@ -42,6 +43,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_choose_command(sub)
     add_bank_commands(sub)
     add_perform_command(sub)
+    add_play_command(sub)
     add_evaluate_command(sub)
     add_record_command(sub)
     add_chain_command(sub)

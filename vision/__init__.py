@@ -60,6 +60,7 @@ from ._person import (
     person_segmentation_available,
     resolve_segmentation,
 )
+from ._play import PlaySession
 from ._record import (
     RecordSettings,
     add_mask_noise,
@@ -151,6 +152,7 @@ __all__ = [
     "PerformResult",
     "PerformSettings",
     "PersonSegmenter",
+    "PlaySession",
     "PoseReader",
     "RecordSettings",
     "Segmenter",

@@ -90,10 +90,12 @@ class StagePainter:
         t: float,
         mask: NDArray[np.bool_] | None,
         avatar: Any,
-        picture: tuple[Any, Any] = (None, None),
+        picture: tuple[Any, Any] | None = (None, None),
     ) -> None:
+        """The pose now; the performer's picture when it is time (none without a
+        ``picture``: a run without a performer)."""
         self.stage.publish_pose(self.pose(t, avatar))
-        if t - self._last < self._period - 1e-9:
+        if picture is None or t - self._last < self._period - 1e-9:
             return
         self._last = t
         pane = performer_pane(self.PANE, mask, *picture)

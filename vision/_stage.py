@@ -83,9 +83,8 @@ class _Client:
             try:
                 for text in notes:
                     self.conn.send(text)
-                for kind in ("state", "pose", "picture"):
-                    if kind in latest:
-                        self.conn.send(latest[kind])
+                for message in latest.values():
+                    self.conn.send(message)
             except (ConnectionClosed, OSError):
                 return
 
@@ -111,6 +110,10 @@ class Stage:
         self._numbers = 0
         self._hello: dict[str, Any] = {"type": "hello", "skeleton": None}
         self._state: dict[str, Any] = {"t": 0.0}
+        self._extra: dict[str, str] = {}  # the newest message of each other kind
+        #: takes a page's command (``choose``, ``sketch``: ``mimic play``) and says what
+        #: is wrong with it ("" when nothing); ``None``: the run takes no commands
+        self.on_command: Callable[[dict[str, Any]], str] | None = None
         #: the newest statistics a page reported (camera-to-avatar latency, frame rate)
         self.page_stats: dict[str, Any] = {}
         self.camera = BrowserCamera(self) if camera else None
@@ -188,8 +191,13 @@ class Stage:
                 hello["note"] = "another page is the camera: this one only shows the avatar"
         else:
             hello["role"] = "viewer"
+        hello["controls"] = self.on_command is not None
         client.post("note", json.dumps(hello))
         client.post("state", json.dumps({"type": "state", **self.state()}))
+        with self._lock:
+            extra = dict(self._extra)
+        for kind, text in extra.items():
+            client.post(kind, text)
         sender = threading.Thread(target=client.sender, name="mimic-stage-send", daemon=True)
         sender.start()
         why = ""
@@ -232,6 +240,11 @@ class Stage:
             name = str(message.get("name", "Error"))[:60]
             said = str(message.get("message", ""))[:200]
             self.say(f"the page could not open a camera: {name}: {said} ({_ADVICE.get(name, '')})")
+        elif kind in ("choose", "sketch"):
+            if self.on_command is None:
+                self.note(client, "this run takes no commands (choice and sketch: mimic play)")
+            elif problem := self.on_command(message):
+                self.note(client, problem, "error")
         elif kind == "stats":
             self.page_stats = {
                 k: message[k]
@@ -265,6 +278,13 @@ class Stage:
     def publish_picture(self, jpeg: bytes) -> None:
         """The performer as the loop saw them (a JPEG: frame, mask, landmarks)."""
         self._post("picture", jpeg)
+
+    def publish_extra(self, kind: str, text: str) -> None:
+        """Another kind of message (``options``, ``plan``): its newest goes to each page,
+        and to pages that open later."""
+        with self._lock:
+            self._extra[kind] = text
+        self._post(kind, text)
 
     def set_state(self, **state: Any) -> None:
         with self._lock:

@@ -71,6 +71,10 @@ class SketchTracker:
 
     With ``layer`` (the graph's higher layer) each step takes the first approach: the
     best action of the avatar's cluster tree, performed to its end.
+
+    ``place``: the start frame's map ``(yaw, translation)`` into the sketch's world, for an
+    avatar already moving there (``Avatar.root_transform``: the live page's sketches),
+    instead of the sketch's first point facing along its first segment (not on terrain).
     """
 
     def __init__(
@@ -83,6 +87,7 @@ class SketchTracker:
         start: int | None = None,
         captured: CapturedTerrain | None = None,
         layer: HigherLayer | None = None,
+        place: tuple[float, FloatArray] | None = None,
     ) -> None:
         self.graph = graph
         self.clips = list(clips)
@@ -117,10 +122,16 @@ class SketchTracker:
         )
         if start is not None and not (0 <= start < graph.n_frames and graph.in_scc[start]):
             raise ValueError(f"start frame {start} is not in the graph's component")
+        if place is not None and self.blocks is not None:
+            raise ValueError("on block terrain the start is placed on the blocks' grid")
         if self.blocks is not None:
             start, self._start = self.blocks.start(
                 start, self.sketch, self._root, self._heading, self._start_ranking
             )
+        elif place is not None:
+            if start is None:
+                raise ValueError("a start placed in the sketch's world needs its start frame")
+            self._start = (float(place[0]), np.asarray(place[1], dtype=np.float64))
         else:
             if start is None:
                 start = self._default_start()

@@ -120,8 +120,9 @@ function render() {
     p.q.forEach((q, j) => joints[j].quaternion.copy(q));
     look.lerp(new THREE.Vector3(p.root.x, 0.9, p.root.z), 0.08); // the camera follows
   }
-  camera.position.set(look.x, look.y + 1.1, look.z + 4.4);
+  camera.position.set(look.x, look.y + 1.6, look.z + 5.2);
   camera.lookAt(look);
+  grid.position.set(Math.round(look.x), 0, Math.round(look.z)); // an endless floor
   renderer.render(scene, camera);
   requestAnimationFrame(render);
 }
@@ -261,6 +262,115 @@ function sendFrame() {
   }, "image/jpeg", 0.8);
 }
 
+// --- choice and sketch (mimic play) --------------------------------------------------------
+let offerId = -1;
+let hoverPath = null, drawnLine = null, planLine = null;
+
+function floorLine(points, color, y = 0.01) {
+  const geometry = new THREE.BufferGeometry().setFromPoints(points.map(([x, z]) => new THREE.Vector3(x, y, z)));
+  const line = new THREE.Line(geometry, new THREE.LineBasicMaterial({ color }));
+  scene.add(line);
+  return line;
+}
+
+function drop(line) {
+  if (line) { scene.remove(line); line.geometry.dispose(); }
+  return null;
+}
+
+function onOptions(m) {
+  const box = $("choices");
+  box.replaceChildren();
+  hoverPath = drop(hoverPath);
+  offerId = m.id;
+  if (m.id < 0) return;
+  m.options.forEach((o, i) => {
+    const button = document.createElement("button");
+    const canvas = document.createElement("canvas");
+    canvas.width = canvas.height = 120;
+    canvas.preview = o.preview;
+    button.append(canvas, document.createTextNode(`${i + 1}. ${o.label}`));
+    button.onclick = () => {
+      if (ws.readyState === 1) ws.send(JSON.stringify({ type: "choose", offer: offerId, option: i }));
+      page.chosen = (page.chosen || 0) + 1;
+    };
+    button.onmouseenter = () => { hoverPath = drop(hoverPath); hoverPath = floorLine(o.path, 0x7fd1ff); };
+    button.onmouseleave = () => { hoverPath = drop(hoverPath); };
+    box.append(button);
+  });
+  page.offers = (page.offers || 0) + 1;
+}
+
+// each option's preview: its motion as a stick figure, looping
+let previewFrame = 0;
+setInterval(() => {
+  previewFrame += 1;
+  for (const canvas of document.querySelectorAll("#choices canvas")) {
+    const { bones, poses } = canvas.preview;
+    const pose = poses[previewFrame % poses.length];
+    const g = canvas.getContext("2d");
+    g.clearRect(0, 0, canvas.width, canvas.height);
+    g.strokeStyle = "#ff9628";
+    g.lineWidth = 3;
+    g.lineCap = "round";
+    const px = ([x, y]) => [canvas.width / 2 + x * 55, canvas.height - 8 - y * 55];
+    g.beginPath();
+    for (const [a, b] of bones) {
+      g.moveTo(...px(pose[a]));
+      g.lineTo(...px(pose[b]));
+    }
+    g.stroke();
+  }
+}, 80);
+
+// drawing a path on the floor: a drag on the 3D view, each point where the ray meets y = 0
+const floor = new THREE.Plane(new THREE.Vector3(0, 1, 0), 0);
+const ray = new THREE.Raycaster();
+let drawing = null;
+
+function floorPoint(event) {
+  const rect = renderer.domElement.getBoundingClientRect();
+  const ndc = new THREE.Vector2(((event.clientX - rect.left) / rect.width) * 2 - 1, -((event.clientY - rect.top) / rect.height) * 2 + 1);
+  ray.setFromCamera(ndc, camera);
+  const hit = ray.ray.intersectPlane(floor, new THREE.Vector3());
+  return hit ? [hit.x, hit.z] : null;
+}
+
+renderer.domElement.addEventListener("pointerdown", (event) => {
+  if (!page.controls || event.button !== 0) return;
+  const p = floorPoint(event);
+  if (!p) return;
+  drawing = [p];
+  drawnLine = drop(drawnLine);
+  renderer.domElement.setPointerCapture(event.pointerId);
+});
+renderer.domElement.addEventListener("pointermove", (event) => {
+  if (!drawing) return;
+  const p = floorPoint(event);
+  const last = drawing[drawing.length - 1];
+  if (p && Math.hypot(p[0] - last[0], p[1] - last[1]) > 0.05) {
+    drawing.push(p);
+    drawnLine = drop(drawnLine);
+    drawnLine = floorLine(drawing, 0xffffff, 0.02);
+  }
+});
+renderer.domElement.addEventListener("pointerup", () => {
+  if (!drawing) return;
+  const points = drawing;
+  drawing = null;
+  if (points.length >= 2 && ws.readyState === 1) {
+    ws.send(JSON.stringify({ type: "sketch", points }));
+    page.sketches = (page.sketches || 0) + 1;
+  }
+});
+
+function onPlan(m) {
+  planLine = drop(planLine);
+  planLine = floorLine(m.path, m.followed ? 0x6be38a : 0xff7b72, 0.015);
+  page.plans = (page.plans || 0) + 1;
+  note(m.followed ? "the avatar follows your path" : "the avatar follows your path as far as it can", m.followed ? "info" : "error");
+}
+
 // --- the connection ---------------------------------------------------------------------
 const ws = new WebSocket(`ws://${location.host}/ws`);
 ws.binaryType = "arraybuffer";
@@ -281,12 +391,22 @@ ws.onmessage = (event) => {
     if (m.skeleton) buildAvatar(m.skeleton);
     if (m.note) note(m.note, "info");
     if (m.role === "camera") startCamera();
+    page.controls = !!m.controls;
+    $("controls").hidden = !m.controls;
+    if (m.controls) {
+      $("role").textContent = "you steer the avatar";
+      document.querySelector(".pane").hidden = true; // no performer: the avatar takes the row
+    }
   } else if (m.type === "skeleton") {
     buildAvatar(m.skeleton);
   } else if (m.type === "pose") {
     onPose(m);
   } else if (m.type === "state") {
     onState(m);
+  } else if (m.type === "options") {
+    onOptions(m);
+  } else if (m.type === "plan") {
+    onPlan(m);
   } else if (m.type === "note") {
     note(m.text, m.level);
   }
