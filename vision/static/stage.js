@@ -39,8 +39,25 @@ scene.add(new THREE.HemisphereLight(0xdde6ff, 0x303030, 1.6));
 const sun = new THREE.DirectionalLight(0xffffff, 1.8);
 sun.position.set(2, 5, 4);
 scene.add(sun);
-const grid = new THREE.GridHelper(40, 80, 0x6a7080, 0x3a3f4a);
+// the floor: a plane tiled in 1 m squares (a texture: GL lines are drawn unevenly by
+// software renderers), kept under the avatar so that it never ends
+const tile = document.createElement("canvas");
+tile.width = tile.height = 128;
+const paint = tile.getContext("2d");
+paint.fillStyle = "#3a3f4b";
+paint.fillRect(0, 0, 128, 128);
+paint.strokeStyle = "#8a90a0";
+paint.lineWidth = 3;
+paint.strokeRect(0, 0, 128, 128);
+const tiles = new THREE.CanvasTexture(tile);
+tiles.wrapS = tiles.wrapT = THREE.RepeatWrapping;
+tiles.repeat.set(60, 60);
+tiles.anisotropy = 8;
+tiles.colorSpace = THREE.SRGBColorSpace;
+const grid = new THREE.Mesh(new THREE.PlaneGeometry(60, 60), new THREE.MeshStandardMaterial({ map: tiles, roughness: 0.9 }));
+grid.rotation.x = -Math.PI / 2;
 scene.add(grid);
+scene.fog = new THREE.Fog(0x20242c, 12, 30);
 const skin = new THREE.MeshStandardMaterial({ color: 0xff9628, roughness: 0.55 });
 let joints = []; // THREE.Group per joint
 let from = null, to = null, poseAt = 0, poseFor = 33;
@@ -107,7 +124,11 @@ function shown(now) {
   };
 }
 
-function render() {
+let rendered = 0;
+function render(now) {
+  requestAnimationFrame(render);
+  if (now - rendered < 30) return; // at most about 30 frames a second: the poses come at 30
+  rendered = now;
   const w = holder.clientWidth, h = holder.clientHeight;
   if (renderer.domElement.width !== Math.round(w * renderer.getPixelRatio())) {
     renderer.setSize(w, h, false);
@@ -124,7 +145,6 @@ function render() {
   camera.lookAt(look);
   grid.position.set(Math.round(look.x), 0, Math.round(look.z)); // an endless floor
   renderer.render(scene, camera);
-  requestAnimationFrame(render);
 }
 requestAnimationFrame(render);
 
@@ -174,18 +194,22 @@ function drawStrip() {
     const y = 6 + r * 30;
     g.fillStyle = "#aaa";
     g.fillText(row, 6, y + 16);
-    let said = "";
+    const runs = []; // [action, left, right]: the row's runs of one action
     for (let i = 0; i < h.length; i++) {
       const a = h[i], b = h[i + 1];
       if (a.t < end - STRIP_S - 1 || !a[row]) continue;
       const left = Math.max(x0, x(a.t)), right = b ? x(b.t) : c.width;
-      g.fillStyle = hue(a[row]);
+      const last = runs[runs.length - 1];
+      if (last && last[0] === a[row] && Math.abs(last[2] - left) < 1) last[2] = right;
+      else runs.push([a[row], left, right]);
+    }
+    for (const [name, left, right] of runs) {
+      g.fillStyle = hue(name);
       g.fillRect(left, y, right - left + 0.5, 24);
-      if (a[row] !== said) {
-        g.fillStyle = "#fff";
-        g.fillText(a[row], left + 3, y + 16);
-        said = a[row];
-      }
+    }
+    g.fillStyle = "#fff";
+    for (const [name, left, right] of runs) {
+      if (g.measureText(name).width + 6 < right - left) g.fillText(name, left + 3, y + 16);
     }
   });
   while (h.length && h[0].t < end - STRIP_S - 2) h.shift();
