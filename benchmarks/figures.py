@@ -96,6 +96,7 @@ def table() -> str:
     person, sil_person = _runs("accuracy_pose_person.json"), _runs("accuracy_person.json")
     views, v_avatar, v_performer = _views()
     squats, squat_lag = _squats()
+    page = _load("page.json")["pose_squats"]
     rows = [
         (
             f"other takes of the same person, simulated landmarks ({takes['runs']} runs)",
@@ -128,6 +129,12 @@ def table() -> str:
             "a real person squatting (`../shared/video/pose_squats.mp4`)",
             f"{squats:.3f}",
             f"at a lag of {squat_lag:g} s",
+        ),
+        (
+            "the same clip as the live page's camera (`--camera browser`)",
+            f"{page['agreement_best_lag_le_1s']:.3f}",
+            f"camera frame to avatar pose p50 {page['camera_to_avatar_ms_p50']:.0f} ms, "
+            f"p99 {page['camera_to_avatar_ms_p99']:.0f} ms (headless Chromium here)",
         ),
     ]
     lines = ["| performer | agreement | note |", "|---|---|---|"]
