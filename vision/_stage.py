@@ -10,15 +10,17 @@ newest, never a backlog). With ``camera=True`` the first page is also the camera
 frames go to ``BrowserCamera``, the source the loop reads; a second page only watches.
 
 Limits: bound to 127.0.0.1, and a request naming another host (a DNS-rebinding page) or
-a WebSocket from another origin is refused; at most ``max_clients`` pages at once (the
-next gets 503); a connection that does not finish its handshake within ``idle_timeout``
-seconds, or stops answering pings for as long, is closed; ``close()`` ends them all.
+a WebSocket from another origin is refused; at most ``max_clients`` pages at once, and
+``SPARE_CONNECTIONS`` more connections (the next gets 503); a connection that does not
+finish its handshake within ``idle_timeout`` seconds, or stops answering pings for as
+long, is closed; ``close()`` ends them all.
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
+import socket
 import sys
 import threading
 from collections.abc import Callable
@@ -42,6 +44,9 @@ _FILES = {
     "/three.module.min.js": ("three.module.min.js", "text/javascript; charset=utf-8"),
     "/three.LICENSE": ("three.LICENSE", "text/plain; charset=utf-8"),
 }
+#: connections at once beyond the pages: loading a page, ``/state.json``
+SPARE_CONNECTIONS = 8
+_BUSY = b"HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"
 #: bytes a WebSocket message may have: a bigger one closes its connection (1009); a
 #: frame under this but over ``BrowserCamera.max_bytes`` is refused with a message
 MAX_MESSAGE = 16 << 20
@@ -131,10 +136,35 @@ class Stage:
             server_header=None,
         )
         self.port = int(self._server.socket.getsockname()[1])
+        self._bound_connections(max_clients + SPARE_CONNECTIONS)
         self._thread = threading.Thread(
             target=self._server.serve_forever, name="mimic-stage", daemon=True
         )
         self._thread.start()
+
+    def _bound_connections(self, most: int) -> None:
+        """At most ``most`` connections served at once (a thread each): the next is
+        answered 503 by the accepting thread and closed."""
+        server = self._server
+        inner = server.handler
+        slots = threading.BoundedSemaphore(most)
+
+        def bounded(sock: socket.socket, addr: Any) -> None:
+            if not slots.acquire(blocking=False):
+                with contextlib.suppress(OSError):
+                    sock.settimeout(1.0)
+                    sock.sendall(_BUSY)
+                sock.close()
+                # as the library's own handler does when it ends (else shutdown waits)
+                with server.lock:
+                    getattr(server, "handler_threads", set()).discard(threading.current_thread())
+                return
+            try:
+                inner(sock, addr)
+            finally:
+                slots.release()
+
+        self._server.handler = bounded  # (read by serve_forever at each connection)
 
     @property
     def url(self) -> str:
@@ -309,12 +339,7 @@ class Stage:
         """Stop serving: every page's connection ends, the port is released."""
         if self.camera is not None:
             self.camera.close()
-        self._server.shutdown()
-        with self._lock:
-            clients = list(self._clients.values())
-        for client in clients:
-            with contextlib.suppress(Exception):
-                client.conn.close(1001, "the run ended")
+        self._server.shutdown(reason="the run ended")  # (closes every page's connection)
         self._thread.join(timeout=5.0)
 
     def __enter__(self) -> Stage:

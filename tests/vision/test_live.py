@@ -118,8 +118,11 @@ def test_the_pages_camera_drives_the_avatar_as_the_video_does(
             browser.wait_for("window.mimic.role === 'camera' && window.mimic.frames > 3", 60)
             browser.wait_for("window.mimic.stats && window.mimic.stats.n > 10", 60)
             time.sleep(1.0)
+            browser.evaluate("window.mimic.held = true")  # the picture and joints agree
+            time.sleep(0.2)
             joints = browser.evaluate("window.mimic.joints()")
             shot = browser.screenshot()
+            browser.evaluate("window.mimic.held = false")
             status = browser.evaluate("document.getElementById('status').innerText")
             while _state(port)["t"] < seconds - 0.3:  # the clip played once: close the page
                 assert run.is_alive()
@@ -192,8 +195,11 @@ def test_a_paced_files_run_shows_on_the_page(setup: Any, tmp_path: Path) -> None
             )
             browser.wait_for("document.getElementById('you').naturalWidth > 0", 10)
             time.sleep(0.5)
+            browser.evaluate("window.mimic.held = true")  # the picture and joints agree
+            time.sleep(0.2)
             joints = browser.evaluate("window.mimic.joints()")
             shot = browser.screenshot()
+            browser.evaluate("window.mimic.held = false")
             action = browser.evaluate("document.getElementById('action').innerText")
     state = stage.state()
     assert state["action"] and state["cost"] is not None and action == state["action"]

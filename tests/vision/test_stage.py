@@ -4,6 +4,7 @@ client stands in for the page)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import socket
 import struct
@@ -239,3 +240,19 @@ def test_pages_beyond_the_cap_get_503_and_close_frees_the_port() -> None:
     with socket.socket() as s:  # nothing listens there any more
         s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         s.bind(("127.0.0.1", stage.port))
+
+
+def test_connections_beyond_the_cap_get_503_and_idle_ones_are_closed() -> None:
+    with Stage(port=0, max_clients=1, idle_timeout=0.5) as stage:
+        idle = [socket.create_connection(("127.0.0.1", stage.port)) for _ in range(9)]
+        time.sleep(0.2)
+        with socket.create_connection(("127.0.0.1", stage.port)) as extra:
+            extra.settimeout(5)
+            assert extra.recv(100).startswith(b"HTTP/1.1 503")
+        time.sleep(1.5)  # a connection that sends nothing is closed after idle_timeout
+        for s in idle:
+            s.settimeout(2)
+            with contextlib.suppress(ConnectionResetError):
+                assert s.recv(100) == b""
+            s.close()
+        assert "<title>mimic</title>" in _get(stage.url).decode()  # and the slots are free

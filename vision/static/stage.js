@@ -127,7 +127,9 @@ function shown(now) {
 let rendered = 0;
 function render(now) {
   requestAnimationFrame(render);
-  if (now - rendered < 30) return; // at most about 30 frames a second: the poses come at 30
+  // at most about 30 frames a second (the poses come at 30); none while held (page.held:
+  // a test compares a screenshot with the joints' places)
+  if (now - rendered < 30 || page.held) return;
   rendered = now;
   const w = holder.clientWidth, h = holder.clientHeight;
   if (renderer.domElement.width !== Math.round(w * renderer.getPixelRatio())) {
