@@ -2,7 +2,7 @@
 and the choice of background subtractor, by measurement.
 
 Usage: python -m benchmarks.bench_vision [LIBRARY_DIR] [--out FILE] [--variants]
-       [--descriptor multigrid|grid|hu] [--page]
+       [--descriptor multigrid|grid|hu] [--page] [--socket]
 
 - Subtractors (MOG2, KNN and opencv-contrib's bgsegm CNT, GSOC, LSBP, GMG, MOG) on a
   640x480 composite: the committed recording's silhouettes, filled with a textured
@@ -20,6 +20,9 @@ Usage: python -m benchmarks.bench_vision [LIBRARY_DIR] [--out FILE] [--variants]
 - ``--page`` (alone; default out ``benchmarks/results/page.json``): the live page end to
   end, a headless Chromium's fake camera playing real clips into ``mimic perform
   --camera browser`` (``benchmarks/_page.py``): camera-to-avatar time, frames a second.
+- ``--socket`` (alone; default out ``benchmarks/results/socket.json``): the WebSocket
+  servers the page could use, a frame up and a pose down 30 times a second
+  (``benchmarks/_socket.py``): round trip p50/p99 and CPU.
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ import numpy as np
 
 from benchmarks._page import page
 from benchmarks._report import machine, save
+from benchmarks._socket import sockets
 from control.avatar import Avatar
 from control.clusters import LayerSettings, cached_higher_layer
 from control.graph import GraphOptions, build_graph
@@ -244,11 +248,14 @@ def main() -> None:
         help="the banks' silhouette descriptor (default multigrid)",
     )
     ap.add_argument("--page", action="store_true", help="only the live page, end to end")
+    ap.add_argument("--socket", action="store_true", help="only the WebSocket servers")
     args = ap.parse_args()
     root = Path(args.root)
-    if args.page:
-        out = args.out if args.out != ap.get_default("out") else "benchmarks/results/page.json"
-        save({"machine": machine(), "date": time.strftime("%Y-%m-%d"), **page(root)}, out)
+    if args.page or args.socket:
+        name = "page" if args.page else "socket"
+        out = args.out if args.out != ap.get_default("out") else f"benchmarks/results/{name}.json"
+        got = page(root) if args.page else sockets()
+        save({"machine": machine(), "date": time.strftime("%Y-%m-%d"), **got}, out)
         return
     base = BankSettings(descriptor=args.descriptor)
     result: dict[str, Any] = {
