@@ -1,9 +1,9 @@
 // mimic's live page: the performer's camera (when the server asks this page for it), the
 // avatar in 3D (three.js, vendored), the state, and a strip of the last 20 s of actions.
 // Protocol (vision/_stage.py): JSON text messages from the server (hello, skeleton, pose,
-// state, note), the performer's picture as binary JPEG; from the page, camera frames as
-// binary (float64 little-endian page time in ms, then a JPEG) and JSON (camera-error,
-// stats).
+// state, note; options and plan with mimic play), the performer's picture as binary JPEG;
+// from the page, camera frames as binary (float64 little-endian page time in ms, then a
+// JPEG) and JSON (camera-error, stats; choose and sketch with mimic play).
 import * as THREE from "./three.module.min.js";
 
 const $ = (id) => document.getElementById(id);
@@ -109,7 +109,7 @@ function onPose(message) {
   if (message.ts != null) {
     page.acked = Math.max(page.acked, message.ts);
     page.latencies.push([now, now - message.ts]);
-    page.all.push(now - message.ts);
+    if (page.all.length < 200000) page.all.push(now - message.ts); // the run's (bench_vision)
   }
 }
 
