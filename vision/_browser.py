@@ -27,6 +27,9 @@ from ._sources import Frame
 
 __all__ = ["BrowserCamera"]
 
+#: seconds between reminders that the run waits for the page
+REMIND = 30.0
+
 
 class BrowserCamera:
     """Frames from the stage's camera page (module docstring)."""
@@ -123,6 +126,11 @@ class BrowserCamera:
             self.stage.say(f"{self.name}: {problem} (refused; more are counted, not said)")
         return problem
 
+    def _waiting(self) -> str:
+        if self._owner is None:
+            return "waiting for the page: open it in a browser on this machine"
+        return "waiting for the page's camera: allow it in the browser"
+
     def status(self) -> str:
         """Where the camera stands, for the page and ``/state.json``."""
         with self._cond:
@@ -162,8 +170,12 @@ class BrowserCamera:
             if gone:
                 self.ended = f"the camera page closed and did not come back in {self.grace:g} s"
                 return None
-            if self.received == 0:
-                return Frame(0.0, i)  # no page yet: media time has not begun
+            if self.received == 0:  # no page yet: media time has not begun
+                now = time.monotonic()
+                if now - self._mono >= REMIND:  # said now and then, not once and forgotten
+                    self._mono = now
+                    self.stage.say(f"{self.name}: {self._waiting()} ({self.stage.url})")
+                return Frame(0.0, i)
             now = time.monotonic()
             self._t += now - self._mono
             self._mono = now

@@ -256,3 +256,24 @@ def test_connections_beyond_the_cap_get_503_and_idle_ones_are_closed() -> None:
                 assert s.recv(100) == b""
             s.close()
         assert "<title>mimic</title>" in _get(stage.url).decode()  # and the slots are free
+
+
+def test_a_run_waiting_for_the_page_says_so_now_and_then(monkeypatch: pytest.MonkeyPatch) -> None:
+    import vision._browser
+
+    monkeypatch.setattr(vision._browser, "REMIND", 0.2)
+    said = Said()
+    with Stage(port=0, camera=True, say=said) as stage:
+        camera = stage.camera
+        assert camera is not None
+        camera.wait = 0.05
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 0.5:
+            f = camera.read()
+            assert f is not None and f.t == 0.0 and f.image is None
+        assert any("waiting for the page: open it" in s and stage.url in s for s in said)
+        with _page(stage) as ws:
+            _until(ws, "hello")
+            time.sleep(0.3)
+            camera.read()
+            assert "allow it in the browser" in said[-1]

@@ -168,6 +168,11 @@ function hue(name) {
 }
 
 function onState(s) {
+  if (page.role === "camera" && s.camera && s.camera !== "receiving frames") {
+    $("role").textContent = `your camera: ${s.camera}`;
+  } else if (page.role === "camera") {
+    $("role").textContent = "your camera drives the avatar";
+  }
   $("action").textContent = s.action ?? "-";
   $("performer").textContent = s.performer ?? (s.why ? `(${s.why})` : "-");
   $("cost").textContent = s.cost == null ? "-" : s.cost.toFixed(3);
