@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from control.clusters import build_forest
+from control.clusters._forest import build_forest
 from tests.clusters.test_paths import small_graph
 
 

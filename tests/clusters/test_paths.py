@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from control.clusters import most_probable_motion, transition_log_probs
+from control.clusters import transition_log_probs
+from control.clusters._paths import most_probable_motion
 from control.graph import GraphOptions, MotionGraph
 
 

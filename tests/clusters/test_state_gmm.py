@@ -8,12 +8,12 @@ import pytest
 from control.clusters import (
     decorrelation_frames,
     fit_mixture,
-    keyframe_seeds,
     orientation_distance,
-    reference_orientation,
     select_by_bic,
     state_vectors,
 )
+from control.clusters._gmm import keyframe_seeds
+from control.clusters._state import reference_orientation
 from control.graph import frame_features, weighted_joints
 from control.motion import Library, qexp
 

@@ -23,8 +23,8 @@ from control.sketch import (
     path_deviation,
     read_environment,
     read_sketch,
-    resample_polyline,
 )
+from control.sketch._ground import resample_polyline
 from mimic.cli import main
 from tests.conftest import REPO
 

@@ -11,7 +11,8 @@ from scipy.signal import find_peaks
 
 from control.graph import rotate_y, yaw_of
 from control.motion import load_library, read_bvh
-from control.transition import Chainer, ChainPlayer, ParametricAction, find_examples
+from control.transition import Chainer, ChainPlayer, ParametricAction
+from control.transition._examples import find_examples
 from mimic.cli import main
 
 #: one of the nine strikes of 02_05 (seconds), its right wrist's apex in the middle

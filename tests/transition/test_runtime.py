@@ -7,15 +7,13 @@ import pytest
 
 from control.graph import frame_features, pair_distances
 from control.motion import Library
-from control.transition import (
-    build_transition_graph,
-    candidate_paths,
+from control.transition import build_transition_graph, candidate_paths, two_pass_clusters
+from control.transition._runtime import (
     choose_path,
     clip_frames,
     nearest_cluster,
     stitch_path,
     transition_point,
-    two_pass_clusters,
 )
 
 
