@@ -216,11 +216,14 @@ def test_native_log_lines_are_silenced_and_python_errors_are_not(capfd) -> None:
 
     from vision._person import quiet_native_stderr
 
+    # (a line of its own: a pose model of an earlier test may still log the real one from
+    # its native thread, outside this block, into this test's capture)
     with quiet_native_stderr():
-        os.write(2, b"INFO: Created TensorFlow Lite XNNPACK delegate for CPU.\n")
+        os.write(2, b"native line written while quiet\n")
     os.write(2, b"after\n")
-    assert capfd.readouterr().err == "after\n"
+    err = capfd.readouterr().err
+    assert "while quiet" not in err and err.endswith("after\n")
     with pytest.raises(ZeroDivisionError), quiet_native_stderr():
         1 / 0  # noqa: B018
     os.write(2, b"restored\n")
-    assert capfd.readouterr().err == "restored\n"
+    assert capfd.readouterr().err.endswith("restored\n")
