@@ -2,9 +2,13 @@
 
 from control.jobs import CLUSTER_ENV, ClusterError, cluster_address, run_jobs
 
-from ._arrays import CHECKED_FILE, RACY_NS, block_hash, block_hashes, npy_file, open_mapped
+from ._arrays import (
+    RACY_NS,
+    block_hashes,
+    npy_file,
+    open_mapped,
+)
 from ._bank import (
-    FEATURE_DTYPE,
     Bank,
     BankFileError,
     StaleBankError,
@@ -18,31 +22,29 @@ from ._body import (
     CapsuleBody,
     capsule_body,
     capsule_segments,
-    face_marks,
     with_proportions,
 )
 from ._camera import CameraRing
 from ._descriptor import (
     DEFAULT_DESCRIPTOR,
     DESCRIPTORS,
-    HU_SCALE,
     POSE_JOINTS,
-    SHIN_RATIO,
-    THIGH_RATIO,
     Descriptor,
     GridDescriptor,
     HuDescriptor,
     OutlineDescriptor,
     PoseDescriptor,
     get_descriptor,
-    grid_cells,
-    hu_log,
-    mask_extents,
     outline_extents,
 )
-from ._features import feature_size, silhouette_features
+from ._features import (
+    silhouette_features,
+)
 from ._gl import GLRenderer
-from ._metric import METRIC_FRAMES, lda_directions, learn_metric, metric_rings
+from ._metric import (
+    lda_directions,
+    learn_metric,
+)
 from ._occlusion import joint_visibility
 from ._pose import joint_points, pose_visibility
 from ._raster import rasterize
@@ -51,28 +53,22 @@ from ._render import (
     gl_features,
     gl_silhouettes,
     motion_features,
-    motion_features_both,
     motion_silhouettes,
     render_motion_video,
     shaded_frames,
     write_mp4,
 )
-from ._settings import BANK_VERSION, METRIC_DIMS, BankSettings, robust_settings
+from ._settings import (
+    BankSettings,
+    robust_settings,
+)
 
 __all__ = [
-    "BANK_VERSION",
-    "CHECKED_FILE",
     "CLUSTER_ENV",
     "DEFAULT_DESCRIPTOR",
     "DESCRIPTORS",
-    "FEATURE_DTYPE",
-    "HU_SCALE",
-    "METRIC_DIMS",
-    "METRIC_FRAMES",
     "POSE_JOINTS",
     "RACY_NS",
-    "SHIN_RATIO",
-    "THIGH_RATIO",
     "Bank",
     "BankFileError",
     "BankSettings",
@@ -88,7 +84,6 @@ __all__ = [
     "PoseDescriptor",
     "StaleBankError",
     "bank_cache_dir",
-    "block_hash",
     "block_hashes",
     "build_bank",
     "capsule_body",
@@ -96,22 +91,15 @@ __all__ = [
     "cluster_address",
     "draw_ground_shadow",
     "ensure_bank",
-    "face_marks",
-    "feature_size",
     "get_descriptor",
     "gl_features",
     "gl_silhouettes",
-    "grid_cells",
-    "hu_log",
     "joint_points",
     "joint_visibility",
     "lda_directions",
     "learn_metric",
     "load_bank",
-    "mask_extents",
-    "metric_rings",
     "motion_features",
-    "motion_features_both",
     "motion_silhouettes",
     "npy_file",
     "open_mapped",

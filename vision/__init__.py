@@ -8,7 +8,6 @@ from __future__ import annotations
 from ._browser import BrowserCamera
 from ._classify import (
     ActionClassifier,
-    cached_action_classifier,
     choose_action,
 )
 from ._decision import (
@@ -16,7 +15,6 @@ from ._decision import (
     MatchSettings,
 )
 from ._evaluate import (
-    UNSEEN_REASONS,
     brief_actions_per_minute,
     decision_points,
     evaluation,
@@ -24,7 +22,6 @@ from ._evaluate import (
     plot_timeline,
 )
 from ._index import (
-    INDEX_VERSION,
     IndexFileError,
     WindowIndex,
     cached_window_index,
@@ -43,11 +40,9 @@ from ._library import (
 )
 from ._live import StagePainter
 from ._matcher import (
-    EARLY_WINDOWS,
     Matcher,
 )
 from ._perform import (
-    MAX_COVER,
     PerformResult,
     PerformSettings,
     perform,
@@ -56,16 +51,12 @@ from ._person import (
     INSTALL,
     PERSON_METHODS,
     PersonSegmenter,
-    make_segmenter,
     person_segmentation_available,
-    resolve_segmentation,
 )
 from ._play import PlaySession
 from ._record import (
     RecordSettings,
-    add_mask_noise,
     camera_poses,
-    performer_images,
     performer_masks,
     record_clip,
 )
@@ -73,7 +64,6 @@ from ._segment import (
     METHODS,
     Segmenter,
     clean_mask,
-    clean_mask_others,
 )
 from ._sources import (
     CameraSource,
@@ -87,8 +77,6 @@ from ._sources import (
 )
 from ._stage import Stage
 from ._tables import (
-    KEEP_TABLES,
-    TABLES_VERSION,
     WindowTablesError,
     cached_shape_stats,
     cached_window_tables,
@@ -106,7 +94,6 @@ from ._truth import (
 )
 from ._vendor import THREE_VERSION, vendor_three
 from ._video import (
-    PANE,
     MaskTape,
     write_video,
 )
@@ -121,21 +108,14 @@ from ._windows import (
 )
 
 __all__ = [
-    "EARLY_WINDOWS",
     "FLOOR_ABOVE",
     "FLOOR_SECONDS",
-    "INDEX_VERSION",
     "INSTALL",
-    "KEEP_TABLES",
     "LAGS",
-    "MAX_COVER",
     "MEDIAPIPE_INDEX",
     "METHODS",
-    "PANE",
     "PERSON_METHODS",
-    "TABLES_VERSION",
     "THREE_VERSION",
-    "UNSEEN_REASONS",
     "VISION_COORDS",
     "ActionClassifier",
     "ActionVote",
@@ -166,30 +146,25 @@ __all__ = [
     "WindowTablesError",
     "action_keys",
     "action_runs",
-    "add_mask_noise",
     "agreement",
     "avatar_labels",
     "best_window",
     "brief_actions_per_minute",
-    "cached_action_classifier",
     "cached_shape_stats",
     "cached_window_index",
     "cached_window_tables",
     "camera_poses",
     "choose_action",
     "clean_mask",
-    "clean_mask_others",
     "decision_points",
     "evaluation",
     "floor_level",
     "library_actions",
     "looks_like_silhouettes",
-    "make_segmenter",
     "on_the_floor",
     "open_source",
     "per_frame_cost",
     "perform",
-    "performer_images",
     "performer_masks",
     "performer_queries",
     "performer_sequence",
@@ -198,7 +173,6 @@ __all__ = [
     "plot_timeline",
     "read_span_labels",
     "record_clip",
-    "resolve_segmentation",
     "shape_stats",
     "truth_for",
     "vendor_three",

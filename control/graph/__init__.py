@@ -2,13 +2,13 @@
 blended transitions and the random walk."""
 
 from ._artifact import GraphFileError, cached_graph, graph_cache_dir, load_graph, save_graph
-from ._broad import BroadPhase, squared_gaps
-from ._distance import close_pair_blocks, close_pairs, lower_bound_features, pair_distances
+from ._distance import (
+    pair_distances,
+)
 from ._features import (
     COORDS,
     FrameFeatures,
     frame_features,
-    q_embed,
     root_scales,
     rotate_y,
     weighted_joints,
@@ -16,7 +16,6 @@ from ._features import (
     yaw_q,
 )
 from ._graph import (
-    GRAPH_VERSION,
     GraphOptions,
     MotionGraph,
     build_graph,
@@ -24,8 +23,17 @@ from ._graph import (
     graph_sigma,
     select_clips,
 )
-from ._ik import SOFT_REACH, TURN_RATE, knee_hinge, leg_chain, limit_turns, solve_leg, two_bone_ik
-from ._prune import CONTACT_RULES, case4, contact_groups, largest_scc, local_maxima
+from ._ik import (
+    TURN_RATE,
+    knee_hinge,
+    leg_chain,
+    solve_leg,
+)
+from ._prune import (
+    CONTACT_RULES,
+    case4,
+    largest_scc,
+)
 from ._quality import (
     foot_slide,
     jerk,
@@ -38,16 +46,15 @@ from ._quality import (
 )
 from ._synth import FrameData, Synthesis, compose, hermite, segment_maps, synthesize
 from ._terrain import CapturedTerrain, FootTrack, captured_terrain, foot_track, terrain_options
-from ._turns import follow_turns, own_turns
+from ._turns import (
+    follow_turns,
+)
 from ._walk import random_step, random_walk
 
 __all__ = [
     "CONTACT_RULES",
     "COORDS",
-    "GRAPH_VERSION",
-    "SOFT_REACH",
     "TURN_RATE",
-    "BroadPhase",
     "CapturedTerrain",
     "FootTrack",
     "FrameData",
@@ -61,10 +68,7 @@ __all__ = [
     "captured_terrain",
     "case4",
     "clips_digest",
-    "close_pair_blocks",
-    "close_pairs",
     "compose",
-    "contact_groups",
     "follow_turns",
     "foot_slide",
     "foot_track",
@@ -77,16 +81,11 @@ __all__ = [
     "knee_hinge",
     "largest_scc",
     "leg_chain",
-    "limit_turns",
     "load_graph",
-    "local_maxima",
     "longest_off_floor",
-    "lower_bound_features",
     "lowest_foot",
     "off_floor_seconds",
-    "own_turns",
     "pair_distances",
-    "q_embed",
     "quality_summary",
     "random_step",
     "random_walk",
@@ -97,10 +96,8 @@ __all__ = [
     "select_clips",
     "sole_speed",
     "solve_leg",
-    "squared_gaps",
     "synthesize",
     "terrain_options",
-    "two_bone_ik",
     "weighted_joints",
     "yaw_of",
     "yaw_q",

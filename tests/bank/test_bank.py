@@ -17,10 +17,7 @@ from control.artifacts import build_lock, is_locked
 from control.motion import Library
 from mimic.cli import main
 from silhouette_bank import (
-    FEATURE_DTYPE,
     POSE_JOINTS,
-    SHIN_RATIO,
-    THIGH_RATIO,
     BankFileError,
     BankSettings,
     BodyShape,
@@ -28,13 +25,15 @@ from silhouette_bank import (
     build_bank,
     capsule_body,
     ensure_bank,
-    feature_size,
     lda_directions,
     learn_metric,
     load_bank,
     motion_features,
     robust_settings,
 )
+from silhouette_bank._bank import FEATURE_DTYPE
+from silhouette_bank._descriptor import SHIN_RATIO, THIGH_RATIO
+from silhouette_bank._features import feature_size
 from tests.bank.conftest import SMALL
 
 

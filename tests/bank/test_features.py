@@ -10,18 +10,15 @@ from skimage.measure import moments_central, moments_hu, moments_normalized
 
 from silhouette_bank import (
     DESCRIPTORS,
-    THIGH_RATIO,
     Descriptor,
     GridDescriptor,
     OutlineDescriptor,
-    feature_size,
     get_descriptor,
-    grid_cells,
-    hu_log,
-    mask_extents,
     outline_extents,
     silhouette_features,
 )
+from silhouette_bank._descriptor import THIGH_RATIO, grid_cells, hu_log, mask_extents
+from silhouette_bank._features import feature_size
 
 GRID_ROWS, GRID_COLS = 8, 4
 

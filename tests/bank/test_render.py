@@ -13,10 +13,10 @@ from silhouette_bank import (
     capsule_body,
     capsule_segments,
     motion_features,
-    motion_features_both,
     motion_silhouettes,
     with_proportions,
 )
+from silhouette_bank._render import motion_features_both
 
 
 @pytest.fixture(scope="module")

@@ -5,17 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from control.graph import (
-    BroadPhase,
-    close_pairs,
-    frame_features,
-    lower_bound_features,
-    pair_distances,
-    q_embed,
-    rotate_y,
-    squared_gaps,
-    weighted_joints,
-)
+from control.graph import frame_features, pair_distances, rotate_y, weighted_joints
+from control.graph._broad import BroadPhase, squared_gaps
+from control.graph._distance import close_pairs, lower_bound_features
+from control.graph._features import q_embed
 from control.motion import Clip, Library, Motion, qconj, qlog, qmul
 
 NU = 0.01

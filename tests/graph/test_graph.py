@@ -17,14 +17,13 @@ from control.graph import (
     build_graph,
     cached_graph,
     case4,
-    contact_groups,
     frame_features,
     load_graph,
-    local_maxima,
     pair_distances,
     random_walk,
     save_graph,
 )
+from control.graph._prune import contact_groups, local_maxima
 from control.motion import Library
 
 

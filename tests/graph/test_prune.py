@@ -7,14 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from control.graph import (
-    GraphOptions,
-    build_graph,
-    case4,
-    contact_groups,
-    largest_scc,
-    local_maxima,
-)
+from control.graph import GraphOptions, build_graph, case4, largest_scc
+from control.graph._prune import contact_groups, local_maxima
 from control.motion import Clip, Contacts, Library, Motion, find_role
 
 

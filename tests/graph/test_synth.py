@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from control.graph import (
-    SOFT_REACH,
     GraphOptions,
     MotionGraph,
     build_graph,
@@ -16,13 +15,12 @@ from control.graph import (
     foot_slide,
     knee_hinge,
     leg_chain,
-    limit_turns,
     random_walk,
     sole_speed,
     solve_leg,
     synthesize,
-    two_bone_ik,
 )
+from control.graph._ik import SOFT_REACH, limit_turns, two_bone_ik
 from control.motion import Library, Motion, forward_kinematics, qconj, qlog, qmul, qrot
 
 

@@ -15,10 +15,9 @@ from vision import (
     PersonSegmenter,
     PoseReader,
     Segmenter,
-    make_segmenter,
     person_segmentation_available,
-    resolve_segmentation,
 )
+from vision._person import make_segmenter, resolve_segmentation
 
 
 def _frames(path: Path, every: int = 10) -> list[np.ndarray]:

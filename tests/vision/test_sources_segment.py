@@ -15,11 +15,11 @@ from vision import (
     Segmenter,
     SourceError,
     VideoSource,
-    add_mask_noise,
     clean_mask,
-    clean_mask_others,
     open_source,
 )
+from vision._record import add_mask_noise
+from vision._segment import clean_mask_others
 
 RECORDING = REPO / "recordings" / "13_29_first12s_160x120.mkv"
 REAL = REPO.parent / "shared" / "video" / "pose_1.mp4"

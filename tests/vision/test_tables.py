@@ -13,7 +13,6 @@ import numpy as np
 import vision._tables as tables_module
 from silhouette_bank import load_bank
 from vision import (
-    KEEP_TABLES,
     Matcher,
     MatchSettings,
     cached_shape_stats,
@@ -21,6 +20,7 @@ from vision import (
     shape_stats,
     window_tables,
 )
+from vision._tables import KEEP_TABLES
 
 
 def _copy(bank, tmp_path: Path):
