@@ -12,7 +12,9 @@ from __future__ import annotations
 import base64
 import contextlib
 import json
+import os
 import shutil
+import signal
 import subprocess
 import tempfile
 import time
@@ -67,7 +69,10 @@ class Chromium:
         exe = chromium_path()
         if exe is None:
             raise RuntimeError("no Chromium here: apt-get install chromium (.ci/run does)")
-        self._dir = tempfile.TemporaryDirectory(prefix="mimic-chromium-")
+        # (a helper process may still write into the profile as it ends)
+        self._dir = tempfile.TemporaryDirectory(
+            prefix="mimic-chromium-", ignore_cleanup_errors=True
+        )
         profile = Path(self._dir.name)
         cmd = [
             exe,
@@ -90,8 +95,11 @@ class Chromium:
             cmd.append("--use-fake-ui-for-media-stream")
         else:
             cmd.append("--deny-permission-prompts")
-        self._proc = subprocess.Popen(
-            [*cmd, url], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        self._proc = subprocess.Popen(  # its own process group: close() ends its helpers too
+            [*cmd, url],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
         )
         self._id = 0
         self._stack = contextlib.ExitStack()
@@ -157,12 +165,15 @@ class Chromium:
     def close(self) -> None:
         with contextlib.suppress(Exception):
             self._stack.close()
-        self._proc.terminate()
-        try:
-            self._proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            self._proc.kill()
-            self._proc.wait()
+        for sig in (signal.SIGTERM, signal.SIGKILL):
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self._proc.pid, sig)
+            try:
+                self._proc.wait(timeout=10)
+                break
+            except subprocess.TimeoutExpired:
+                continue
+        time.sleep(0.2)  # the group's helpers end as the browser does
         self._dir.cleanup()
 
     def __enter__(self) -> Chromium:

@@ -12,6 +12,7 @@ from ._classify import (
 )
 from ._decision import (
     Decision,
+    Jump,
     MatchSettings,
 )
 from ._evaluate import (
@@ -124,6 +125,7 @@ __all__ = [
     "Decision",
     "Frame",
     "IndexFileError",
+    "Jump",
     "LabelFileError",
     "MaskFolderSource",
     "MaskTape",

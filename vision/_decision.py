@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Decision", "MatchSettings", "PerformSettings"]
+__all__ = ["Decision", "Jump", "MatchSettings", "PerformSettings"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -160,6 +160,18 @@ class MatchSettings:
             raise ValueError(f"tempos must be numbers in [0.25, 4], got {self.tempos}")
 
 
+@dataclass(frozen=True)
+class Jump:
+    """A direct blended jump: its ``target`` frame, the avatar's ``own_cost`` it beat,
+    the pose distance its ``blend`` starts from, and whether it ``leaves`` the avatar's
+    action for the one voted for, whatever it costs."""
+
+    target: int
+    own_cost: float
+    blend: float
+    leaves: bool = False
+
+
 @dataclass(frozen=True, eq=False)
 class Decision:
     """The chosen path (``frames``, ``edges`` from the avatar's frame) and the costs."""
@@ -172,7 +184,10 @@ class Decision:
     view: int
     candidates: int
     latency_ms: float
-    extra: dict[str, float] = field(default_factory=dict)
+    #: the avatar's own frame "plays_on" or is "held" (shown again); "" for the paper's
+    #: cluster path or a direct jump (``jump``)
+    how: str = ""
+    jump: Jump | None = None
 
 
 @dataclass(frozen=True)

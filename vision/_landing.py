@@ -68,7 +68,9 @@ class Landing:
         while the performer stood still. With the vote's margin, a frame of another
         action than the voted one costs 1 + ``vote_margin`` times as much held, as it
         does played on."""
-        if not self.settings.still or (rival is not None and rival.extra.get("leave")):
+        if not self.settings.still or (
+            rival is not None and rival.jump is not None and rival.jump.leaves
+        ):
             return None
         against = rival.cost if rival is not None else self.last_own
         if not np.isfinite(against):
@@ -101,7 +103,7 @@ class Landing:
             view=int(np.argmin(costs.min(axis=0))) % self.ring_views,
             candidates=1,
             latency_ms=0.0,
-            extra={"held": 1.0},
+            how="held",
         )
 
     def _gated(

@@ -34,7 +34,7 @@ from control.dtw import ShapeTable, dtw_batch, dtw_windows
 from silhouette_bank import Bank
 
 from ._classify import ActionClassifier, action_scores, cached_action_classifier
-from ._decision import Decision, MatchSettings
+from ._decision import Decision, Jump, MatchSettings
 from ._facing import Facing
 from ._index import WindowIndex, best_of, cached_window_index
 from ._landing import Landing
@@ -371,7 +371,7 @@ class Matcher(CandidatePaths, Landing):
             view=int(got[i][1]) % self.ring_views,
             candidates=int(idx.size),
             latency_ms=(time.perf_counter() - t0) * 1e3,
-            extra={"jump": j, "own": own, "blend": float(blend), "leave": float(leave)},
+            jump=Jump(j, float(own), float(blend), bool(leave)),
         )
 
     def classifier(self) -> ActionClassifier | None:
@@ -458,7 +458,7 @@ class Matcher(CandidatePaths, Landing):
                     view=-1,  # as before
                     candidates=1,
                     latency_ms=(time.perf_counter() - t0) * 1e3,
-                    extra={"plays_on": 1.0},
+                    how="plays_on",
                 )
         cands = self.candidates(frame)
         if not cands:

@@ -420,15 +420,16 @@ class Performance:
             return entry
         avatar.take(d.frames, d.edges)
         self.view = d.view if d.view >= 0 else self.view
-        for key, name in (("plays_on", "plays_on"), ("held", "held"), ("leave", "leaves")):
-            if d.extra.get(key):  # (leaves: for the action voted for, whatever it costs)
-                entry[name] = True
-        if "jump" in d.extra:
-            own = d.extra["own"]
+        if d.how in ("plays_on", "held"):
+            entry[d.how] = True
+        if d.jump is not None:
+            if d.jump.leaves:  # (for the action voted for, whatever it costs)
+                entry["leaves"] = True
+            own = d.jump.own_cost
             entry.update(
-                jump=int(d.extra["jump"]),
+                jump=d.jump.target,
                 own_cost=round(own, 4) if np.isfinite(own) else None,
-                blend=round(d.extra["blend"], 4),
+                blend=round(d.jump.blend, 4),
             )
         entry.update(
             decision=[int(c) for c in d.cluster_path],

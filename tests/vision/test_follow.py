@@ -215,10 +215,10 @@ def test_a_jump_is_scored_by_its_match_and_with_a_blend_weight_by_its_blend_too(
         d = m.jump(frame, performer, recent, costs, queries)
         assert d is not None and d.frames[0] == frame and d.edges[0] == JUMP
         best = int(target[ok][0]) if w == 0 else costs.near
-        assert d.extra["jump"] == best and d.cost == pytest.approx(
+        assert d.jump.target == best and d.cost == pytest.approx(
             got[np.flatnonzero(ok)[0 if w == 0 else 2]][2]
         )
-        assert d.extra["blend"] == (0.0 if w else 100.0 * layer.graph.report["max_distance"])
+        assert d.jump.blend == (0.0 if w else 100.0 * layer.graph.report["max_distance"])
 
 
 @pytest.mark.parametrize("bad", [{"top": 0}, {"jump_ratio": 0.0}, {"blend_weight": -1.0}])
@@ -286,14 +286,14 @@ def test_a_performer_standing_still_is_held_still(setup, monkeypatch) -> None:
     noise = 0.01 * np.random.default_rng(2).normal(size=(m.n, bank.features.shape[2]))
     still = np.repeat(bank.features[m.to_bank[[j]], 3].astype(np.float64), m.n, axis=0) + noise
     d = m.decide(j, still, recent, costs)
-    assert d is not None and "held" in d.extra
+    assert d is not None and d.how == "held"
     assert np.all(d.frames == j) and np.all(d.edges == -1) and d.cost < d.runner_up
     window = m.to_bank[np.arange(j - m.n + 1, j + 1)]
     moving = bank.features[window, 3].astype(np.float64) + noise
     d2 = m.decide(j, moving, recent, costs)
-    assert d2 is not None and "held" not in d2.extra
+    assert d2 is not None and d2.how != "held"
     off = Matcher(layer, bank, MatchSettings(still=False)).decide(j, still, recent, costs)
-    assert off is not None and "held" not in off.extra
+    assert off is not None and off.how != "held"
 
     # with no jump weighed (none of the best windows may be landed on, and the avatar is
     # at none of them), holding is weighed against playing on
@@ -303,7 +303,7 @@ def test_a_performer_standing_still_is_held_still(setup, monkeypatch) -> None:
 
     monkeypatch.setattr(m, "_targets", nowhere)
     d3 = m.decide(j, still, recent, costs)
-    assert d3 is not None and "held" in d3.extra and np.isfinite(d3.runner_up)
+    assert d3 is not None and d3.how == "held" and np.isfinite(d3.runner_up)
     # the avatar takes the hold: its frame shown again, standing where it stood
     avatar = Avatar(layer.graph, lib.clips, start=j, anywhere=True)
     avatar.take(d.frames, d.edges)

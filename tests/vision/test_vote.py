@@ -143,9 +143,9 @@ def test_the_avatar_leaves_an_action_the_performer_is_not_doing(setup) -> None:
         j = jog[len(jog) // 2]
         shown = np.arange(j - m.recent_frames + 1, j + 1)  # played on: settled
         d = m.decide(j, performer.astype(np.float64), shown, costs)
-        if d is None or "jump" not in d.extra:
+        if d is None or d.jump is None:
             return None
-        return int(d.extra["jump"]), bool(d.extra["leave"])
+        return d.jump.target, d.jump.leaves
 
     assert decide(0) is None
     got = decide(1)
@@ -182,13 +182,13 @@ def test_the_avatar_jumps_into_the_voted_action_unless_another_fits_far_better(
     a = jog[2 * len(jog) // 3]
     shown = np.arange(a - m.recent_frames + 1, a + 1)  # played on: settled
     d = m.decide(a, performer, shown, costs)
-    assert d is not None and "jump" in d.extra
+    assert d is not None and d.jump is not None
     assert m.vote.voted == keys[squat[0]]
     if math.isinf(margin):
-        assert labels[int(d.extra["jump"])] == "Squat"
+        assert labels[d.jump.target] == "Squat"
         return
     squats = m.index().search(queries, st.band, st.top, m.vote.starts(m.n), recency=st.recency)
-    assert labels[int(d.extra["jump"])] == "Jog" and not d.extra["leave"]
+    assert labels[d.jump.target] == "Jog" and not d.jump.leaves
     assert d.cost == pytest.approx(1.2 * best[0][2], rel=1e-6) and d.cost < squats[0][2]
 
 
@@ -249,7 +249,7 @@ def test_holding_still_in_another_action_costs_the_margin_too(setup, margin: flo
     for voted in (keys[j], keys[squat[0]]):
         m.vote.voted = int(voted)
         d = m.held(j, queries, None)
-        assert d is not None and d.extra["held"]
+        assert d is not None and d.how == "held"
         held.append(d.cost)
     assert held[0] > 0
     assert held[1] == pytest.approx(held[0] * (1.0 if math.isinf(margin) else 1.2), rel=1e-9)
