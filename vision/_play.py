@@ -121,9 +121,12 @@ class PlaySession:
 
     def _offer(self, t: float) -> None:
         lookahead = (0.0, self.lookahead) if self.lookahead > 0 else None
+        was = [o.cluster for o in self.offered]
         self.offered = offer(self.layer, self.avatar, self.data, self.n_options, lookahead)
-        self.offer_id += 1
         self._offered_at = t
+        if self.offered and [o.cluster for o in self.offered] == was:
+            return  # the same actions: the page's buttons (and their previews) stay
+        self.offer_id += 1
         items = [self._describe(o) for o in self.offered]
         self.stage.publish_extra(
             "options", json.dumps({"type": "options", "id": self.offer_id, "options": items})
