@@ -31,6 +31,28 @@ __all__ = ["BrowserCamera"]
 REMIND = 30.0
 
 
+def jpeg_size(data: bytes) -> tuple[int, int] | None:
+    """A JPEG's (width, height) from its frame header, without decoding it (a small file
+    may declare a huge picture); ``None`` for what is not a JPEG."""
+    if data[:2] != b"\xff\xd8":
+        return None
+    i = 2
+    while i + 9 <= len(data):
+        if data[i] != 0xFF:
+            return None
+        marker = data[i + 1]
+        if marker == 0xFF:  # fill byte
+            i += 1
+            continue
+        length = int.from_bytes(data[i + 2 : i + 4], "big")
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):  # a frame header
+            height = int.from_bytes(data[i + 5 : i + 7], "big")
+            width = int.from_bytes(data[i + 7 : i + 9], "big")
+            return width, height
+        i += 2 + length
+    return None
+
+
 class BrowserCamera:
     """Frames from the stage's camera page (module docstring)."""
 
@@ -100,17 +122,16 @@ class BrowserCamera:
             problem = f"a frame of {n} bytes: over the {self.max_bytes} bytes a frame may have"
         elif n <= 8:
             problem = f"a frame of {n} bytes: a frame is 8 bytes of time, then a JPEG"
+        size = jpeg_size(message[8:]) if not problem else None
+        if size is not None and max(size) > self.max_side:  # said before it is decoded
+            problem = f"a frame of {size[0]}x{size[1]}: over {self.max_side} pixels a side"
         if not problem:
             (stamp,) = struct.unpack_from("<d", message)
             buf = np.frombuffer(message, dtype=np.uint8, offset=8)
-            image = cv2.imdecode(buf, cv2.IMREAD_COLOR) if np.isfinite(stamp) else None
+            ok = size is not None and np.isfinite(stamp)
+            image = cv2.imdecode(buf, cv2.IMREAD_COLOR) if ok else None
             if image is None:
                 problem = f"a frame of {n} bytes that is not a JPEG (or has no finite time)"
-            elif max(image.shape[:2]) > self.max_side:
-                problem = (
-                    f"a frame of {image.shape[1]}x{image.shape[0]}: over {self.max_side} "
-                    "pixels a side"
-                )
         with self._cond:
             if problem:
                 self.refused += 1

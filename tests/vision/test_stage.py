@@ -151,6 +151,12 @@ def test_bad_frames_are_refused_with_a_message_and_the_run_goes_on() -> None:
             assert "not a JPEG (or has no finite time)" in _until(ws, "note")["text"]
             ws.send(_frame(6.0, b"\xff" * (camera.max_bytes + 1)))
             assert "over the" in _until(ws, "note")["text"]
+            # a small file declaring a huge picture is refused before it is decoded
+            bomb = bytearray(_jpeg())
+            sof = bomb.index(b"\xff\xc0")
+            bomb[sof + 5 : sof + 9] = (60000).to_bytes(2, "big") * 2
+            ws.send(_frame(7.0, bytes(bomb)))
+            assert "60000x60000: over 4096 pixels a side" in _until(ws, "note")["text"]
             ws.send("{not json")
             assert "not JSON" in _until(ws, "note")["text"]
             ws.send(
@@ -158,7 +164,7 @@ def test_bad_frames_are_refused_with_a_message_and_the_run_goes_on() -> None:
             )
             ws.send(_frame(10.0))  # a good frame after all that is taken
             time.sleep(0.3)
-            assert camera.received == 1 and camera.refused == 4
+            assert camera.received == 1 and camera.refused == 5
         said_all = "\n".join(said)
         assert (
             "could not open a camera: NotAllowedError" in said_all
