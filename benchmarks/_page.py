@@ -11,6 +11,7 @@ avatar's agreement with the labels beside ``mimic evaluate``'s on the file.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import socket
 import tempfile
@@ -30,7 +31,7 @@ SHARED_VIDEO = Path(__file__).resolve().parents[2] / "shared" / "video"
 LABELS = Path(__file__).with_name("videos") / "shared_labels.csv"
 
 
-def _y4m(video: Path, out: Path, long_side: int = 640) -> tuple[float, float]:
+def video_y4m(video: Path, out: Path, long_side: int = 640) -> tuple[float, float]:
     """``video`` as a ``.y4m`` of at most ``long_side`` pixels; (seconds, fps)."""
     cap = cv2.VideoCapture(str(video))
     fps = float(cap.get(cv2.CAP_PROP_FPS))
@@ -45,9 +46,30 @@ def _y4m(video: Path, out: Path, long_side: int = 640) -> tuple[float, float]:
     return len(frames) / fps, fps
 
 
-def _state(port: int) -> dict[str, Any]:
+def free_port() -> int:
+    """A port on 127.0.0.1 free now (for a run's page)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def page_state(port: int) -> dict[str, Any]:
+    """The run's ``/state.json``."""
     with urllib.request.urlopen(f"http://127.0.0.1:{port}/state.json", timeout=2) as r:
         return dict(json.loads(r.read()))
+
+
+def wait_for_reading(port: int, run: threading.Thread, timeout: float = 120.0) -> None:
+    """Until the run (``run``, serving its page on ``port``) reads its page's camera, so
+    that a page opened now gives it the clip's first frame."""
+    t0 = time.monotonic()
+    while True:
+        if not run.is_alive() or time.monotonic() - t0 > timeout:
+            raise RuntimeError(f"the run on port {port} did not start reading its page's camera")
+        with contextlib.suppress(OSError):
+            if page_state(port).get("camera") == "no page yet":
+                return
+        time.sleep(0.1)
 
 
 def page_run(root: Path, video: Path, seconds: float | None = None) -> dict[str, Any]:
@@ -58,24 +80,18 @@ def page_run(root: Path, video: Path, seconds: float | None = None) -> dict[str,
 
     with tempfile.TemporaryDirectory() as tmp:
         y4m = Path(tmp) / "camera.y4m"
-        length, fps = _y4m(video, y4m)
+        length, fps = video_y4m(video, y4m)
         seconds = seconds or length - 0.3
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", 0))
-            port = int(s.getsockname()[1])
+        port = free_port()
         log = Path(tmp) / "log.jsonl"
         argv = ["perform", "--camera", "browser", str(root), "--seconds", f"{seconds:.1f}"]
         argv += ["--live-port", str(port), "--log", str(log)]
         done: dict[str, int] = {}
         run = threading.Thread(target=lambda: done.update(rc=main(argv)))
         run.start()
-        while run.is_alive():  # the page opens once the loop reads
-            try:
-                if _state(port).get("camera") == "no page yet":
-                    break
-            except OSError:
-                pass
-            time.sleep(0.1)
+        wait_for_reading(port, run)
+        latencies: list[float] = []
+        frames, sent_for = 0, 0.0
         with Chromium(f"http://127.0.0.1:{port}/", y4m) as browser:
             browser.wait_for("window.mimic.frames > 0", 60)
             t0 = time.monotonic()

@@ -5,12 +5,10 @@ page without a camera is told why; a paced file's run shows on the same page."""
 from __future__ import annotations
 
 import json
-import socket
 import subprocess
 import sys
 import threading
 import time
-import urllib.request
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +16,8 @@ import cv2
 import numpy as np
 import pytest
 
-from benchmarks._chromium import Chromium, write_y4m
+from benchmarks._chromium import Chromium
+from benchmarks._page import free_port, page_state, video_y4m, wait_for_reading
 from control.motion import load_library
 from tests.vision.conftest import RECORDING
 from vision import (
@@ -39,27 +38,15 @@ LABELS = REPO / "benchmarks" / "videos" / "shared_labels.csv"
 ORANGE = np.array((40, 150, 255))  # the avatar's colour, BGR (0xff9628), before shading
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def _state(port: int) -> dict[str, Any]:
-    with urllib.request.urlopen(f"http://127.0.0.1:{port}/state.json", timeout=2) as r:
-        return dict(json.loads(r.read()))
-
-
-def _squats_y4m(path: Path) -> float:
-    """pose_squats.mp4 as the fake camera's file (360x640, its own 5 frames/s)."""
-    cap = cv2.VideoCapture(str(SQUATS))
-    fps = float(cap.get(cv2.CAP_PROP_FPS))
-    frames = []
-    while (got := cap.read())[0]:
-        frames.append(cv2.resize(got[1], (360, 640), interpolation=cv2.INTER_AREA))
-    cap.release()
-    write_y4m(frames, path, fps)
-    return len(frames) / fps
+def _held_shot(browser: Chromium) -> tuple[list[list[float]], np.ndarray]:
+    """The avatar's projected joints and a screenshot, the page's drawing held between
+    them so that the two agree."""
+    browser.evaluate("window.mimic.held = true")
+    time.sleep(0.2)
+    joints = browser.evaluate("window.mimic.joints()")
+    shot = browser.screenshot()
+    browser.evaluate("window.mimic.held = false")
+    return joints, shot
 
 
 def _avatar_at_joints(shot: np.ndarray, joints: list[list[float]]) -> float:
@@ -78,7 +65,7 @@ def test_the_pages_camera_drives_the_avatar_as_the_video_does(
 ) -> None:
     from mimic.cli import main
 
-    seconds = _squats_y4m(tmp_path / "squats.y4m")
+    seconds = video_y4m(SQUATS, tmp_path / "squats.y4m")[0]  # 360x640, its own 5 frames/s
     lib = ["--clips", "13_30", "--k", "12"]
     # the same clip as a file, through mimic evaluate: the figure the page must match
     evaluated = tmp_path / "evaluate.json"
@@ -97,7 +84,7 @@ def test_the_pages_camera_drives_the_avatar_as_the_video_does(
         )
         == 0
     )
-    port = _free_port()
+    port = free_port()
     log, bvh = tmp_path / "log.jsonl", tmp_path / "avatar.bvh"
     argv = ["perform", "--camera", "browser", str(mocap), *lib]  # no --seconds: the page ends it
     argv += ["--live-port", str(port), "--log", str(log), "--out", str(bvh)]
@@ -106,26 +93,14 @@ def test_the_pages_camera_drives_the_avatar_as_the_video_does(
     run = threading.Thread(target=lambda: done.update(rc=main(argv)))
     run.start()
     try:
-        t0 = time.monotonic()
-        while True:  # the loop reads before the page opens: its first frame is the clip's
-            assert run.is_alive() and time.monotonic() - t0 < 120
-            try:
-                if _state(port).get("camera") == "no page yet":
-                    break
-            except OSError:
-                pass
-            time.sleep(0.1)
+        wait_for_reading(port, run)  # the page's first frame is then the clip's
         with Chromium(f"http://127.0.0.1:{port}/", tmp_path / "squats.y4m") as browser:
             browser.wait_for("window.mimic.role === 'camera' && window.mimic.frames > 3", 60)
             browser.wait_for("window.mimic.stats && window.mimic.stats.n > 10", 60)
             time.sleep(1.0)
-            browser.evaluate("window.mimic.held = true")  # the picture and joints agree
-            time.sleep(0.2)
-            joints = browser.evaluate("window.mimic.joints()")
-            shot = browser.screenshot()
-            browser.evaluate("window.mimic.held = false")
+            joints, shot = _held_shot(browser)
             status = browser.evaluate("document.getElementById('status').innerText")
-            while _state(port)["t"] < seconds - 0.3:  # the clip played once: close the page
+            while page_state(port)["t"] < seconds - 0.3:  # the clip played once: close the page
                 assert run.is_alive()
                 time.sleep(0.05)
     finally:
@@ -199,11 +174,7 @@ def test_a_paced_files_run_shows_on_the_page(setup: Any, tmp_path: Path) -> None
             )
             browser.wait_for("document.getElementById('you').naturalWidth > 0", 10)
             time.sleep(0.5)
-            browser.evaluate("window.mimic.held = true")  # the picture and joints agree
-            time.sleep(0.2)
-            joints = browser.evaluate("window.mimic.joints()")
-            shot = browser.screenshot()
-            browser.evaluate("window.mimic.held = false")
+            joints, shot = _held_shot(browser)
             action = browser.evaluate("document.getElementById('action').innerText")
     state = stage.state()
     assert state["action"] and state["cost"] is not None and action == state["action"]
@@ -218,7 +189,7 @@ def test_a_paced_files_run_shows_on_the_page(setup: Any, tmp_path: Path) -> None
 def test_perform_serves_the_page_while_a_paced_file_runs(mocap: Path) -> None:
     from mimic.cli import main
 
-    port = _free_port()
+    port = free_port()
     argv = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "13_30", "--k", "12"]
     argv += ["--realtime", "--seconds", "2", "--live-port", str(port)]
     done: dict[str, int] = {}
@@ -227,7 +198,7 @@ def test_perform_serves_the_page_while_a_paced_file_runs(mocap: Path) -> None:
     seen = None
     while run.is_alive() and seen is None:
         try:
-            state = _state(port)
+            state = page_state(port)
             if state["t"] > 0 and state.get("action"):
                 seen = state
         except OSError:
@@ -235,4 +206,4 @@ def test_perform_serves_the_page_while_a_paced_file_runs(mocap: Path) -> None:
     run.join(timeout=120)
     assert done.get("rc") == 0 and seen is not None
     with pytest.raises(OSError):  # closed with the run
-        _state(port)
+        page_state(port)

@@ -13,8 +13,8 @@ from typing import Any
 import pytest
 
 from benchmarks._chromium import Chromium
+from benchmarks._page import free_port
 from control.graph import rotate_y
-from tests.vision.test_live import _free_port
 from vision import PlaySession, Stage
 
 REPO = Path(__file__).resolve().parents[2]
@@ -59,7 +59,7 @@ def test_a_click_and_a_drawn_path_drive_the_avatar_in_the_page(
 ) -> None:
     from mimic.cli import main
 
-    port = _free_port()
+    port = free_port()
     out = tmp_path / "play.bvh"
     argv = ["play", str(mocap), "--clips", "13_30", "--k", "12", "--seconds", "14"]
     argv += ["--live-port", str(port), "--out", str(out)]
