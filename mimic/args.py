@@ -184,6 +184,23 @@ def add_graph_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rebuild", action="store_true", help="ignore a cached graph")
 
 
+def add_offer_args(p: argparse.ArgumentParser, most: int) -> None:
+    """The choice interface's ``--k``, ``--options`` (at most ``most``) and
+    ``--lookahead`` (``mimic choose``, ``mimic play``)."""
+    p.add_argument(
+        "--k", type=number(int, 1, 10000), help="number of clusters (default: chosen by BIC)"
+    )
+    p.add_argument(
+        "--options", type=number(int, 1, most), default=4, help="actions offered (default 4)"
+    )
+    p.add_argument(
+        "--lookahead",
+        type=number(float, 0, 3600),
+        default=6.0,
+        help="offer clusters reached within this many seconds (0: the whole tree)",
+    )
+
+
 def graph_options(args: argparse.Namespace) -> GraphOptions:
     """The ``GraphOptions`` of ``add_graph_args``'s arguments."""
     return GraphOptions(

@@ -21,6 +21,7 @@ from .args import (
     MOST_MOTION_SECONDS,
     add_graph_args,
     add_library_args,
+    add_offer_args,
     blend_seconds,
     graph_for,
     number,
@@ -180,9 +181,7 @@ def add_choose_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
     )
     add_library_args(p)
     add_graph_args(p)
-    p.add_argument(
-        "--k", type=number(int, 1, 10000), help="number of clusters (default: chosen by BIC)"
-    )
+    add_offer_args(p, most=100)
     p.add_argument("--ks", default="5:60:5", help="cluster counts BIC chooses from (5:60:5)")
     p.add_argument("--seeding", choices=("keyframes", "random"), default="keyframes")
     p.add_argument(
@@ -190,15 +189,6 @@ def add_choose_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
         type=number(float, 0, 3600, above=True),
         default=15.0,
         help="cluster tree time bound, s",
-    )
-    p.add_argument(
-        "--options", type=number(int, 1, 100), default=4, help="actions offered (default 4)"
-    )
-    p.add_argument(
-        "--lookahead",
-        type=number(float, 0, 3600),
-        default=6.0,
-        help="offer clusters reached within this many seconds (0: the whole tree)",
     )
     p.add_argument("--region", help="only actions whose root ends in the circle X,Z,RADIUS")
     p.add_argument(

@@ -15,6 +15,7 @@ from .args import (
     MOST_MOTION_SECONDS,
     add_graph_args,
     add_library_args,
+    add_offer_args,
     graph_for,
     number,
     start_frame,
@@ -36,18 +37,7 @@ def add_play_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -
     )
     add_library_args(p)
     add_graph_args(p)
-    p.add_argument(
-        "--k", type=number(int, 1, 10000), help="number of clusters (default: chosen by BIC)"
-    )
-    p.add_argument(
-        "--options", type=number(int, 1, 12), default=4, help="actions offered (default 4)"
-    )
-    p.add_argument(
-        "--lookahead",
-        type=number(float, 0, 3600),
-        default=6.0,
-        help="offer clusters reached within this many seconds (0: the whole tree)",
-    )
+    add_offer_args(p, most=12)  # (buttons on a page)
     p.add_argument(
         "--seconds",
         type=number(float, 0, MOST_MOTION_SECONDS, above=True),

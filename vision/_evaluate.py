@@ -193,8 +193,15 @@ def plot_timeline(timeline: dict[str, list[Any]], path: str | Path, title: str =
 
     fig = plt.figure(figsize=(12, 2.4))
     _timeline(fig.add_subplot(1, 1, 1), timeline)
+    _save(fig, path, title, fontsize=9)
+
+
+def _save(fig: Any, path: str | Path, title: str, fontsize: float | None = None) -> None:
+    """``fig`` with its ``title`` as a PNG written through a temporary file; closed."""
+    import matplotlib.pyplot as plt
+
     if title:
-        fig.suptitle(title, fontsize=9)
+        fig.suptitle(title, **({} if fontsize is None else {"fontsize": fontsize}))
     fig.tight_layout()
     try:
         with atomic_write(path, "wb") as fh:
@@ -242,11 +249,4 @@ def plot_evaluation(report: dict[str, Any], path: str | Path, title: str = "") -
             cm.text(j, i, str(int(v)), ha="center", va="center", fontsize=7)
     lag = report.get("best_lag_s")
     cm.set(xlabel="avatar", ylabel="performer", title=f"confusion at lag {lag} s")
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    try:
-        with atomic_write(path, "wb") as fh:
-            fig.savefig(fh, format="png", dpi=100)
-    finally:
-        plt.close(fig)
+    _save(fig, path, title)
