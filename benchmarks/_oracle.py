@@ -5,7 +5,7 @@ At every decision (every 0.1 s from 1 s on), the library window of 1 s nearest t
 performer's last second by DTW (band 4, as the matcher's) over the weighted joints'
 squared half-angles (the graph's pose distance), and the action of its last frame,
 against the performer's action ``lag`` seconds earlier; best over lags <= 1 s. Also with
-the matcher's vote (``MatchSettings.vote``) over those windows: the action most voted for
+the matcher's vote (``ActionSettings.vote``) over those windows: the action most voted for
 over the last ``vote`` decisions, which changes only when another has more votes.
 """
 

@@ -40,11 +40,11 @@ def _tiled_bank(root: Path, n: int, folder: Path) -> None:
     """Write the default bank tiled to ``n`` frames into ``folder`` (see the module)."""
     from control.artifacts import atomic_write, checksum, read_npz
     from control.motion import load_library
-    from silhouette_bank import BankFileError, BankSettings, block_hashes, ensure_bank, npy_file
+    from silhouette_bank import BankFileError, BankSettings, block_hashes, cached_bank, npy_file
 
     lib = load_library(root)
     clips = [c for c in lib.clips if c.motion.skeleton.n_joints == 31]
-    bank, _ = ensure_bank(clips, BankSettings())
+    bank, _, _ = cached_bank(clips, BankSettings())
     src = Path(bank.path)
     desc, nb = bank.settings.features, bank.n_frames
     reps = -(-n // nb)
@@ -137,7 +137,7 @@ def open_run(folder: Path, recording: Path) -> dict[str, Any]:
     src.close()
     t = time.perf_counter()
     qs = performer_queries(np.array(feats), bank.settings.features, mean, proj, st.centre_weight)
-    index.search(qs, st.band, st.top)
+    index.search(qs, st.band, st.landing.top_windows)
     lap("first_search", t)
     mapped = sum(a.nbytes for a in (bank.features, bank.root_motion, shape, centre))
     return {

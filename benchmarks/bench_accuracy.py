@@ -79,7 +79,7 @@ from silhouette_bank import (
     BodyShape,
     CameraRing,
     PoseDescriptor,
-    ensure_bank,
+    cached_bank,
     get_descriptor,
     robust_settings,
     silhouette_features,
@@ -87,6 +87,7 @@ from silhouette_bank import (
 from vision import (
     Matcher,
     MatchSettings,
+    PathSettings,
     PerformSettings,
     RecordSettings,
     VideoSource,
@@ -102,6 +103,19 @@ from vision import (
 
 LAGS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0)
 SETTINGS = ((1.0, 1.5), (1.0, 3.0), (2.0, 3.0), (2.0, 5.0))
+
+
+def with_values(settings: MatchSettings, values: dict[str, Any]) -> MatchSettings:
+    """``settings`` with ``values`` set, each key a field of ``MatchSettings`` or, dotted,
+    of one of its parts (``landing.jump_ratio``)."""
+    for key, value in values.items():
+        part, _, name = key.rpartition(".")
+        if part:
+            inner = dataclasses.replace(getattr(settings, part), **{name: value})
+            settings = dataclasses.replace(settings, **{part: inner})
+        else:
+            settings = dataclasses.replace(settings, **{name: value})
+    return settings
 
 
 def _pose_dist(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
@@ -420,7 +434,7 @@ def fold(
     took = time.perf_counter() - t0
     print(f"{test}: graph {g.n_edges} edges, layer built in {took:.0f} s", flush=True)
     base = BankSettings(CameraRing(n_views=views), descriptor=descriptor)
-    bank, _ = ensure_bank(train, robust_settings(base) if variants else base)
+    bank, _, _ = cached_bank(train, robust_settings(base) if variants else base)
     if store != "float32":  # (issue 21: the precision a bank need store its numbers at)
         bank = dataclasses.replace(
             bank,
@@ -482,7 +496,7 @@ def fold(
         [at_lib.label_at(i) for i in range(at_lib.motion.n_frames)],
         g.fps,
         _pose_dist,
-        (match or {}).get("vote", MatchSettings.vote) or 15,
+        with_values(MatchSettings(), match or {}).action.vote or 15,
     )
     # its windows' last frames shown at once, as a pose score (the avatar's ceiling)
     out["pose_oracle"]["pose_score"] = round(
@@ -562,7 +576,13 @@ def _recorded_runs(
 
         recognition = _recognition(layer, bank, *rows, lib_labels, known)
         for window, lookahead in settings:
-            ms = MatchSettings(window=window, lookahead=lookahead, stay=stay, **(match or {}))
+            ms = with_values(
+                MatchSettings(
+                    window=window,
+                    paths=PathSettings(lookahead=lookahead, keep_clip_bonus=stay),
+                ),
+                match or {},
+            )
             r = perform(source(), layer, bank, train, PerformSettings(match=ms))
             # mimic evaluate's figures of the same run (the confusion matrix among them)
             truth = truth_for(video)
@@ -645,12 +665,15 @@ def main() -> None:
         "landmarks as a pose model gives them: joints seen by the recording's camera, 3%% "
         "noise)",
     )
-    ap.add_argument("--stay", type=float, default=0.0, help="temporal prior (MatchSettings.stay)")
+    ap.add_argument(
+        "--stay", type=float, default=0.0, help="temporal prior (PathSettings.keep_clip_bonus)"
+    )
     ap.add_argument("--views", type=int, default=18, help="cameras on the bank's ring")
     ap.add_argument(
         "--match",
         default="",
-        help="more MatchSettings, e.g. jumps=False,jump_ratio=0.9 (Python literals)",
+        help="more MatchSettings, dotted below the top, e.g. "
+        "landing.jumps=False,landing.jump_ratio=0.9,recency=0.5 (Python literals)",
     )
     ap.add_argument(
         "--off-floor",
@@ -685,6 +708,10 @@ def main() -> None:
     for item in filter(None, re.split(r",(?![^()]*\))", args.match)):  # (not in tuples)
         key, _, value = item.partition("=")
         match[key.strip()] = ast.literal_eval(value.strip())
+    try:
+        with_values(MatchSettings(), match)
+    except (AttributeError, TypeError, ValueError) as e:
+        ap.error(f"--match: {e}")
     recordings = tuple(r for r in args.recordings.split(",") if r)
     unknown = [r for r in recordings if r not in RECORDINGS]
     if unknown or not recordings:

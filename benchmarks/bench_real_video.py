@@ -46,7 +46,8 @@ from benchmarks._report import machine, save
 from control.graph import GraphOptions
 from control.motion import default_library_path
 from mimic.cli import build_parser
-from mimic.run import prepare, silhouette_flag
+from mimic.run import prepare
+from mimic.run_args import run_settings, silhouette_flag
 from silhouette_bank import (
     DESCRIPTORS,
 )
@@ -188,7 +189,7 @@ def agreement(
         argv = ["evaluate", str(path), "--labels", str(labels), "--json", os.devnull]
         args = build_parser().parse_args([*argv, "--library", str(root), *run_args])
         source = open_source(None, str(path), None, silhouette=silhouette_flag(args))
-        ready = prepare(args, source)
+        ready = prepare(run_settings(args), source)
         run = functools.partial(perform, start=ready.start, seed=args.seed)
         t0 = time.perf_counter()
         result = run(source, ready.layer, ready.bank, ready.clips, ready.settings)

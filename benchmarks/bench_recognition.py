@@ -65,7 +65,7 @@ from silhouette_bank import (
     BankSettings,
     BodyShape,
     PoseDescriptor,
-    ensure_bank,
+    cached_bank,
     get_descriptor,
     robust_settings,
     silhouette_features,
@@ -289,7 +289,7 @@ def folds(
             base = BankSettings(descriptor=name)
             settings = robust_settings(base) if variants and desc.kind == "silhouette" else base
             t0 = time.perf_counter()
-            bank, _ = ensure_bank(train, settings)
+            bank, _, _ = cached_bank(train, settings)
             lib_labels = np.concatenate([_labels(c) for c in train])
             n = max(2, round(window * rate))
             keys = action_keys(train) if classify else None
@@ -382,8 +382,8 @@ def real_clips(
     silhouette descriptor on the pose model's person masks."""
     lib = load_library(root, clips=takes)
     rate = float(lib.fps or 15.0)
-    bank, _ = ensure_bank(list(lib.clips), BankSettings(descriptor="pose"))
-    sil_bank, _ = ensure_bank(list(lib.clips), BankSettings())
+    bank, _, _ = cached_bank(list(lib.clips), BankSettings(descriptor="pose"))
+    sil_bank, _, _ = cached_bank(list(lib.clips), BankSettings())
     lib_labels = np.concatenate([_labels(c) for c in lib.clips])
     n = max(2, round(window * rate))
     actions = action_keys(list(lib.clips)) if classify else None

@@ -166,7 +166,7 @@ def _bank(root: Path, n: int) -> dict[str, Any]:
 
 
 def _search(root: Path, n: int) -> dict[str, Any]:
-    from silhouette_bank import BankSettings, ensure_bank, silhouette_features
+    from silhouette_bank import BankSettings, cached_bank, silhouette_features
     from vision import (
         MatchSettings,
         VideoSource,
@@ -178,7 +178,7 @@ def _search(root: Path, n: int) -> dict[str, Any]:
 
     lib = load_library(root)
     clips = [c for c in lib.clips if c.motion.skeleton.n_joints == 31]
-    bank, _ = ensure_bank(clips, BankSettings())
+    bank, _, _ = cached_bank(clips, BankSettings())
     desc = bank.settings.features
     reps = -(-n // bank.n_frames)
     tiles = [bank.features if i % 2 == 0 else desc.mirror(bank.features) for i in range(reps)]
@@ -213,7 +213,7 @@ def _search(root: Path, n: int) -> dict[str, Any]:
     for end in range(length, perf.shape[0] + 1):
         qs = performer_queries(perf[end - length : end], desc, mean, proj, st.centre_weight)
         t = time.perf_counter()
-        index.search(qs, st.band, st.top)
+        index.search(qs, st.band, st.landing.top_windows)
         times.append((time.perf_counter() - t) * 1e3)
     return {
         "frames": n,

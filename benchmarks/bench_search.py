@@ -24,7 +24,7 @@ import numpy as np
 from benchmarks._report import machine, save
 from control.graph import GraphOptions, build_graph
 from control.motion import default_library_path, load_library
-from silhouette_bank import BankSettings, ensure_bank, robust_settings, silhouette_features
+from silhouette_bank import BankSettings, cached_bank, robust_settings, silhouette_features
 from vision import ActionVote, Matcher, MatchSettings, VideoSource, action_keys, best_window
 
 RECORDING = Path("recordings/13_29_first12s_160x120.mkv")
@@ -63,7 +63,7 @@ def _within_one_action(m: Matcher, clips: Any, perf: np.ndarray) -> dict[str, An
         assert queries is not None
         t = time.perf_counter()
         st = m.settings
-        got = m.index().search(queries, st.band, st.top, only, recency=st.recency)
+        got = m.index().search(queries, st.band, st.landing.top_windows, only, recency=st.recency)
         times.append((time.perf_counter() - t) * 1e3)
         if end % 4 == 0:
             b = best_window(queries, shape, centre, allowed, m.n, st.band, st.recency)
@@ -86,7 +86,7 @@ def main() -> None:
     lib = load_library(args.root)
     g = build_graph(lib.clips, GraphOptions(coords="relative"))
     settings = robust_settings(BankSettings()) if args.variants else BankSettings()
-    bank, _ = ensure_bank(lib.clips, settings)
+    bank, _, _ = cached_bank(lib.clips, settings)
     m = Matcher(_Layer(g), bank, MatchSettings())  # type: ignore[arg-type]
     t0 = time.perf_counter()
     index = m.index()
@@ -99,11 +99,11 @@ def main() -> None:
             feats.append(silhouette_features(mask, descriptor=bank.settings.descriptor))
     perf = np.array(feats)
     fast, brute, hits = [], [], 0
-    m.search(perf[: m.n], top=m.settings.top)  # compile
+    m.search(perf[: m.n], top=m.settings.landing.top_windows)  # compile
     for end in range(m.n, perf.shape[0] + 1):
         window = perf[end - m.n : end]
         t = time.perf_counter()
-        got = m.search(window, top=m.settings.top)
+        got = m.search(window, top=m.settings.landing.top_windows)
         fast.append((time.perf_counter() - t) * 1e3)
         if end % 4 == 0:
             t = time.perf_counter()

@@ -26,6 +26,7 @@ from benchmarks._report import machine, save
 from mimic.cli import build_parser
 from mimic.perform import DecisionLog
 from mimic.run import prepare
+from mimic.run_args import run_settings
 from vision import Frame, MaskTape, VideoSource, perform
 
 RECORDING = Path(__file__).resolve().parents[1] / "recordings" / "13_29_first12s_160x120.mkv"
@@ -83,7 +84,7 @@ def main() -> int:
     pargs = build_parser().parse_args(argv)
     source = Looped(RECORDING, args.minutes * 60.0)
     t0 = time.perf_counter()
-    ready = prepare(pargs, source)
+    ready = prepare(run_settings(pargs), source)
     prepared_s = time.perf_counter() - t0
     samples: list[dict[str, float]] = []
     next_sample = [0.0]

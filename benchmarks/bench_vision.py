@@ -48,7 +48,7 @@ from silhouette_bank import (
     DEFAULT_DESCRIPTOR,
     DESCRIPTORS,
     BankSettings,
-    ensure_bank,
+    cached_bank,
     robust_settings,
     silhouette_features,
 )
@@ -56,6 +56,7 @@ from vision import (
     METHODS,
     Matcher,
     MatchSettings,
+    PathSettings,
     PerformSettings,
     RecordSettings,
     Segmenter,
@@ -137,7 +138,7 @@ def matcher_latency(
     lib = load_library(root, clips=patterns)
     g = build_graph(lib.clips, GraphOptions(coords="relative"))
     layer, _, _ = cached_higher_layer(g, lib.clips, LayerSettings(bound_seconds=2.0))
-    bank, _ = ensure_bank(lib.clips, bank_settings or BankSettings())
+    bank, _, _ = cached_bank(lib.clips, bank_settings or BankSettings())
     src = VideoSource(RECORDING, silhouette=True)
     feats = []
     while (f := src.read()) is not None:
@@ -152,7 +153,7 @@ def matcher_latency(
         "forest": layer.forest.report,
     }
     for lookahead in lookaheads:
-        matcher = Matcher(layer, bank, MatchSettings(lookahead=lookahead))
+        matcher = Matcher(layer, bank, MatchSettings(paths=PathSettings(lookahead=lookahead)))
         rng = np.random.default_rng(0)
         lat, cands = [], []
         for f in rng.choice(np.flatnonzero(g.in_scc), 400):
@@ -215,7 +216,7 @@ def replay(root: Path, bank_settings: BankSettings) -> dict[str, Any]:
     lib = load_library(root, clips=["13_30"])
     g = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.03))
     layer, _, _ = cached_higher_layer(g, lib.clips, LayerSettings(bound_seconds=2.0))
-    bank, _ = ensure_bank(lib.clips, bank_settings)
+    bank, _, _ = cached_bank(lib.clips, bank_settings)
     with tempfile.TemporaryDirectory() as tmp:
         clip = load_library(root, fps=30, clips=["13_29"]).clip("13_29")
         video = Path(tmp) / "60s.mkv"

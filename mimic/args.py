@@ -8,6 +8,7 @@ import math
 import os
 import sys
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -24,14 +25,17 @@ from control.progress import step
 __all__ = [
     "MOST_MOTION_SECONDS",
     "MOST_SECONDS",
+    "LibraryChoice",
     "add_graph_args",
     "add_library_args",
     "add_library_dir",
     "blend_seconds",
     "graph_for",
     "graph_options",
+    "library_choice",
     "library_dir",
     "library_for",
+    "load_chosen",
     "number",
     "start_frame",
 ]
@@ -226,20 +230,43 @@ def blend_seconds(args: argparse.Namespace, default: float | None = None) -> flo
     return GraphOptions().blend if default is None else default
 
 
-def library_for(args: argparse.Namespace) -> Library:
-    """The library of ``add_library_args``'s arguments."""
+@dataclass(frozen=True)
+class LibraryChoice:
+    """Which library: its ``folder`` (``None``: the default), the frame rate ``fps`` it
+    is read at, whether mirrored copies are added (``mirror``), and which ``clips``
+    (shell patterns; ``None``: every clip)."""
+
+    folder: str | None
+    fps: float
+    mirror: bool
+    clips: tuple[str, ...] | None
+
+
+def library_choice(args: argparse.Namespace) -> LibraryChoice:
+    """The ``LibraryChoice`` of ``add_library_args``'s arguments."""
     if args.fps is None or args.fps <= 0:
         raise ValueError("--fps must be positive")
-    folder = library_dir(args)
-    unset = folder is None and not os.environ.get("MIMIC_MOCAP")
+    clips = tuple(args.clips) if args.clips else None
+    return LibraryChoice(library_dir(args), float(args.fps), bool(args.mirror), clips)
+
+
+def load_chosen(choice: LibraryChoice) -> Library:
+    """The library ``choice`` names, saying on stderr when it is the embedded one."""
+    unset = choice.folder is None and not os.environ.get("MIMIC_MOCAP")
     if unset and default_library_path() == EMBEDDED_LIBRARY:  # (nothing else found)
         print(
             f"motion library: the embedded default library ({EMBEDDED_LIBRARY}): no "
             "$MIMIC_MOCAP and no ../shared/mocap (pass a folder for your own mocap)",
             file=sys.stderr,
         )
+    clips = list(choice.clips) if choice.clips else None
     with step("motion library"):
-        return load_library(folder, fps=args.fps, mirror=args.mirror, clips=args.clips)
+        return load_library(choice.folder, fps=choice.fps, mirror=choice.mirror, clips=clips)
+
+
+def library_for(args: argparse.Namespace) -> Library:
+    """The library of ``add_library_args``'s arguments."""
+    return load_chosen(library_choice(args))
 
 
 def graph_for(

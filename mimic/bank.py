@@ -17,6 +17,7 @@ from silhouette_bank import (
     BankSettings,
     BodyShape,
     CameraRing,
+    cached_bank,
     capsule_body,
     ensure_bank,
     load_bank,
@@ -147,15 +148,16 @@ def add_bank_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
 def _build(args: argparse.Namespace) -> int:
     library = library_for(args)
     settings = bank_settings(args)
-    bank, built = ensure_bank(
-        library.clips,
-        settings,
-        args.bank,
-        shard_frames=args.shard_frames,
-        workers=args.workers,
-        progress=bar("silhouette bank", "renders", quiet_s=0.0),
-        cluster=args.cluster,
-    )
+    options = {
+        "shard_frames": args.shard_frames,
+        "workers": args.workers,
+        "progress": bar("silhouette bank", "renders", quiet_s=0.0),
+        "cluster": args.cluster,
+    }
+    if args.bank:  # a folder of the user's
+        bank, built = ensure_bank(library.clips, settings, args.bank, **options)
+    else:
+        bank, _, built = cached_bank(library.clips, settings, **options)
     how = "built" if built else "up to date"
     print(
         f"bank {bank.path} ({how}): {bank.n_frames} frames x {settings.ring.n_views} views, "

@@ -19,13 +19,12 @@ from vision import (
 
 from .outputs import Output, OutputSet
 from .run import (
-    add_run_args,
     prepare,
     print_actions,
-    silhouette_flag,
     warn_own_take,
     warn_source,
 )
+from .run_args import add_run_args, run_settings, silhouette_flag
 
 __all__ = ["add_evaluate_command"]
 
@@ -62,6 +61,7 @@ def _evaluate(args: argparse.Namespace) -> int:
             f"{args.video}: no ground truth (no {Path(args.video).name}.json sidecar): "
             "give --labels CSV"
         )
+    settings = run_settings(args)  # a bad setting is said before any work
     outputs = OutputSet(  # a clash or an unwritable place: said before any work
         [
             Output("--json", Path(args.json)),
@@ -74,7 +74,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         ],
     )
     source = open_source(None, args.video, None, silhouette=silhouette_flag(args))
-    ready = prepare(args, source)
+    ready = prepare(settings, source)
     try:
         result = perform(
             source,

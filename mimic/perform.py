@@ -17,10 +17,12 @@ from typing import Any
 import numpy as np
 
 from control.artifacts import atomic_write
-from control.motion import write_bvh
+from control.motion import Clip, write_bvh
 from vision import (
     METHODS,
     MaskTape,
+    PerformResult,
+    Source,
     SourceError,
     Stage,
     StagePainter,
@@ -37,13 +39,12 @@ from .args import number
 from .outputs import Output, OutputSet
 from .run import (
     Prepared,
-    add_run_args,
     prepare,
     print_actions,
-    silhouette_flag,
     warn_own_take,
     warn_source,
 )
+from .run_args import add_run_args, run_settings, silhouette_flag
 
 __all__ = ["DecisionLog", "StopOnSignal", "add_perform_command"]
 
@@ -154,7 +155,9 @@ class DecisionLog:
         self._fh.close()
 
 
-def _write_timing(path: Path, out: str, result: Any, frames: int, fps: float, source: str) -> None:
+def _write_timing(
+    path: Path, out: str, result: PerformResult, frames: int, fps: float, source: str
+) -> None:
     """``OUT.json`` beside the BVH ``out`` (written to ``path``): where its frames lie in
     the input's media time (a BVH has no field for it), so that the avatar lines up with
     the input after a late start."""
@@ -195,6 +198,7 @@ def _perform(args: argparse.Namespace) -> int:
     if args.labels and not args.video:
         raise ValueError("--labels needs --video (the labels name its file)")
     truth = truth_for(args.video, args.labels) if args.video else None  # bad: LabelFileError
+    settings = run_settings(args)  # a bad setting is said before any work
     outputs = _outputs(args)  # a clash or an unwritable place: said before any work
     browser = args.camera == "browser"
     if browser and args.live_port == 0:
@@ -214,10 +218,9 @@ def _perform(args: argparse.Namespace) -> int:
         )
         if args.camera is not None and args.seconds is None:
             print("a camera never ends: stop with Ctrl-C (or give --seconds)", file=sys.stderr)
-        ready = prepare(args, source)
-        plate = args.segmentation in METHODS or (
-            args.segmentation == "auto" and ready.descriptor != "pose"
-        )
+        ready = prepare(settings, source)
+        segmentation = settings.perform.segmentation
+        plate = segmentation in METHODS or (segmentation == "auto" and ready.descriptor != "pose")
         if args.camera is not None and plate:
             print(
                 "step out of view for two seconds so that the background can be learned",
@@ -253,12 +256,12 @@ def _stage(args: argparse.Namespace, stack: contextlib.ExitStack, camera: bool) 
 
 def _run(
     args: argparse.Namespace,
-    source: Any,
+    source: Source,
     ready: Prepared,
     outputs: OutputSet,
     stage: Stage | None,
     truth: Truth | None,
-) -> Any:
+) -> PerformResult:
     """The performance, with its log, tape, live page and signal handling; its outputs
     (BVH and timing, MP4, log) written to ``outputs``' temporary files, also after a
     stop."""
@@ -324,7 +327,7 @@ def _say_page(stage: Stage | None) -> None:
         )
 
 
-def _nothing_read(args: argparse.Namespace, source: Any, result: Any) -> str:
+def _nothing_read(args: argparse.Namespace, source: Source, result: PerformResult) -> str:
     """Why a source gave no frame, as its kind says."""
     if args.camera == "browser":
         return f"{source.name}: no frame came from the page in {result.media_seconds:.1f} s"
@@ -340,9 +343,9 @@ def _nothing_read(args: argparse.Namespace, source: Any, result: Any) -> str:
 
 def _write(
     args: argparse.Namespace,
-    source: Any,
+    source: Source,
     ready: Prepared,
-    result: Any,
+    result: PerformResult,
     outputs: OutputSet,
     tape: MaskTape | None,
     log: DecisionLog | None,
@@ -368,9 +371,9 @@ def _write(
 
 def _summary(
     args: argparse.Namespace,
-    source: Any,
+    source: Source,
     ready: Prepared,
-    result: Any,
+    result: PerformResult,
     truth: Truth | None,
     written: list[Output],
 ) -> None:
@@ -427,7 +430,7 @@ def _summary(
         )
 
 
-def _print_agreement(decisions: list[dict[str, Any]], clips: list[Any], truth: Truth) -> None:
+def _print_agreement(decisions: list[dict[str, Any]], clips: list[Clip], truth: Truth) -> None:
     known = library_actions(clips)
     got = agreement(decisions, clips, truth, known=known)
     if got["best_at_lag_le_1s"] is None:

@@ -14,7 +14,6 @@ from ._bank import (
     StaleBankError,
     bank_cache_dir,
     build_bank,
-    ensure_bank,
     load_bank,
 )
 from ._body import (
@@ -24,6 +23,7 @@ from ._body import (
     capsule_segments,
     with_proportions,
 )
+from ._cache import cached_bank, ensure_bank
 from ._camera import CameraRing
 from ._descriptor import (
     DEFAULT_DESCRIPTOR,
@@ -86,6 +86,7 @@ __all__ = [
     "bank_cache_dir",
     "block_hashes",
     "build_bank",
+    "cached_bank",
     "capsule_body",
     "capsule_segments",
     "cluster_address",

@@ -18,7 +18,7 @@ Layout of a bank folder::
                            these features (``vision.cached_window_tables``: likewise)
     checked.json           which ``.npy`` files were checked, as the file system saw
                            them (``open_mapped``: an unchanged file is not read again)
-    .building.lock         held while a process builds the bank (``ensure_bank``)
+    .building.lock         held while a process builds the bank (``cached_bank``)
 
 Everything is written to a temporary file and renamed; ``manifest.json`` is written last
 (the bank is complete). One checksum covers the manifest and ``bank.npz``; the manifest
@@ -50,13 +50,10 @@ from numpy.typing import NDArray
 
 from control.artifacts import (
     atomic_write,
-    bound_cache,
-    build_lock,
     cache_root,
     checksum,
     read_checked_npz,
     read_npz,
-    touch,
     verify_checksum,
     write_checked_npz,
 )
@@ -75,8 +72,8 @@ __all__ = [
     "BankFileError",
     "StaleBankError",
     "bank_cache_dir",
+    "bank_key",
     "build_bank",
-    "ensure_bank",
     "load_bank",
 ]
 
@@ -156,7 +153,8 @@ def bank_cache_dir() -> Path:
     return cache_root() / "bank"
 
 
-def _key(digest: str, settings: BankSettings) -> str:
+def bank_key(digest: str, settings: BankSettings) -> str:
+    """The cache key of a bank of the library ``digest`` with ``settings``."""
     return hashlib.sha256(f"{digest}|{settings.digest()}".encode()).hexdigest()[:24]
 
 
@@ -237,7 +235,7 @@ def _start_manifest(
     """The manifest of an incomplete bank with its shard table, written (the files of
     another library's or settings' bank in ``folder`` removed first)."""
     digest = clips_digest(clips)
-    key = _key(digest, settings)
+    key = bank_key(digest, settings)
     sizes = [c.motion.n_frames for c in clips]
     starts = np.concatenate(([0], np.cumsum(sizes))).astype(np.int64)
     n = int(starts[-1])
@@ -452,36 +450,3 @@ def _bank_of(
         metric=metric,
         checksum=str(manifest["checksum"]),
     )
-
-
-def ensure_bank(
-    clips: Sequence[Clip],
-    settings: BankSettings,
-    folder: str | Path | None = None,
-    **build_options: Any,
-) -> tuple[Bank, bool]:
-    """The bank of ``clips`` with ``settings``: loaded when fresh, else (re)built.
-
-    ``folder`` defaults to ``bank_cache_dir() / <hash of library and settings>``.
-    Returns ``(bank, built)``.
-    """
-    cached = folder is None
-    folder = (
-        Path(folder)
-        if folder is not None
-        else bank_cache_dir() / _key(clips_digest(clips), settings)
-    )
-    with build_lock(folder):  # another process building it: wait, then load its bank
-        try:
-            bank = load_bank(folder, clips, settings)
-            touch(folder)
-            return bank, False
-        except FileNotFoundError:
-            pass
-        except BankFileError as exc:
-            if "incomplete" not in exc.problem:  # an interrupted build resumes quietly
-                log.warning("rebuilding the bank: %s", exc)
-        bank = build_bank(clips, settings, folder, **build_options)
-    if cached:
-        bound_cache(keep=[folder])
-    return bank, True

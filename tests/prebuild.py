@@ -46,10 +46,10 @@ def build(part: str) -> None:
         cache = Path(os.environ["MIMIC_CACHE"]) / "graph"
         cached_higher_layer(graph, lib.clips, ACTIONS_LAYER, cache_dir=cache)
     elif part == "bank":  # tests/vision/conftest.py: setup
-        from silhouette_bank import BankSettings, ensure_bank
+        from silhouette_bank import BankSettings, cached_bank
 
         lib = load_library(MOCAP, clips=["13_30"])
-        ensure_bank(lib.clips, BankSettings(), workers=1)
+        cached_bank(lib.clips, BankSettings(), workers=1)
     elif part == "kernels":  # started apart from the others (conftest.prebuild)
         warm_kernels()
     else:

@@ -13,7 +13,6 @@ from ._classify import (
 from ._decision import (
     Decision,
     Jump,
-    MatchSettings,
 )
 from ._evaluate import (
     brief_actions_per_minute,
@@ -45,7 +44,6 @@ from ._matcher import (
 )
 from ._perform import (
     PerformResult,
-    PerformSettings,
     perform,
 )
 from ._person import (
@@ -65,6 +63,13 @@ from ._segment import (
     METHODS,
     Segmenter,
     clean_mask,
+)
+from ._settings import (
+    ActionSettings,
+    LandingSettings,
+    MatchSettings,
+    PathSettings,
+    PerformSettings,
 )
 from ._sources import (
     CameraSource,
@@ -119,6 +124,7 @@ __all__ = [
     "THREE_VERSION",
     "VISION_COORDS",
     "ActionClassifier",
+    "ActionSettings",
     "ActionVote",
     "BrowserCamera",
     "CameraSource",
@@ -127,10 +133,12 @@ __all__ = [
     "IndexFileError",
     "Jump",
     "LabelFileError",
+    "LandingSettings",
     "MaskFolderSource",
     "MaskTape",
     "MatchSettings",
     "Matcher",
+    "PathSettings",
     "PerformResult",
     "PerformSettings",
     "PersonSegmenter",

@@ -54,7 +54,7 @@ def ready_matcher(matcher: Matcher, clips: Sequence[Clip], period: float) -> Non
     if actions is not None:
         matcher.vote.actions = actions
         matcher.vote.names = action_names(clips)
-        if matcher.settings.jumps and matcher.settings.vote > 0:
+        if matcher.settings.landing.jumps and matcher.settings.action.vote > 0:
             matcher.classifier()
             matcher.index().prepare(matcher.vote.window_actions(matcher.n))
     matcher.facing = Facing.of(clips, matcher, period)
@@ -84,7 +84,7 @@ class SilhouetteFallback:
             )
         settings = main.settings
         self.matcher = matcher = Matcher(layer, bank, settings)
-        if settings.jumps:
+        if settings.landing.jumps:
             matcher.index()
             matcher.warm_up(avatar.frame, avatar.recent(matcher.recent_frames), costs)
         ready_matcher(matcher, clips, period)
@@ -118,7 +118,7 @@ class SilhouetteFallback:
         if len(self.history) < matcher.n:
             matcher.why = "filling buffer"
             return None
-        if matcher.settings.jumps:
+        if matcher.settings.landing.jumps:
             return matcher.decide(frame, self.features(), recent, costs)
         return matcher.decide(frame, self.features(matcher.n))
 

@@ -1,7 +1,8 @@
 """Where the avatar goes next, for ``Matcher``: a direct jump lands on the frame after
 one of the search's best windows, placed by the performer's last frames
 (``phased_targets``), unless the avatar is there already, weighed by the action vote
-(``_gated``); or, for a performer standing still, the avatar holds its frame (``held``)."""
+(``_gated``); or, for a performer standing still, the avatar holds its frame (``held``).
+What a jump must beat is the avatar's own cost (``own_cost`` of ``own_frames``)."""
 
 from __future__ import annotations
 
@@ -15,11 +16,12 @@ from control.avatar import JumpCosts
 from control.dtw import ShapeTable, dtw_batch
 from control.graph import MotionGraph
 
-from ._decision import Decision, MatchSettings
+from ._decision import Decision
 from ._facing import Facing, Ranked
 from ._index import WindowIndex, best_of
+from ._settings import MatchSettings
 from ._vote import ActionVote
-from ._windows import phased_targets
+from ._windows import phased_targets, window_costs
 
 __all__ = ["Gate", "Landing"]
 
@@ -33,8 +35,8 @@ Windows = list[tuple[int, int, float]]
 
 
 class Landing:
-    """What ``Matcher`` inherits for its jumps' targets and for holding still; it sets the
-    attributes below."""
+    """What ``Matcher`` inherits for its jumps' targets, its own cost and for holding
+    still; it sets the attributes below."""
 
     graph: MotionGraph
     settings: MatchSettings
@@ -45,6 +47,7 @@ class Landing:
     _bank_sequences: Callable[[IntArray], FloatArray]
     ring_views: int
     last_own: float
+    recent_frames: int
     vote: ActionVote
     index: Callable[[], WindowIndex]
     #: the performer's facing, for silhouettes read both ways (set by the caller, who has
@@ -60,15 +63,15 @@ class Landing:
         self, frame: int, queries: list[FloatArray], rival: Decision | None
     ) -> Decision | None:
         """The avatar holding ``frame`` still (shown again, as a performer standing
-        still does), when ``settings.still`` and that matches the performer's window
+        still does), when ``settings.landing.hold_still`` and that matches the performer's window
         better than ``rival`` (the jump ``Matcher.jump`` chose, unless it leaves for the
         voted action) or, without one, than playing on; else ``None``. The library has no
         still second (its stillest windows still turn a joint 1.5-5 degrees a frame), so
         without it the avatar jumped about 4 times a second among near-still windows
         while the performer stood still. With the vote's margin, a frame of another
-        action than the voted one costs 1 + ``vote_margin`` times as much held, as it
+        action than the voted one costs 1 + ``action.margin`` times as much held, as it
         does played on."""
-        if not self.settings.still or (
+        if not self.settings.landing.hold_still or (
             rival is not None and rival.jump is not None and rival.jump.leaves
         ):
             return None
@@ -87,11 +90,11 @@ class Landing:
             np.array([dtw_batch(q, refs, window=band, recency=r) for q in queries]), frame
         )
         cost = float(costs.min())
-        margin = self.settings.vote_margin
+        margin = self.settings.action.margin
         voting = self.vote.actions is not None and self.vote.size > 0 and math.isfinite(margin)
         if voting and self.vote.leaves(frame, frame):  # (held: the frame shows no other)
             cost *= 1.0 + margin  # (weighed as the avatar's own motion is, however taken)
-        if not cost < self.settings.jump_ratio * against:
+        if not cost < self.settings.landing.jump_ratio * against:
             return None
         frames = np.full(self.n + 1, frame, dtype=np.int64)
         return Decision(
@@ -106,6 +109,45 @@ class Landing:
             how="held",
         )
 
+    def own_cost(self, queries: list[FloatArray], recent: IntArray) -> float:
+        """DTW cost of the avatar's last frames ``recent`` (best view) against the
+        performer: how well it follows now. The frames that lead into a window's first
+        stand in for those not yet shown; ``inf`` where its clip has none."""
+        w = self._lead_in(recent)[-self.n :]
+        if w.size < self.n:
+            return float("inf")
+        band, r = self.settings.band, self.settings.recency
+        if np.all(np.diff(w) == 1) and self._same_run(int(w[0]), w[-1:])[0]:
+            shape, centre, _ = self._global_tables()  # a library window: as the search costs it
+            costs = window_costs(queries, shape, centre, int(w[0]), self.n, band, r)
+        else:
+            refs = self._bank_sequences(w)
+            costs = np.array([dtw_batch(q, refs, window=band, recency=r) for q in queries])
+        return float(self.weighed(costs, int(w[self.n // 2])).min())
+
+    def own_frames(self, frame: int, recent: IntArray) -> IntArray:
+        """The frames whose cost is the avatar's own (``jump``): with
+        ``settings.landing.own_from_library`` the library window that plays into ``frame`` (when
+        its clip has one), else the avatar's ``recent`` frames shown."""
+        if self.settings.landing.own_from_library:
+            lib = self._lead_in(np.array([frame], dtype=np.int64))
+            if lib.size >= self.n:
+                return lib
+        return recent
+
+    def _lead_in(self, recent: IntArray) -> IntArray:
+        """``recent``, preceded by the frames that play on into its first one, up to
+        ``recent_frames`` in all."""
+        need = self.recent_frames - recent.size
+        if need <= 0 or recent.size == 0:
+            return recent
+        f = int(recent[0])
+        lead: list[int] = []
+        while len(lead) < need and f > 0 and self.plays[f - 1]:
+            f -= 1
+            lead.append(f)
+        return np.concatenate((np.array(lead[::-1], dtype=np.int64), recent))
+
     def _gated(
         self,
         frame: int,
@@ -119,14 +161,14 @@ class Landing:
         (``(got, target, ok, there)``; ``voted``: which show the voted action), with those
         of the voted action added when none does (``_voted_windows``), and ``(got,
         target, ok, weight, own_weight)``: each window's cost is times ``weight`` (1 + the
-        settings' ``vote_margin`` for another action), the avatar's own times
+        settings' ``action.margin`` for another action), the avatar's own times
         ``own_weight`` (the same, where it shows another action). With the margin
         infinite, windows of another action are not ``ok``, and ``own_weight`` is
         infinite where the avatar must leave its action."""
         got, target, ok, there = found
         if voted is None:
             return got, target, ok, np.ones(len(got)), 1.0
-        margin = self.settings.vote_margin
+        margin = self.settings.action.margin
         if not (ok & voted).any():
             more = self._voted_windows(frame, queries, ranked, costs, there & voted)
             if math.isinf(margin):
@@ -155,14 +197,16 @@ class Landing:
         decision the same). ``(got, target, ok, voted)`` as ``jump`` has them."""
         st = self.settings
         only = self.vote.starts(self.n)
-        got = best_of(ranked, st.top, only)
+        got = best_of(ranked, st.landing.top_windows, only)
         target, ok, _ = self._targets(frame, got, costs, queries)
         voted = self.vote.gate(target)
         if not (ok & voted).any() and not at_voted.any():
             lists: Ranked = []
-            got = self.index().search(queries, st.band, st.top, only, lists, st.recency)
+            got = self.index().search(
+                queries, st.band, st.landing.top_windows, only, lists, st.recency
+            )
             if self.facing is not None:
-                got = best_of(self.facing.weigh(lists, observe=False), st.top, only)
+                got = best_of(self.facing.weigh(lists, observe=False), st.landing.top_windows, only)
             target, ok, _ = self._targets(frame, got, costs, queries)
             voted = self.vote.gate(target)
         return got, target, ok, voted
@@ -181,7 +225,9 @@ class Landing:
         target = np.array([g[0] for g in got], dtype=np.int64) + self.n
         views = np.array([g[1] for g in got], dtype=np.int64)
         shape = self._global_tables()[0]
-        target = phased_targets(target, views, queries, shape, self._runs, self.settings.phase)
+        target = phased_targets(
+            target, views, queries, shape, self._runs, self.settings.landing.phase_frames
+        )
         ok = target < self.graph.n_frames
         ok[ok] &= costs.landing[target[ok]] & self.plays[target[ok] - 1]
         there = (np.abs(target - frame) <= 2) & self._same_run(frame, target)

@@ -34,11 +34,12 @@ from control.dtw import ShapeTable, dtw_batch, dtw_windows
 from silhouette_bank import Bank
 
 from ._classify import ActionClassifier, action_scores, cached_action_classifier
-from ._decision import Decision, Jump, MatchSettings
+from ._decision import Decision, Jump
 from ._facing import Facing
 from ._index import WindowIndex, best_of, cached_window_index
 from ._landing import Landing
 from ._paths import CandidatePaths
+from ._settings import MatchSettings
 from ._tables import cached_shape_stats, cached_window_tables
 from ._vote import ActionVote
 from ._windows import (
@@ -47,7 +48,6 @@ from ._windows import (
     per_frame_cost,
     performer_queries,
     tempo_readings,
-    window_costs,
 )
 
 __all__ = ["EARLY_WINDOWS", "Matcher"]
@@ -72,7 +72,7 @@ class Matcher(CandidatePaths, Landing):
         self.bank = bank
         self.settings = settings or MatchSettings()
         self.n = max(2, round(self.settings.window * self.graph.fps))
-        self.bound = max(1, round(self.settings.lookahead * self.graph.fps))
+        self.bound = max(1, round(self.settings.paths.lookahead * self.graph.fps))
         # graph frame -> bank frame
         index = {name: i for i, name in enumerate(bank.clip_names)}
         missing = [c for c in self.graph.clip_names if c not in index]
@@ -100,7 +100,7 @@ class Matcher(CandidatePaths, Landing):
         # playing on: inside the component, or with jumps (which reach any frame) inside
         # a clip
         self.plays = self.graph.plays_on()
-        if self.settings.jumps:
+        if self.settings.landing.jumps:
             self.plays = np.ones(self.graph.n_frames, dtype=bool)
             self.plays[self.graph.clip_start[1:] - 1] = False
         self._cache: dict[tuple[int, int], tuple[IntArray, IntArray] | None] = {}
@@ -112,15 +112,17 @@ class Matcher(CandidatePaths, Landing):
         self._runs = np.cumsum(np.concatenate(([0], ~self.plays[:-1])))
         #: frames the avatar must have played on before it may jump again; ``decide``
         #: needs at least this many (and a window's) ``recent`` frames
-        self.hold_frames = max(1, round(self.settings.hold * self.graph.fps))
+        self.hold_frames = max(1, round(self.settings.landing.min_play * self.graph.fps))
         self.recent_frames = max(self.n, self.hold_frames + 1)
         #: performer frames ``decide`` reads (its ``tempos`` need more than a window)
-        self.history_frames = max([self.n] + [math.ceil(self.n / t) for t in self.settings.tempos])
+        self.history_frames = max(
+            [self.n] + [math.ceil(self.n / t) for t in self.settings.action.tempos]
+        )
         #: the avatar's own recent cost at the last ``jump`` (``inf`` before a window)
         self.last_own = float("inf")
         d_max = layer.graph.report.get("max_distance") if layer.graph.report else None
         self.d_max = float(d_max) if d_max else 1.0
-        self.vote = ActionVote.of(self.settings, self.n // 2)  # (actions: the caller's)
+        self.vote = ActionVote.of(self.settings.action, self.n // 2)  # (actions: the caller's)
         self.facing: Facing | None = None  # (``Landing``; the caller's: ``Performance``)
 
     def _check(self, performer: FloatArray) -> None:
@@ -146,7 +148,7 @@ class Matcher(CandidatePaths, Landing):
             )
             # with jumps the avatar reaches any frame; without, only the component
             n = self.graph.n_frames
-            ok = np.ones(n, dtype=bool) if self.settings.jumps else self.graph.in_scc.copy()
+            ok = np.ones(n, dtype=bool) if self.settings.landing.jumps else self.graph.in_scc.copy()
             end = np.arange(n) + self.n - 1
             ok &= end < n
             ok[ok] &= self._runs[end[ok]] == self._runs[np.flatnonzero(ok)]
@@ -258,45 +260,6 @@ class Matcher(CandidatePaths, Landing):
         w = self.settings.centre_weight
         return bank_sequences(self.bank, self.to_bank[frames], self.mean, self.proj, w)
 
-    def own_cost(self, queries: list[FloatArray], recent: IntArray) -> float:
-        """DTW cost of the avatar's last frames ``recent`` (best view) against the
-        performer: how well it follows now. The frames that lead into a window's first
-        stand in for those not yet shown; ``inf`` where its clip has none."""
-        w = self._lead_in(recent)[-self.n :]
-        if w.size < self.n:
-            return float("inf")
-        band, r = self.settings.band, self.settings.recency
-        if np.all(np.diff(w) == 1) and self._same_run(int(w[0]), w[-1:])[0]:
-            shape, centre, _ = self._global_tables()  # a library window: as the search costs it
-            costs = window_costs(queries, shape, centre, int(w[0]), self.n, band, r)
-        else:
-            refs = self._bank_sequences(w)
-            costs = np.array([dtw_batch(q, refs, window=band, recency=r) for q in queries])
-        return float(self.weighed(costs, int(w[self.n // 2])).min())
-
-    def own_frames(self, frame: int, recent: IntArray) -> IntArray:
-        """The frames whose cost is the avatar's own (``jump``): with
-        ``settings.own_from_library`` the library window that plays into ``frame`` (when
-        its clip has one), else the avatar's ``recent`` frames shown."""
-        if self.settings.own_from_library:
-            lib = self._lead_in(np.array([frame], dtype=np.int64))
-            if lib.size >= self.n:
-                return lib
-        return recent
-
-    def _lead_in(self, recent: IntArray) -> IntArray:
-        """``recent``, preceded by the frames that play on into its first one, up to
-        ``recent_frames`` in all."""
-        need = self.recent_frames - recent.size
-        if need <= 0 or recent.size == 0:
-            return recent
-        f = int(recent[0])
-        lead: list[int] = []
-        while len(lead) < need and f > 0 and self.plays[f - 1]:
-            f -= 1
-            lead.append(f)
-        return np.concatenate((np.array(lead[::-1], dtype=np.int64), recent))
-
     def jump(
         self,
         frame: int,
@@ -316,14 +279,16 @@ class Matcher(CandidatePaths, Landing):
             if queries is None:
                 return None
         ranked: list[tuple[IntArray, IntArray, FloatArray]] = []
-        got = self.index().search(queries, st.band, st.top, ranked=ranked, recency=st.recency)
+        got = self.index().search(
+            queries, st.band, st.landing.top_windows, ranked=ranked, recency=st.recency
+        )
         self.last_own = float("inf")
         if not got or self._rejected(got[0][2], queries[0]):
             return None  # (why says so when the best was rejected)
         self.why = ""
         if self.facing is not None:
             ranked[:] = self.facing.weigh(ranked, recost=self._plain_cost(queries))
-            got = best_of(ranked, st.top)
+            got = best_of(ranked, st.landing.top_windows)
         target, ok, there = self._targets(frame, got, costs, queries)
         voted = self.vote.cast(target, *self._choice(queries, ranked, performer))
         at = [g[2] for g, t in zip(got, there, strict=True) if t]
@@ -351,13 +316,13 @@ class Matcher(CandidatePaths, Landing):
         # (a frame held still, as played on, lets it jump)
         settled = leave or lead.size < m or bool(np.isin(np.diff(lead[-m:]), (0, 1)).all())
         # the blend only adds to a match's cost: no (slower) distances when the best cannot win
-        if (not settled or not match.min() < st.jump_ratio * own) and np.isfinite(own):
+        if (not settled or not match.min() < st.landing.jump_ratio * own) and np.isfinite(own):
             return None
-        w = st.blend_weight  # the blend's share saturates: a far jump costs at most w more
+        w = st.landing.blend_weight  # the blend's share saturates: a far jump costs at most w more
         dist = costs(frame, target[idx])[0] if w > 0 else None  # (else the chosen one's only)
         score = match if dist is None else match * (1.0 + w * dist / (dist + self.d_max))
         b = int(np.argmin(score))
-        if not score[b] < st.jump_ratio * own:
+        if not score[b] < st.landing.jump_ratio * own:
             return None
         i, j = int(idx[b]), int(target[idx[b]])
         frames = np.concatenate(([frame], self._playback(j)))
@@ -377,9 +342,9 @@ class Matcher(CandidatePaths, Landing):
     def classifier(self) -> ActionClassifier | None:
         """The library's action classifier (``vision._classify``), learned from the
         search's windows and the vote's ``actions`` on first use and stored in the bank's
-        folder; ``None`` without actions or with ``settings.classify`` off."""
+        folder; ``None`` without actions or with ``settings.action.classify`` off."""
         actions = self.vote.actions
-        if actions is None or not self.settings.classify:
+        if actions is None or not self.settings.action.classify:
             return None
         if self._classifier is None:
             shape, centre, starts = self._global_tables()
@@ -396,15 +361,17 @@ class Matcher(CandidatePaths, Landing):
     ) -> tuple[int | None, FloatArray | None]:
         """The action this decision votes for (``voted_action``; ``None``: the best
         window's) and every action's score (``action_scores``), the performer's features
-        read at ``settings.tempos`` too."""
+        read at ``settings.action.tempos`` too."""
         if self.vote.actions is None or self.vote.size <= 0:
             return None, None
         st = self.settings
         args = (self.desc, self.mean, self.proj, st.centre_weight)
-        extra = tempo_readings(performer, self.n, st.tempos, queries[0].shape[0], *args)
+        extra = tempo_readings(performer, self.n, st.action.tempos, queries[0].shape[0], *args)
         if extra:
             ranked = list(ranked)
-            self.index().search(extra, st.band, st.top, ranked=ranked, recency=st.recency)
+            self.index().search(
+                extra, st.band, st.landing.top_windows, ranked=ranked, recency=st.recency
+            )
         clf = self.classifier()
         n = self._classifier[1] if self._classifier else 0
         scores = action_scores(ranked, self.vote.actions, self.n, clf, queries + extra, n)
@@ -432,14 +399,14 @@ class Matcher(CandidatePaths, Landing):
         """The best path from ``frame`` for the performer's last features ``(n, F)``
         (NaN rows, frames without a silhouette, are dropped); ``None`` without enough.
         With the avatar's ``recent`` frames and its ``jump_costs`` (and
-        ``settings.jumps``), a direct blended jump (``jump``) when one is clearly better
+        ``settings.landing.jumps``), a direct blended jump (``jump``) when one is clearly better
         than what the avatar is doing, or its frame held still (``held``) when that is
         better still."""
         t0 = time.perf_counter()
         queries = self.queries(performer)
         if queries is None:
             return None
-        if self.settings.jumps and recent is not None and jump_costs is not None:
+        if self.settings.landing.jumps and recent is not None and jump_costs is not None:
             j = self.jump(frame, performer, recent, jump_costs, queries)
             if j is None and self.why:  # the best window was rejected: nothing real matches
                 return None
@@ -447,7 +414,7 @@ class Matcher(CandidatePaths, Landing):
             if j is not None:
                 return dataclasses.replace(j, latency_ms=(time.perf_counter() - t0) * 1e3)
             on = self._playback(frame)
-            lee = self.settings.cluster_paths and self.layer.forest.tree_of[frame] >= 0
+            lee = self.settings.paths.after_no_jump and self.layer.forest.tree_of[frame] >= 0
             if not lee and on.size > 1:
                 return Decision(
                     frames=on,
@@ -477,9 +444,11 @@ class Matcher(CandidatePaths, Landing):
         costs = each.min(axis=0)
         per_path = costs.min(axis=1)
         rank = per_path  # the costs reported stay DTW costs; the prior only ranks
-        if self.settings.stay > 0:
+        if self.settings.paths.keep_clip_bonus > 0:
             plays_on = np.array([not (e[: self.n - 1] >= 0).any() for _, _, e in cands])
-            rank = np.where(plays_on, per_path * (1.0 - self.settings.stay), per_path)
+            rank = np.where(
+                plays_on, per_path * (1.0 - self.settings.paths.keep_clip_bonus), per_path
+            )
         order = np.argsort(rank, kind="stable")
         best = int(order[0])
         if self._rejected(float(per_path[best]), queries[0]):

@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from control.clusters import HigherLayer
 from control.graph import MotionGraph
 
-from ._decision import MatchSettings
+from ._settings import MatchSettings
 
 __all__ = ["CandidatePaths"]
 
@@ -34,8 +34,8 @@ class CandidatePaths:
     def route(self, frame: int, target: int) -> tuple[IntArray, IntArray] | None:
         """The shortest way ``(frames, edges)`` from ``frame`` to ``target`` through the
         graph's component (playing on and transitions, one frame per step; breadth
-        first), at most ``settings.route`` seconds long, or ``None``."""
-        bound = max(1, round(self.settings.route * self.graph.fps))
+        first), at most ``settings.paths.route_seconds`` seconds long, or ``None``."""
+        bound = max(1, round(self.settings.paths.route_seconds * self.graph.fps))
         return self.graph.route(frame, target, bound, self.plays)
 
     def _path(self, frame: int, node: int) -> tuple[IntArray, IntArray] | None:
@@ -89,6 +89,6 @@ class CandidatePaths:
                 continue
             seen.add(key)
             out.append((int(node), p[0], p[1]))
-            if len(out) >= self.settings.max_candidates:
+            if len(out) >= self.settings.paths.max_candidates:
                 break
         return out

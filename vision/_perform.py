@@ -5,13 +5,12 @@ on the clock). The performer's features are sampled into a buffer at the library
 every ``decide_every`` seconds the matcher decides from the avatar's current frame and
 the avatar takes what it chose (blending into it); at most one decision a frame, so after
 a stall the points missed are skipped (the log says how many), not made in a burst. With
-``MatchSettings.jumps`` (the default) that is motion matching: a direct blended jump into
-the frame after one of the library's best windows when it fits the performer clearly
-better than the avatar's own last second, holding its frame still when that fits a
-performer standing still better (``MatchSettings.still``), else playing on; without, the
-paper's best cluster path, and now and then the way through the graph to a better window
-(relocation). Without a usable silhouette (nobody in view, a dark frame, a camera that
-is reconnecting) the avatar simply keeps moving: along its current path, then on its own.
+jumps (``LandingSettings``, the default) that is motion matching: a direct blended jump
+into the frame after one of the library's best windows when it fits the performer
+clearly better than the avatar's own last second, holding its frame still when that fits
+a performer standing still better, else playing on; without, the paper's best cluster
+path, and now and then the way through the graph to a better window (relocation).
+Without a usable silhouette (nobody in view, a dark frame) the avatar keeps moving on.
 """
 
 from __future__ import annotations
@@ -34,16 +33,17 @@ from control.kernels import one_thread
 from control.motion import Clip
 from silhouette_bank import Bank, silhouette_features
 
-from ._decision import Decision, PerformSettings
+from ._decision import Decision
 from ._fallback import FALLBACK_REASONS, SilhouetteFallback, ready_matcher
 from ._landmarks import PoseReader
 from ._matcher import Matcher
 from ._person import make_segmenter, resolve_segmentation
 from ._segment import clean_mask_others
+from ._settings import PerformSettings
 from ._sources import Frame, Source
 from ._video import MaskTape
 
-__all__ = ["MAX_COVER", "PerformResult", "PerformSettings", "Performance", "perform"]
+__all__ = ["MAX_COVER", "PerformResult", "Performance", "perform"]
 
 #: a silhouette mask covering more of the frame than this is no performer (a white
 #: frame, the lights going on under a background subtractor): treated as no silhouette
@@ -128,9 +128,9 @@ class Performance:
         self.source, self.clips, self.start, self.seed = source, clips, start, seed
         self.settings = settings = settings or PerformSettings()
         self.matcher = matcher = Matcher(layer, bank, settings.match)
-        self.jumps = jumps = settings.match.jumps  # motion matching: relocation at every
-        # decision. One set of jump costs for every avatar of the run, its frame features
-        # computed before the first frame rather than at the first jump
+        # motion matching: relocation at every decision. One set of jump costs for every
+        # avatar of the run, its frame features computed before the first frame
+        self.jumps = jumps = settings.match.landing.jumps
         self.costs = JumpCosts(self.graph, clips, anywhere=jumps)
         if jumps:  # built now, not at the first decision (a camera would stall there)
             # the features (numpy on every frame: 1.9 s at 500,000 frames) in a thread
@@ -308,7 +308,7 @@ class Performance:
         source, its answer taken at a later decision)."""
         matcher, settings = self.matcher, self.settings
         got = None
-        due = t - self.last_relocate >= settings.match.relocate - 1e-9
+        due = t - self.last_relocate >= settings.match.paths.relocate_every - 1e-9
         if self.searcher is None and due:
             self.last_relocate = t
             got = matcher.find_window(self.window())
@@ -317,7 +317,7 @@ class Performance:
         elif self.searcher is not None and self.pending is None and due:
             self.last_relocate = t
             self.pending = self.searcher.submit(matcher.find_window, self.window())
-        if got is None or not got[2] < settings.match.relocate_ratio * d.cost:
+        if got is None or not got[2] < settings.match.paths.relocate_ratio * d.cost:
             return d
         way = matcher.route(self.avatar.frame, got[0])
         if way is None:  # better elsewhere, but too far away through the graph
@@ -389,7 +389,7 @@ class Performance:
         full = filled == matcher.n
         # the avatar is placed as soon as half a window is in (then played on until the
         # window is whole), unless told where to start
-        if not self.located and settings.match.locate and self.start is None:
+        if not self.located and settings.match.paths.start_at_best and self.start is None:
             half = filled >= max(2, (matcher.n + 1) // 2) and matcher.early_search
             if full or half:
                 self.place_avatar(t, entry)
@@ -398,7 +398,8 @@ class Performance:
         routing = t < self.en_route - 1e-9
         d = self.match(entry) if full and not routing else None
         by_landmarks = entry.get("by") != "silhouette"  # (relocation searches landmarks)
-        if d is not None and not self.jumps and settings.match.relocate > 0 and by_landmarks:
+        relocating = not self.jumps and settings.match.paths.relocate_every > 0
+        if d is not None and relocating and by_landmarks:
             d = self.relocate(t, d, entry)
         if d is None:
             entry["decision"] = None

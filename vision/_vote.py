@@ -6,12 +6,12 @@ the performer's action lasts seconds. So on a library whose clips are labelled, 
 decision votes for an action (a label; an unlabelled clip counts as an action of its
 own): its best window's, or as the library's action classifier settles it between the
 best windows of the actions (``vision._classify``, ``Matcher._choice``), and the avatar
-keeps to the action most voted for over the last ``MatchSettings.vote`` decisions (or
+keeps to the action most voted for over the last ``ActionSettings.vote`` decisions (or
 voted for by the last third of them, all alike: a new action is taken up in 0.5 s, not
 when it has outvoted the old one), and leaves a motion that is not that action, or will
 have played on out of it within half a window. When none of a decision's best windows
 shows the voted action, the matcher searches the windows that do (``starts``). The vote
-weighs rather than forbids (``MatchSettings.vote_margin``, 0.2): a window of another
+weighs rather than forbids (``ActionSettings.margin``, 0.2): a window of another
 action, and the avatar's own motion of another action, cost 1.2 times as much, so the
 avatar takes one only where it fits the performer far better (the library's labels are
 coarser than its poses); with the margin infinite the avatar never jumps into an action
@@ -19,7 +19,7 @@ the performer is not voted to do. A source slower than the decisions has
 decision points skipped (``missed``); each vote then stands for them too, so that the
 vote spans the same time at any frame rate.
 
-With ``MatchSettings.vote_switch`` the voted action is not counted but filtered
+With ``ActionSettings.switch_chance`` the voted action is not counted but filtered
 (``ActionVote.filter``): a hidden (semi-)Markov model over the actions, each decision's
 action scores its evidence. It is off by default: it made the avatar steadier on every
 fold but cost the pose score, the lag and the one real squat clip
@@ -30,10 +30,11 @@ from __future__ import annotations
 
 import itertools
 from collections import Counter, deque
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from ._settings import ActionSettings
 
 __all__ = ["ActionVote"]
 
@@ -54,7 +55,7 @@ class ActionVote:
         confidence: float = 0.0,
     ) -> None:
         self.size, self.span = size, span
-        #: > 0: ``filter`` decides the voted action (``MatchSettings.vote_switch``)
+        #: > 0: ``filter`` decides the voted action (``ActionSettings.switch_chance``)
         self.switch, self.temperature, self.min_stay = switch, temperature, max(1, min_stay)
         self.confidence = confidence
         self._belief: NDArray[np.float64] | None = None
@@ -78,17 +79,10 @@ class ActionVote:
         self._starts: tuple[tuple[int, int, int], NDArray[np.bool_]] | None = None
 
     @classmethod
-    def of(cls, settings: Any, span: int) -> ActionVote:
-        """The vote ``settings`` (a ``MatchSettings``) ask for."""
+    def of(cls, settings: ActionSettings, span: int) -> ActionVote:
+        """The vote ``settings`` ask for."""
         st = settings
-        return cls(
-            st.vote,
-            span,
-            st.vote_switch,
-            st.vote_temperature,
-            st.vote_min_stay,
-            st.vote_confidence,
-        )
+        return cls(st.vote, span, st.switch_chance, st.temperature, st.min_points, st.confidence)
 
     def filter(self, scores: NDArray[np.float64]) -> None:
         """One step of the forward filter of a hidden semi-Markov model over the actions:

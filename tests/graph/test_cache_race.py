@@ -1,5 +1,6 @@
-"""Two processes that ask for the same graph and layer at once: one builds each, the
-other waits and loads it, and the cache holds one good entry of each."""
+"""Two processes that ask for the same graph, layer and bank at once (the three cache
+front doors): one builds each, the other waits and loads it, and the cache holds one
+good entry of each."""
 
 from __future__ import annotations
 
@@ -17,17 +18,21 @@ import json, sys, time
 from control.clusters import LayerSettings, cached_higher_layer
 from control.graph import GraphOptions, cached_graph
 from control.motion import load_library
+from silhouette_bank import BankSettings, CameraRing, cached_bank
 lib = load_library(sys.argv[1], clips=["13_30"])
 while time.time() < float(sys.argv[3]):  # (both start together)
     time.sleep(0.005)
 g, _, built_g = cached_graph(lib.clips, GraphOptions(coords="relative"), cache_dir=sys.argv[2])
 layer, _, built_l = cached_higher_layer(g, lib.clips, LayerSettings(k=12), cache_dir=sys.argv[2])
-print(json.dumps({"graph": built_g, "layer": built_l, "k": int(layer.clustering.k)}))
+small = BankSettings(CameraRing(n_views=4, width=64, height_px=48), descriptor="hu")
+bank, _, built_b = cached_bank(lib.clips, small, cache_dir=sys.argv[2], workers=1)
+out = {"graph": built_g, "layer": built_l, "bank": built_b, "k": int(layer.clustering.k)}
+print(json.dumps({**out, "frames": bank.n_frames}))
 """
 
 
 @pytest.mark.slow
-def test_two_processes_build_a_graph_and_a_layer_once(mocap: Path, tmp_path: Path) -> None:
+def test_two_processes_build_a_graph_a_layer_and_a_bank_once(mocap: Path, tmp_path: Path) -> None:
     import time
 
     cache = tmp_path / "cache"
@@ -49,5 +54,8 @@ def test_two_processes_build_a_graph_and_a_layer_once(mocap: Path, tmp_path: Pat
         got.append(json.loads(out.strip().splitlines()[-1]))
     assert sorted(g["graph"] for g in got) == [False, True]  # one built it, one loaded it
     assert sorted(g["layer"] for g in got) == [False, True]
+    assert sorted(g["bank"] for g in got) == [False, True] and got[0]["frames"] == got[1]["frames"]
+    manifests = list(cache.glob("*/manifest.json"))
+    assert len(manifests) == 1 and json.loads(manifests[0].read_text())["complete"]
     assert len(list(cache.glob("graph-*.npz"))) == 1 and len(list(cache.glob("layer-*.npz"))) == 1
     assert not list(cache.glob(".*.tmp"))

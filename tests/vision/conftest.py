@@ -10,7 +10,7 @@ import pytest
 from control.clusters import HigherLayer, LayerSettings, build_higher_layer
 from control.graph import GraphOptions, build_graph
 from control.motion import Library, load_library
-from silhouette_bank import Bank, BankSettings, ensure_bank
+from silhouette_bank import Bank, BankSettings, cached_bank
 from tests.conftest import REPO, Prebuild
 
 RECORDING = REPO / "recordings" / "13_29_first12s_160x120.mkv"
@@ -25,5 +25,5 @@ def setup(mocap: Path, prebuild: Prebuild) -> tuple[Library, HigherLayer, Bank]:
     g = build_graph(lib.clips, GraphOptions(coords="relative", threshold=0.03))
     layer = build_higher_layer(g, lib.clips, LayerSettings(k=12))
     prebuild.wait("bank")
-    bank, _ = ensure_bank(lib.clips, BankSettings(), workers=2)
+    bank, _, _ = cached_bank(lib.clips, BankSettings(), workers=2)
     return lib, layer, bank

@@ -34,7 +34,7 @@ def test_a_colour_video_that_starts_black_is_not_taken_for_silhouettes(
     assert looks_like_silhouettes(RECORDING)
     # and the user can say so
     from mimic.cli import build_parser
-    from mimic.run import silhouette_flag
+    from mimic.run_args import silhouette_flag
 
     for word, meant in (("yes", True), ("no", False), ("auto", None)):
         args = build_parser().parse_args(

@@ -11,7 +11,7 @@ import pytest
 from sklearn.discriminant_analysis import LinearDiscriminantAnalysis
 
 from control.motion import action_keys
-from vision import Matcher, MatchSettings
+from vision import ActionSettings, Matcher, MatchSettings
 from vision._classify import (
     FLOOR,
     ActionClassifier,
@@ -120,7 +120,7 @@ def test_the_matchers_vote_goes_to_the_classifiers_choice(setup) -> None:
     lib, layer, bank = setup
     keys = action_keys(lib.clips)
     assert keys is not None
-    m = Matcher(layer, bank, MatchSettings(vote=3))
+    m = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=3)))
     m.vote.actions = keys
     fa = int(np.flatnonzero(keys == keys[0])[0])
     other = int(keys[np.flatnonzero(keys != keys[0])[0]])
@@ -133,13 +133,17 @@ def test_the_matchers_vote_goes_to_the_classifiers_choice(setup) -> None:
     assert queries is not None
     ranked: list = []
     m.index().search(
-        queries, m.settings.band, m.settings.top, ranked=ranked, recency=m.settings.recency
+        queries,
+        m.settings.band,
+        m.settings.landing.top_windows,
+        ranked=ranked,
+        recency=m.settings.recency,
     )
     choice, scores = m._choice(queries, ranked, x)
     assert choice is not None and choice == int(keys[100 + m.n - 1])
     assert scores is not None and int(np.argmin(scores)) == choice  # (the filter's evidence)
     assert list(Path(bank.path).glob("actions-*.npz"))
-    off = Matcher(layer, bank, MatchSettings(vote=3, classify=False))
+    off = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=3, classify=False)))
     off.vote.actions = keys
     assert off._choice(queries, ranked, x) == (None, None)
 

@@ -18,6 +18,7 @@ from mimic.cli import main
 from tests.vision.conftest import RECORDING
 from vision import (
     FLOOR_ABOVE,
+    LandingSettings,
     Matcher,
     MatchSettings,
     PerformSettings,
@@ -142,7 +143,7 @@ def test_jumps_keep_feet_on_the_floor(setup) -> None:
         layer,
         bank,
         lib.clips,
-        PerformSettings(match=MatchSettings(jumps=False)),
+        PerformSettings(match=MatchSettings(landing=LandingSettings(jumps=False))),
     )
     assert r2.avatar.n_jumps == 0 and not any("jump" in d for d in r2.decisions)
 
@@ -174,7 +175,7 @@ def test_right_after_a_jump_the_own_cost_is_the_window_played_into(setup) -> Non
     assert m.own_cost(queries, window) == pytest.approx(by_bank, rel=1e-5)
     # without own_from_library, the frames shown; and at a clip's first frames, which
     # have no window of their own, those too
-    before = Matcher(layer, bank, MatchSettings(own_from_library=False))
+    before = Matcher(layer, bank, MatchSettings(landing=LandingSettings(own_from_library=False)))
     assert np.array_equal(before.own_frames(j, shown), shown)
     assert np.array_equal(m.own_frames(3, shown), shown)
 
@@ -202,13 +203,19 @@ def test_a_jump_is_scored_by_its_match_and_with_a_blend_weight_by_its_blend_too(
     frame, j = 40, 200  # the performer does the window that ends at frame j, seen from view 3
     recent = np.arange(frame - 30, frame + 1, dtype=np.int64)
     for w in (0.0, 1.0):
-        m = Matcher(layer, bank, MatchSettings(blend_weight=w, hold=0.0, phase=0))
+        m = Matcher(
+            layer,
+            bank,
+            MatchSettings(landing=LandingSettings(blend_weight=w, min_play=0.0, phase_frames=0)),
+        )
         window = np.arange(j - m.n + 1, j + 1)
         performer = bank.features[m.to_bank[window], 3].astype(np.float64)
         performer += 0.02 * np.random.default_rng(0).normal(size=performer.shape)
         queries = m.queries(performer)
         assert queries is not None
-        got = m.index().search(queries, m.settings.band, m.settings.top, recency=m.settings.recency)
+        got = m.index().search(
+            queries, m.settings.band, m.settings.landing.top_windows, recency=m.settings.recency
+        )
         target, ok, _ = m._targets(frame, got, costs, queries)
         assert ok.sum() >= 3
         costs.near = int(target[ok][2])  # the third best match
@@ -221,10 +228,10 @@ def test_a_jump_is_scored_by_its_match_and_with_a_blend_weight_by_its_blend_too(
         assert d.jump.blend == (0.0 if w else 100.0 * layer.graph.report["max_distance"])
 
 
-@pytest.mark.parametrize("bad", [{"top": 0}, {"jump_ratio": 0.0}, {"blend_weight": -1.0}])
+@pytest.mark.parametrize("bad", [{"top_windows": 0}, {"jump_ratio": 0.0}, {"blend_weight": -1.0}])
 def test_bad_jump_settings_are_refused(bad) -> None:
-    with pytest.raises(ValueError, match="top must be"):
-        MatchSettings(**bad)
+    with pytest.raises(ValueError, match="top_windows must be"):
+        LandingSettings(**bad)
 
 
 @pytest.mark.slow
@@ -292,7 +299,9 @@ def test_a_performer_standing_still_is_held_still(setup, monkeypatch) -> None:
     moving = bank.features[window, 3].astype(np.float64) + noise
     d2 = m.decide(j, moving, recent, costs)
     assert d2 is not None and d2.how != "held"
-    off = Matcher(layer, bank, MatchSettings(still=False)).decide(j, still, recent, costs)
+    off = Matcher(layer, bank, MatchSettings(landing=LandingSettings(hold_still=False))).decide(
+        j, still, recent, costs
+    )
     assert off is not None and off.how != "held"
 
     # with no jump weighed (none of the best windows may be landed on, and the avatar is

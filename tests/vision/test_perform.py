@@ -20,9 +20,11 @@ from tests.vision.conftest import RECORDING
 from vision import (
     CameraSource,
     Frame,
+    LandingSettings,
     MaskFolderSource,
     Matcher,
     MatchSettings,
+    PathSettings,
     PerformSettings,
     VideoSource,
     perform,
@@ -45,7 +47,7 @@ def test_matcher_finds_a_path_from_its_own_silhouettes(setup, banks, descriptor)
     _, layer, _ = setup
     bank = banks[descriptor]
     assert bank.settings.descriptor == descriptor
-    matcher = Matcher(layer, bank, MatchSettings(window=1.0, lookahead=1.5))
+    matcher = Matcher(layer, bank, MatchSettings(window=1.0, paths=PathSettings(lookahead=1.5)))
     rng = np.random.default_rng(2)
     hits = 0
     trials = 0
@@ -108,7 +110,7 @@ def test_route_is_a_shortest_way_through_the_graph(setup) -> None:
 
     _, layer, bank = setup
     g = layer.graph
-    matcher = Matcher(layer, bank, MatchSettings(route=2.0))
+    matcher = Matcher(layer, bank, MatchSettings(paths=PathSettings(route_seconds=2.0)))
     scc = g.in_scc
     src = list(g.src[scc[g.src] & scc[g.dst]])
     dst = list(g.dst[scc[g.src] & scc[g.dst]])
@@ -218,10 +220,10 @@ def test_a_clip_of_another_skeleton_in_the_library_leaves_the_vote_on(
     import mimic.run
 
     banked: list[list[str]] = []
-    real = mimic.run.ensure_bank
+    real = mimic.run.cached_bank
     monkeypatch.setattr(
         mimic.run,
-        "ensure_bank",
+        "cached_bank",
         lambda c, *a, **k: banked.append([x.name for x in c]) or real(c, *a, **k),
     )
     assert main(argv) == 0
@@ -305,7 +307,9 @@ def test_the_avatar_does_what_the_performer_does(setup) -> None:
 
 def test_a_relocation_is_followed_to_its_window(setup) -> None:
     # relocate whenever the whole component has a better window than the candidates
-    match = MatchSettings(relocate_ratio=1.0, jumps=False)
+    match = MatchSettings(
+        paths=PathSettings(relocate_ratio=1.0), landing=LandingSettings(jumps=False)
+    )
     a = _run(setup, VideoSource(RECORDING, silhouette=True), match=match)
     # the decisions on the way leave it alone
     hist = a.avatar.history()[0]
@@ -329,7 +333,11 @@ def test_no_silhouette_stretch_keeps_the_avatar_moving(setup, tmp_path: Path) ->
         mask = img[..., 0] if not 60 <= i < 120 else np.zeros(img.shape[:2], dtype=np.uint8)
         cv2.imwrite(str(tmp_path / f"{i:04d}.png"), mask)
     # (without relocation, whose way the avatar may still be following in the gap)
-    r = _run(setup, MaskFolderSource(tmp_path, fps=30), match=MatchSettings(relocate=0))
+    r = _run(
+        setup,
+        MaskFolderSource(tmp_path, fps=30),
+        match=MatchSettings(paths=PathSettings(relocate_every=0)),
+    )
     assert r.avatar.n_frames == pytest.approx(5.5 * 15, abs=2)  # from the first half second
     # decisions go on while half the 1 s window still has silhouettes, then stop
     gap = [d for d in r.decisions if 2.6 <= d["t"] <= 3.9]
@@ -357,7 +365,9 @@ class _Stalled:
 
 
 def test_decisions_after_a_stall_are_skipped_not_bunched(setup) -> None:
-    r = _run(setup, _Stalled(), seconds=5.0, match=MatchSettings(relocate=0))
+    r = _run(
+        setup, _Stalled(), seconds=5.0, match=MatchSettings(paths=PathSettings(relocate_every=0))
+    )
     times = [d["t"] for d in r.decisions]
     assert all(b > a for a, b in itertools.pairwise(times))  # never two on one frame
     skipped = [d for d in r.decisions if "skipped" in d]
@@ -479,10 +489,14 @@ def test_a_bank_with_variants_reports_ring_views(setup, tmp_path: Path) -> None:
     assert d is not None and 0 <= d.view < 6
 
 
-def test_the_stay_prior_keeps_the_action_unless_another_fits_clearly_better(setup) -> None:
+def test_the_keep_clip_bonus_keeps_the_action_unless_another_fits_clearly_better(setup) -> None:
     _, layer, bank = setup
-    plain = Matcher(layer, bank, MatchSettings(window=1.0, lookahead=1.5))
-    keen = Matcher(layer, bank, MatchSettings(window=1.0, lookahead=1.5, stay=0.5))
+    plain = Matcher(layer, bank, MatchSettings(window=1.0, paths=PathSettings(lookahead=1.5)))
+    keen = Matcher(
+        layer,
+        bank,
+        MatchSettings(window=1.0, paths=PathSettings(lookahead=1.5, keep_clip_bonus=0.5)),
+    )
     rng = np.random.default_rng(4)
     kept = changed = 0
     for f in rng.choice(np.flatnonzero(layer.graph.in_scc), 30, replace=False):
@@ -508,13 +522,15 @@ def test_the_stay_prior_keeps_the_action_unless_another_fits_clearly_better(setu
         kept += k_on and not a_on
         changed += a_on and not k_on  # the prior never pushes away from playing on
     assert kept > 0 and changed == 0
-    with pytest.raises(ValueError, match="stay"):
-        MatchSettings(stay=1.0)
+    with pytest.raises(ValueError, match="keep_clip_bonus"):
+        MatchSettings(paths=PathSettings(keep_clip_bonus=1.0))
 
 
 def test_a_live_source_searches_in_the_background(setup) -> None:
     sync = _run(setup, VideoSource(RECORDING, silhouette=True), seconds=8.0)
-    match = MatchSettings(relocate_ratio=1.0, jumps=False)  # relocate whenever it finds better
+    match = MatchSettings(
+        paths=PathSettings(relocate_ratio=1.0), landing=LandingSettings(jumps=False)
+    )  # relocate whenever it finds better
     source = VideoSource(RECORDING, silhouette=True)
     bg = _run(setup, source, background_search=True, match=match, seconds=8.0)
     # the same decision points; the search's answers come at later ones, so the avatar

@@ -1,5 +1,5 @@
 """A performer at another tempo, or one who stops: the matcher's readings of the
-performer at other tempos (``MatchSettings.tempos``) and the benchmark's takes that keep
+performer at other tempos (``ActionSettings.tempos``) and the benchmark's takes that keep
 another tempo, pause, or move with another reach (``benchmarks._takes``)."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from benchmarks._takes import held_since, paused_clip, retimed_clip, styled_clip
 from control.graph import joint_jumps
 from control.motion import foot_points, load_library, qconj, qlog, qmul
 from silhouette_bank import get_descriptor
-from vision import MatchSettings
+from vision import ActionSettings, MatchSettings
 from vision._windows import retimed, tempo_readings
 
 
@@ -53,7 +53,7 @@ def test_tempo_readings_are_one_per_tempo_as_seen_only() -> None:
     # the fast reading is the last 10 frames stretched: its first row is frame 20's
     fast = tempo_readings(performer, 15, (1.5,), 15, desc, mean, proj, 3.0)[0]
     np.testing.assert_allclose(fast[0, :k], desc.shape(performer[20:21])[0])
-    assert MatchSettings().tempos == ()  # measured, not on by default (README)
+    assert MatchSettings().action.tempos == ()  # measured, not on by default (README)
 
 
 def test_a_paused_take_holds_still_where_it_moves_least(mocap: Path) -> None:
@@ -81,7 +81,7 @@ def test_a_paused_take_holds_still_where_it_moves_least(mocap: Path) -> None:
 @pytest.mark.parametrize("bad", [(0.0,), (0.1,), (float("nan"),), ("slow",), (9.0,)])
 def test_bad_tempos_are_refused(bad) -> None:
     with pytest.raises(ValueError, match="tempos must be numbers"):
-        MatchSettings(tempos=bad)
+        MatchSettings(action=ActionSettings(tempos=bad))
 
 
 @pytest.mark.parametrize("tempo", [0.5, 1.3])

@@ -14,7 +14,7 @@ from control.avatar import JumpCosts
 from control.motion import Library, load_library
 from mimic.cli import main
 from tests.vision.conftest import RECORDING
-from vision import ActionVote, Matcher, MatchSettings, action_keys
+from vision import ActionSettings, ActionVote, LandingSettings, Matcher, MatchSettings, action_keys
 
 
 def _squats_and_jogs(lib: Library) -> tuple[list[str | None], list[int], list[int]]:
@@ -46,7 +46,7 @@ def test_action_keys_share_labels_across_clips(mocap: Path) -> None:
 
 def test_the_vote_is_a_majority_and_a_tie_keeps_the_action(setup) -> None:
     lib, layer, bank = setup
-    m = Matcher(layer, bank, MatchSettings(vote=3))
+    m = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=3)))
     keys = action_keys(lib.clips)
     assert keys is not None
     m.vote.actions = keys
@@ -61,7 +61,7 @@ def test_the_vote_is_a_majority_and_a_tie_keeps_the_action(setup) -> None:
     for _ in range(2):
         m.vote.cast(np.array([fa]))
     assert m.vote.voted == a  # the last three: b, a, a
-    tie = Matcher(layer, bank, MatchSettings(vote=2))
+    tie = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=2)))
     tie.vote.actions = keys
     tie.vote.cast(np.array([fa]))
     tie.vote.cast(np.array([fb]))
@@ -69,8 +69,11 @@ def test_the_vote_is_a_majority_and_a_tie_keeps_the_action(setup) -> None:
     tie.vote.cast(np.array([fb]))
     assert tie.vote.voted == b
     # no labels, or no vote: nothing is voted
-    assert Matcher(layer, bank, MatchSettings(vote=3)).vote.cast(targets) is None
-    off = Matcher(layer, bank, MatchSettings(vote=0))
+    assert (
+        Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=3))).vote.cast(targets)
+        is None
+    )
+    off = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=0)))
     off.vote.actions = keys
     assert off.vote.cast(targets) is None
 
@@ -125,8 +128,8 @@ def test_a_decision_after_skipped_ones_votes_for_them_too() -> None:
 def test_the_avatar_leaves_an_action_the_performer_is_not_doing(setup) -> None:
     """The performer squats; the avatar jogs, and its jog window fits them nearly as well
     as the best (a ``jump_ratio`` so low that no jump would win): with the strict vote
-    (``vote_margin`` infinite) it leaves for a squat all the same, once it has played
-    ``hold`` on."""
+    (``ActionSettings.margin`` infinite) it leaves for a squat all the same, once it has played
+    ``min_play`` on."""
     lib, layer, bank = setup
     labels, squat, jog = _squats_and_jogs(lib)
     assert squat and jog
@@ -135,7 +138,10 @@ def test_the_avatar_leaves_an_action_the_performer_is_not_doing(setup) -> None:
     assert keys is not None
 
     def decide(vote: int) -> tuple[int, bool] | None:
-        st = MatchSettings(vote=vote, jump_ratio=0.01, vote_margin=math.inf)
+        st = MatchSettings(
+            action=ActionSettings(vote=vote, margin=math.inf),
+            landing=LandingSettings(jump_ratio=0.01),
+        )
         m = Matcher(layer, bank, st)
         m.vote.actions = keys
         s = squat[len(squat) // 2]
@@ -159,7 +165,7 @@ def test_the_avatar_jumps_into_the_voted_action_unless_another_fits_far_better(
 ) -> None:
     """The performer jogs, but the vote is still for a squat (one jog window among many
     squat votes): none of the best windows is a squat, so the avatar, jogging, looks
-    for the best squat windows. With the strict vote (``vote_margin`` infinite) it jumps
+    for the best squat windows. With the strict vote (``ActionSettings.margin`` infinite) it jumps
     into one of them, never into a jog (before the vote it stayed, or jumped to the best
     jog window); with a margin of 0.2 the best jog window, whose cost even 1.2 times is
     far below the best squat window's, wins, at 1.2 times its cost."""
@@ -168,7 +174,7 @@ def test_the_avatar_jumps_into_the_voted_action_unless_another_fits_far_better(
     keys = action_keys(lib.clips)
     assert keys is not None and squat and jog
     costs = JumpCosts(layer.graph, lib.clips, anywhere=True)
-    m = Matcher(layer, bank, MatchSettings(vote=15, vote_margin=margin))
+    m = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=15, margin=margin)))
     m.vote.actions = keys
     for _ in range(10):
         m.vote.cast(np.array([squat[len(squat) // 2]]))
@@ -177,7 +183,7 @@ def test_the_avatar_jumps_into_the_voted_action_unless_another_fits_far_better(
     queries = m.queries(performer)
     assert queries is not None
     st = m.settings
-    best = m.index().search(queries, st.band, st.top, recency=st.recency)
+    best = m.index().search(queries, st.band, st.landing.top_windows, recency=st.recency)
     assert all(labels[s + m.n] != "Squat" for s, _, _ in best)  # the best windows jog
     a = jog[2 * len(jog) // 3]
     shown = np.arange(a - m.recent_frames + 1, a + 1)  # played on: settled
@@ -187,7 +193,9 @@ def test_the_avatar_jumps_into_the_voted_action_unless_another_fits_far_better(
     if math.isinf(margin):
         assert labels[d.jump.target] == "Squat"
         return
-    squats = m.index().search(queries, st.band, st.top, m.vote.starts(m.n), recency=st.recency)
+    squats = m.index().search(
+        queries, st.band, st.landing.top_windows, m.vote.starts(m.n), recency=st.recency
+    )
     assert labels[d.jump.target] == "Jog" and not d.jump.leaves
     assert d.cost == pytest.approx(1.2 * best[0][2], rel=1e-6) and d.cost < squats[0][2]
 
@@ -205,22 +213,22 @@ def test_a_negative_or_infinite_recency_weighing_is_refused(mocap: Path, capsys)
 
 def test_the_hold_is_a_flag_and_a_bad_one_is_refused(mocap: Path, tmp_path: Path, capsys) -> None:
     for bad in (-0.1, math.inf, math.nan):
-        with pytest.raises(ValueError, match="hold must be a finite number of seconds >= 0"):
-            MatchSettings(hold=bad)
+        with pytest.raises(ValueError, match="min_play must be a finite number of seconds >= 0"):
+            MatchSettings(landing=LandingSettings(min_play=bad))
     argv = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "13_30", "--hold", "-1"]
     assert main(argv) != 0
     assert "argument --hold: must be a number from 0 to 60, not '-1'" in capsys.readouterr().err
     out = tmp_path / "r.json"
     argv = ["evaluate", str(RECORDING), str(mocap), "--clips", "13_30", "--seconds", "2"]
     assert main([*argv, "--hold", "0.5", "--json", str(out)]) == 0
-    assert json.loads(out.read_text())["match"]["hold"] == 0.5
+    assert json.loads(out.read_text())["match"]["landing"]["min_play"] == 0.5
 
 
 def test_a_negative_vote_is_refused(mocap: Path, capsys) -> None:
     with pytest.raises(ValueError, match="vote must be a number of decisions >= 0"):
-        MatchSettings(vote=-1)
-    with pytest.raises(ValueError, match="vote_margin must be >= 0"):
-        MatchSettings(vote_margin=-0.1)
+        MatchSettings(action=ActionSettings(vote=-1))
+    with pytest.raises(ValueError, match="margin must be >= 0"):
+        MatchSettings(action=ActionSettings(margin=-0.1))
     argv = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "13_30", "--vote", "-2"]
     assert main(argv) != 0
     assert (
@@ -232,13 +240,13 @@ def test_a_negative_vote_is_refused(mocap: Path, capsys) -> None:
 @pytest.mark.parametrize("margin", [math.inf, 0.2])
 def test_holding_still_in_another_action_costs_the_margin_too(setup, margin: float) -> None:
     """A performer standing still; the avatar holds a jog frame. Held, a frame of another
-    action than the voted one costs 1 + ``vote_margin`` times as much, as it does played
+    action than the voted one costs 1 + ``ActionSettings.margin`` times as much, as it does played
     on (with the strict vote the hold is not weighed: the avatar leaves that action)."""
     lib, layer, bank = setup
     _, squat, jog = _squats_and_jogs(lib)
     keys = action_keys(lib.clips)
     assert keys is not None and squat and jog
-    m = Matcher(layer, bank, MatchSettings(vote=15, vote_margin=margin))
+    m = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=15, margin=margin)))
     m.vote.actions = keys
     j = jog[len(jog) // 2]
     still = bank.features[m.to_bank[np.full(m.n, j + 3)], 0].astype(np.float64)
@@ -256,8 +264,8 @@ def test_holding_still_in_another_action_costs_the_margin_too(setup, margin: flo
 
 
 def test_the_filtered_vote_ignores_odd_decisions_and_follows_a_real_change() -> None:
-    """The hidden Markov filter (``vote_switch``): 10 s of one action whose decisions
-    are won by another now and then (every 7th, two in a row at 4 s) keep the voted
+    """The hidden Markov filter (``ActionSettings.switch_chance``): 10 s of one action
+    whose decisions are won by another now and then (every 7th, two in a row at 4 s) keep the voted
     action; a clean change is taken up within half a second."""
     from vision._vote import ActionVote
 
