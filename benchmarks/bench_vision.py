@@ -64,7 +64,6 @@ from vision import (
     perform,
     record_clip,
 )
-from vision._fallback import ready_matcher
 
 RECORDING = Path("recordings/13_29_first12s_160x120.mkv")
 
@@ -172,6 +171,7 @@ def matcher_latency(
         }
     # the brute-force global search (--no-jumps: start and relocation, once a second);
     # the fast index against it is benchmarks/bench_search.py
+    clips = g.clips_of(lib.clips)
     matcher = Matcher(layer, bank, MatchSettings())
     ms = []
     for s in range(0, perf.shape[0] - matcher.n, 15):
@@ -191,7 +191,7 @@ def matcher_latency(
     # perform's throwaway decision, so that no timed one compiles a kernel (one takes
     # hundreds of milliseconds without numba's cache), then the vote
     matcher.warm_up(avatar.frame, avatar.recent(matcher.recent_frames), avatar.jump_costs)
-    ready_matcher(matcher, g.clips_of(lib.clips), PerformSettings().decide_every)
+    matcher.ready(clips, PerformSettings().decide_every)
     out["vote"] = matcher.vote.actions is not None
     out["decision_warm_up_s"] = round(time.perf_counter() - t0, 3)
     lat = []

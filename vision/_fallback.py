@@ -29,35 +29,19 @@ from numpy.typing import NDArray
 
 from control.avatar import Avatar, JumpCosts
 from control.clusters import HigherLayer
-from control.motion import Clip, action_names
+from control.motion import Clip
 from silhouette_bank import Bank, silhouette_features
 
 from ._decision import Decision
-from ._facing import Facing
-from ._library import action_keys
 from ._matcher import Matcher
 
-__all__ = ["FALLBACK_REASONS", "SilhouetteFallback", "ready_matcher"]
+__all__ = ["FALLBACK_REASONS", "SilhouetteFallback"]
 
 #: the landmark matcher's reasons (``Matcher.why``, up to " (") after which the
 #: silhouette is tried: a person may be in view, and nothing was read of them
 FALLBACK_REASONS = ("no pose",)
 
 FloatArray = NDArray[np.float64]
-
-
-def ready_matcher(matcher: Matcher, clips: Sequence[Clip], period: float) -> None:
-    """The vote's actions (``clips``: the graph's), its classifier and each action's
-    search made now (at a first decision they took 7-10 ms), and the facing for decisions
-    every ``period`` seconds: the loop's matcher, beyond the graph and the bank."""
-    actions = action_keys(clips)
-    if actions is not None:
-        matcher.vote.actions = actions
-        matcher.vote.names = action_names(clips)
-        if matcher.settings.landing.jumps and matcher.settings.action.vote > 0:
-            matcher.classifier()
-            matcher.index().prepare(matcher.vote.window_actions(matcher.n))
-    matcher.facing = Facing.of(clips, matcher, period)
 
 
 class SilhouetteFallback:
@@ -83,17 +67,19 @@ class SilhouetteFallback:
                 f"{bank.settings.descriptor!r} descriptor"
             )
         settings = main.settings
-        self.matcher = matcher = Matcher(layer, bank, settings)
+        # one vote, whoever decides
+        self.matcher = matcher = Matcher(layer, bank, settings, vote=main.vote)
         if settings.landing.jumps:
             matcher.index()
             matcher.warm_up(avatar.frame, avatar.recent(matcher.recent_frames), costs)
-        ready_matcher(matcher, clips, period)
-        matcher.vote = main.vote  # one vote, whoever decides
+        matcher.ready(clips, period)
         self.blank = np.full(matcher.n_features, np.nan)
         #: the performer's masks at the library's rate, in step with the landmark
         #: features' history
         self.history: deque[_Seen] = deque(maxlen=matcher.history_frames)
         self.latest = _Seen(None)
+        #: the history held under a window at the last ``decide``
+        self.filling = False
 
     def see(self, mask: NDArray[np.bool_] | None) -> None:
         """The latest frame's person mask (``None``: none)."""
@@ -113,14 +99,19 @@ class SilhouetteFallback:
         self, frame: int, recent: NDArray[np.int64] | None, costs: JumpCosts | None
     ) -> Decision | None:
         """The silhouette matcher's decision from the avatar at ``frame`` (``None``, and
-        ``matcher.why``, without one)."""
+        ``why``, without one)."""
         matcher = self.matcher
-        if len(self.history) < matcher.n:
-            matcher.why = "filling buffer"
+        self.filling = len(self.history) < matcher.n
+        if self.filling:
             return None
         if matcher.settings.landing.jumps:
             return matcher.decide(frame, self.features(), recent, costs)
         return matcher.decide(frame, self.features(matcher.n))
+
+    @property
+    def why(self) -> str:
+        """Why the last ``decide`` gave nothing ("" when it gave a decision)."""
+        return "filling buffer" if self.filling else self.matcher.why
 
 
 class _Seen:

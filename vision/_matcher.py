@@ -23,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 from control.avatar import JUMP, JumpCosts
 from control.clusters import HigherLayer
 from control.dtw import ShapeTable, dtw_batch, dtw_windows
+from control.motion import Clip, action_names
 from silhouette_bank import Bank
 
 from ._classify import ActionClassifier, action_scores, cached_action_classifier
@@ -38,6 +39,7 @@ from ._decision import Decision, Jump
 from ._facing import Facing
 from ._index import WindowIndex, best_of, cached_window_index
 from ._landing import Landing
+from ._library import action_keys
 from ._paths import CandidatePaths
 from ._settings import MatchSettings
 from ._tables import cached_shape_stats, cached_window_tables
@@ -61,11 +63,22 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 
-class Matcher(CandidatePaths, Landing):
-    """Matches a performer's recent features against the avatar's candidate actions."""
+class Matcher(Landing):
+    """Matches a performer's recent features against the avatar's candidate actions.
+
+    ``actions`` (each graph frame's action key, ``vision.action_keys``; ``None``: an
+    unlabelled library) and their ``names`` are the vote's; ``vote``: one to share with
+    another matcher of the same graph (the silhouette beside the landmarks), so that the
+    avatar's action does not restart when the evidence changes hands."""
 
     def __init__(
-        self, layer: HigherLayer, bank: Bank, settings: MatchSettings | None = None
+        self,
+        layer: HigherLayer,
+        bank: Bank,
+        settings: MatchSettings | None = None,
+        actions: IntArray | None = None,
+        names: Sequence[str] = (),
+        vote: ActionVote | None = None,
     ) -> None:
         self.layer = layer
         self.graph = layer.graph
@@ -103,7 +116,8 @@ class Matcher(CandidatePaths, Landing):
         if self.settings.landing.jumps:
             self.plays = np.ones(self.graph.n_frames, dtype=bool)
             self.plays[self.graph.clip_start[1:] - 1] = False
-        self._cache: dict[tuple[int, int], tuple[IntArray, IntArray] | None] = {}
+        #: Lee et al.'s candidate paths from the avatar's frame
+        self.paths = CandidatePaths(layer, self.settings.paths, self.n, self.bound, self.plays)
         self._tables: tuple[ShapeTable, FloatArray, IntArray] | None = None
         self._tables_key = ""
         self._index: WindowIndex | None = None
@@ -122,8 +136,23 @@ class Matcher(CandidatePaths, Landing):
         self.last_own = float("inf")
         d_max = layer.graph.report.get("max_distance") if layer.graph.report else None
         self.d_max = float(d_max) if d_max else 1.0
-        self.vote = ActionVote.of(self.settings.action, self.n // 2)  # (actions: the caller's)
-        self.facing: Facing | None = None  # (``Landing``; the caller's: ``Performance``)
+        if vote is None:
+            vote = ActionVote.of(self.settings.action, self.n // 2, actions, names)
+        self.vote = vote
+        #: the performer's facing, for silhouettes read both ways (``ready``)
+        self.facing: Facing | None = None
+
+    def ready(self, clips: Sequence[Clip], period: float) -> None:
+        """Ready for a loop deciding every ``period`` s: the vote's actions from ``clips``
+        (the graph's) unless it has some, its classifier and each action's search made
+        now (else the first decisions stall 7-10 ms), and the performer's facing."""
+        if self.vote.actions is None:
+            self.vote.actions = actions = action_keys(clips)
+            self.vote.names = action_names(clips) if actions is not None else []
+        if self.vote.actions is not None and self.settings.landing.jumps and self.vote.size > 0:
+            self.classifier()
+            self.index().prepare(self.vote.window_actions(self.n))
+        self.facing = Facing.of(clips, self, period)
 
     def _check(self, performer: FloatArray) -> None:
         if performer.ndim != 2 or performer.shape[1] != self.n_features:
@@ -383,11 +412,14 @@ class Matcher(CandidatePaths, Landing):
         """One throwaway decision from the avatar at ``frame`` on a window of the library
         itself, so that the first real one does not pay for loading or compiling the
         search and DTW kernels (0.5 s on a fresh install: a stall a performer would see).
-        Before the vote is given its actions: it votes for nothing."""
+        It votes in a vote of its own, over no actions, which it then drops."""
         if self.bank.features.shape[0] >= self.n:
             probe = np.asarray(self.bank.features[: self.n, 0], dtype=np.float64)
-            self.decide(frame, probe, recent, jump_costs)
-            self.why, self.last_own = "", float("inf")
+            vote, self.vote = self.vote, ActionVote.of(self.settings.action, self.n // 2)
+            try:
+                self.decide(frame, probe, recent, jump_costs)
+            finally:
+                self.vote, self.why, self.last_own = vote, "", float("inf")
 
     def decide(
         self,
@@ -427,12 +459,12 @@ class Matcher(CandidatePaths, Landing):
                     latency_ms=(time.perf_counter() - t0) * 1e3,
                     how="plays_on",
                 )
-        cands = self.candidates(frame)
+        cands = self.paths.candidates(frame)
         if not cands:
             self.why = "no candidate path"
             return None
         views = self.bank.features.shape[1]
-        wins = [self._window_frames(f) for _, f, _ in cands]
+        wins = [self.paths.window_frames(f) for _, f, _ in cands]
         refs = np.concatenate([self._bank_sequences(w) for w in wins])
         group = np.repeat(np.arange(len(cands)), views)
         st = self.settings

@@ -1,41 +1,41 @@
-"""The candidate paths of Lee et al.'s vision interface (§5.3), for ``Matcher``: the
-nodes of the avatar's cluster tree reached within the look-ahead, the most probable
-motion to each, and the shortest route through the graph's component to a frame."""
+"""The candidate paths of Lee et al.'s vision interface (§5.3), one of ``Matcher``'s
+collaborators: the nodes of the avatar's cluster tree reached within the look-ahead, the
+most probable motion to each, and the shortest route through the graph's component to a
+frame."""
 
 from __future__ import annotations
-
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from control.clusters import HigherLayer
-from control.graph import MotionGraph
 
-from ._settings import MatchSettings
+from ._settings import PathSettings
 
 __all__ = ["CandidatePaths"]
 
 IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
 
 
 class CandidatePaths:
-    """What ``Matcher`` inherits for Lee et al.'s candidate paths; it sets the
-    attributes below."""
+    """Lee et al.'s candidate paths through ``layer``'s cluster forest with ``settings``
+    (``PathSettings``): windows of ``n`` frames, paths reaching ``bound`` frames ahead,
+    ``plays`` whether each graph frame plays on into the next."""
 
-    layer: HigherLayer
-    graph: MotionGraph
-    settings: MatchSettings
-    n: int
-    bound: int
-    plays: NDArray[np.bool_]
-    _cache: dict[tuple[int, int], Any]
+    def __init__(
+        self, layer: HigherLayer, settings: PathSettings, n: int, bound: int, plays: BoolArray
+    ) -> None:
+        self.layer, self.graph, self.settings = layer, layer.graph, settings
+        self.n, self.bound, self.plays = n, bound, plays
+        #: each (tree root, node)'s most probable motion, made once
+        self._cache: dict[tuple[int, int], tuple[IntArray, IntArray] | None] = {}
 
     def route(self, frame: int, target: int) -> tuple[IntArray, IntArray] | None:
         """The shortest way ``(frames, edges)`` from ``frame`` to ``target`` through the
         graph's component (playing on and transitions, one frame per step; breadth
-        first), at most ``settings.paths.route_seconds`` seconds long, or ``None``."""
-        bound = max(1, round(self.settings.paths.route_seconds * self.graph.fps))
+        first), at most ``route_seconds`` long, or ``None``."""
+        bound = max(1, round(self.settings.route_seconds * self.graph.fps))
         return self.graph.route(frame, target, bound, self.plays)
 
     def _path(self, frame: int, node: int) -> tuple[IntArray, IntArray] | None:
@@ -59,7 +59,7 @@ class CandidatePaths:
             np.concatenate((np.full(lead.size, -1, dtype=np.int64), edges)),
         )
 
-    def _window_frames(self, frames: IntArray) -> IntArray:
+    def window_frames(self, frames: IntArray) -> IntArray:
         """The first ``n`` frames of a path, played on past its end when it is short."""
         out = [int(f) for f in frames[: self.n]]
         while len(out) < self.n:  # played on while it can, then held
@@ -84,11 +84,11 @@ class CandidatePaths:
             p = self._path(frame, int(node))
             if p is None:
                 continue
-            key = self._window_frames(p[0]).tobytes()
+            key = self.window_frames(p[0]).tobytes()
             if key in seen:
                 continue
             seen.add(key)
             out.append((int(node), p[0], p[1]))
-            if len(out) >= self.settings.paths.max_candidates:
+            if len(out) >= self.settings.max_candidates:
                 break
         return out

@@ -34,7 +34,7 @@ from control.motion import Clip
 from silhouette_bank import Bank, silhouette_features
 
 from ._decision import Decision
-from ._fallback import FALLBACK_REASONS, SilhouetteFallback, ready_matcher
+from ._fallback import FALLBACK_REASONS, SilhouetteFallback
 from ._landmarks import PoseReader
 from ._matcher import Matcher
 from ._person import make_segmenter, resolve_segmentation
@@ -53,10 +53,9 @@ MAX_COVER = 0.6
 UNPOSED = "a person in view, no body found in them"
 #: degrees a second the avatar's blended joints may turn in a frame beyond what their
 #: source frames turn (``control.graph.follow_turns``), and the rate of its leg IK's
-#: corrections (``TURN_RATE`` is 300 elsewhere). Its blends pile up (a jump every few
-#: tenths of a second), and a fading offset on a fast joint turned faster at junctions
-#: than the library's own 99th percentile; with both limits none did (the figures:
-#: ``benchmarks/HISTORY.md``, "junctions").
+#: corrections (``TURN_RATE`` is 300 elsewhere): its blends pile up (a jump every few
+#: tenths of a second), and without both limits a fading offset on a fast joint turns
+#: faster at junctions than the library's own 99th percentile.
 TURN_LIMIT = 450.0
 IK_TURN_RATE = 200.0
 
@@ -97,9 +96,9 @@ def perform(
     side-by-side video, ``vision._video.write_video``). ``on_frame(t, mask, avatar,
     picture)`` is called for every media frame (``picture``: the colour frame and the
     pose model's landmarks, each ``None`` when there are none), ``on_decision(entry)``
-    with every decision log entry
-    (the live view uses both). ``stop()`` is asked before every frame: a non-empty
-    answer (why) ends the run there, and what was performed is returned as usual.
+    with every decision log entry (the live view uses both). ``stop()`` is asked before
+    every frame: a non-empty answer (why) ends the run there, and what was performed is
+    returned as usual.
     ``fallback``: with a pose ``bank``, a silhouette bank of the same clips, whose
     matcher decides when the landmarks cannot (``vision._fallback``)."""
     run = Performance(source, layer, bank, clips, settings, start, seed, fallback)
@@ -144,7 +143,7 @@ class Performance:
             avatar = self.avatar
             matcher.warm_up(avatar.frame, avatar.recent(matcher.recent_frames), self.costs)
         period = settings.decide_every
-        ready_matcher(matcher, clips, period)  # (after the warm-up: no vote)
+        matcher.ready(clips, period)
         self.segmenter: Any = None
         self.landmarks = matcher.desc.kind == "pose"
         self.reader = PoseReader() if self.landmarks else None
@@ -319,7 +318,7 @@ class Performance:
             self.pending = self.searcher.submit(matcher.find_window, self.window())
         if got is None or not got[2] < settings.match.paths.relocate_ratio * d.cost:
             return d
-        way = matcher.route(self.avatar.frame, got[0])
+        way = matcher.paths.route(self.avatar.frame, got[0])
         if way is None:  # better elsewhere, but too far away through the graph
             entry["relocation_unreachable"] = int(got[0])
             return d
@@ -370,7 +369,7 @@ class Performance:
             return d
         d = self.fallback.decide(avatar.frame, recent, avatar.jump_costs)
         if d is None:
-            entry["silhouette"] = self.fallback.matcher.why
+            entry["silhouette"] = self.fallback.why
         else:
             entry["by"] = "silhouette"
         return d
@@ -383,7 +382,7 @@ class Performance:
         # same frame
         missed = int((t + 1e-9 - self.next_decision) // settings.decide_every)
         self.next_decision += (missed + 1) * settings.decide_every
-        matcher.vote.missed = missed  # (the next vote stands for those points too)
+        matcher.vote.skipped(missed)  # (the next vote stands for those points too)
         entry = self._entry(t, missed)
         filled = min(len(self.history), matcher.n)
         full = filled == matcher.n
@@ -413,7 +412,7 @@ class Performance:
                 # the performer back in view, in under half of the window so far
                 else "filling buffer (back in view)"
                 if matcher.why in ("no pose", "no silhouette")
-                and (self.fallback is None or self.fallback.matcher.why == "no silhouette")
+                and (self.fallback is None or self.fallback.why == "no silhouette")
                 else matcher.why or "no decision"
             )
             if routing:

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import itertools
 from collections import Counter, deque
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -79,10 +80,23 @@ class ActionVote:
         self._starts: tuple[tuple[int, int, int], NDArray[np.bool_]] | None = None
 
     @classmethod
-    def of(cls, settings: ActionSettings, span: int) -> ActionVote:
-        """The vote ``settings`` ask for."""
+    def of(
+        cls,
+        settings: ActionSettings,
+        span: int,
+        actions: IntArray | None = None,
+        names: Sequence[str] = (),
+    ) -> ActionVote:
+        """The vote ``settings`` ask for, over ``actions`` named ``names``."""
         st = settings
-        return cls(st.vote, span, st.switch_chance, st.temperature, st.min_points, st.confidence)
+        vote = cls(st.vote, span, st.switch_chance, st.temperature, st.min_points, st.confidence)
+        vote.actions, vote.names = actions, list(names)
+        return vote
+
+    def skipped(self, points: int) -> None:
+        """``points`` decision points were skipped just before the next decision (a
+        source slower than the decisions): its vote stands for them too."""
+        self.missed = points
 
     def filter(self, scores: NDArray[np.float64]) -> None:
         """One step of the forward filter of a hidden semi-Markov model over the actions:

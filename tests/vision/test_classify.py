@@ -120,8 +120,7 @@ def test_the_matchers_vote_goes_to_the_classifiers_choice(setup) -> None:
     lib, layer, bank = setup
     keys = action_keys(lib.clips)
     assert keys is not None
-    m = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=3)))
-    m.vote.actions = keys
+    m = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=3)), actions=keys)
     fa = int(np.flatnonzero(keys == keys[0])[0])
     other = int(keys[np.flatnonzero(keys != keys[0])[0]])
     for _ in range(3):
@@ -143,8 +142,9 @@ def test_the_matchers_vote_goes_to_the_classifiers_choice(setup) -> None:
     assert choice is not None and choice == int(keys[100 + m.n - 1])
     assert scores is not None and int(np.argmin(scores)) == choice  # (the filter's evidence)
     assert list(Path(bank.path).glob("actions-*.npz"))
-    off = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=3, classify=False)))
-    off.vote.actions = keys
+    off = Matcher(
+        layer, bank, MatchSettings(action=ActionSettings(vote=3, classify=False)), actions=keys
+    )
     assert off._choice(queries, ranked, x) == (None, None)
 
 

@@ -52,12 +52,12 @@ def test_matcher_finds_a_path_from_its_own_silhouettes(setup, banks, descriptor)
     hits = 0
     trials = 0
     for f in rng.choice(np.flatnonzero(layer.graph.in_scc), 40, replace=False):
-        cands = matcher.candidates(int(f))
+        cands = matcher.paths.candidates(int(f))
         if len(cands) < 2:
             continue
         trials += 1
         k = int(rng.integers(len(cands)))
-        frames = matcher._window_frames(cands[k][1])
+        frames = matcher.paths.window_frames(cands[k][1])
         view = int(rng.integers(18))
         # the performer is exactly the avatar doing candidate k, seen from one ring view
         b = matcher.to_bank[frames]
@@ -69,7 +69,7 @@ def test_matcher_finds_a_path_from_its_own_silhouettes(setup, banks, descriptor)
             performer = bank.settings.features.mirror(performer)
         d = matcher.decide(int(f), performer)
         assert d is not None and d.cost <= 1e-6 + d.runner_up
-        same = np.array_equal(matcher._window_frames(d.frames), frames)
+        same = np.array_equal(matcher.paths.window_frames(d.frames), frames)
         hits += same or d.cost < 1e-6
     assert trials >= 10 and hits == trials
 
@@ -125,7 +125,7 @@ def test_route_is_a_shortest_way_through_the_graph(setup) -> None:
     found = 0
     for i, f in enumerate(frames):
         for t in rng.choice(np.flatnonzero(scc), 15, replace=False):
-            way = matcher.route(int(f), int(t))
+            way = matcher.paths.route(int(f), int(t))
             if dist[i, t] > bound:
                 assert way is None
                 continue
@@ -500,7 +500,7 @@ def test_the_keep_clip_bonus_keeps_the_action_unless_another_fits_clearly_better
     rng = np.random.default_rng(4)
     kept = changed = 0
     for f in rng.choice(np.flatnonzero(layer.graph.in_scc), 30, replace=False):
-        cands = plain.candidates(int(f))
+        cands = plain.paths.candidates(int(f))
         on = [c for c in cands if not (c[2][: plain.n - 1] >= 0).any()]
         if len(cands) < 2 or not on:
             continue
@@ -508,7 +508,7 @@ def test_the_keep_clip_bonus_keeps_the_action_unless_another_fits_clearly_better
         other = next(c for c in cands if (c[2][: plain.n - 1] >= 0).any())
 
         def seen(frames: np.ndarray) -> np.ndarray:
-            b = plain.to_bank[plain._window_frames(frames)]
+            b = plain.to_bank[plain.paths.window_frames(frames)]
             feats = bank.features[b, 3].astype(float)
             move = bank.root_motion[b, 3].astype(float)
             centre = np.cumsum(move, axis=0) - move[0] + feats[:, -2:]

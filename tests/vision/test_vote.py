@@ -46,10 +46,9 @@ def test_action_keys_share_labels_across_clips(mocap: Path) -> None:
 
 def test_the_vote_is_a_majority_and_a_tie_keeps_the_action(setup) -> None:
     lib, layer, bank = setup
-    m = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=3)))
     keys = action_keys(lib.clips)
     assert keys is not None
-    m.vote.actions = keys
+    m = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=3)), actions=keys)
     frame_of = {int(k): int(np.flatnonzero(keys == k)[0]) for k in np.unique(keys)}
     a, b = sorted(frame_of)[:2]
     fa, fb = frame_of[a], frame_of[b]
@@ -61,8 +60,7 @@ def test_the_vote_is_a_majority_and_a_tie_keeps_the_action(setup) -> None:
     for _ in range(2):
         m.vote.cast(np.array([fa]))
     assert m.vote.voted == a  # the last three: b, a, a
-    tie = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=2)))
-    tie.vote.actions = keys
+    tie = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=2)), actions=keys)
     tie.vote.cast(np.array([fa]))
     tie.vote.cast(np.array([fb]))
     assert tie.vote.voted == a  # a tie keeps the action voted for
@@ -73,8 +71,7 @@ def test_the_vote_is_a_majority_and_a_tie_keeps_the_action(setup) -> None:
         Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=3))).vote.cast(targets)
         is None
     )
-    off = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=0)))
-    off.vote.actions = keys
+    off = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=0)), actions=keys)
     assert off.vote.cast(targets) is None
 
 
@@ -142,8 +139,7 @@ def test_the_avatar_leaves_an_action_the_performer_is_not_doing(setup) -> None:
             action=ActionSettings(vote=vote, margin=math.inf),
             landing=LandingSettings(jump_ratio=0.01),
         )
-        m = Matcher(layer, bank, st)
-        m.vote.actions = keys
+        m = Matcher(layer, bank, st, actions=keys)
         s = squat[len(squat) // 2]
         performer = bank.features[m.to_bank[np.arange(s - m.n + 1, s + 1)], 0]
         j = jog[len(jog) // 2]
@@ -174,8 +170,9 @@ def test_the_avatar_jumps_into_the_voted_action_unless_another_fits_far_better(
     keys = action_keys(lib.clips)
     assert keys is not None and squat and jog
     costs = JumpCosts(layer.graph, lib.clips, anywhere=True)
-    m = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=15, margin=margin)))
-    m.vote.actions = keys
+    m = Matcher(
+        layer, bank, MatchSettings(action=ActionSettings(vote=15, margin=margin)), actions=keys
+    )
     for _ in range(10):
         m.vote.cast(np.array([squat[len(squat) // 2]]))
     j = jog[len(jog) // 3]
@@ -246,8 +243,9 @@ def test_holding_still_in_another_action_costs_the_margin_too(setup, margin: flo
     _, squat, jog = _squats_and_jogs(lib)
     keys = action_keys(lib.clips)
     assert keys is not None and squat and jog
-    m = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=15, margin=margin)))
-    m.vote.actions = keys
+    m = Matcher(
+        layer, bank, MatchSettings(action=ActionSettings(vote=15, margin=margin)), actions=keys
+    )
     j = jog[len(jog) // 2]
     still = bank.features[m.to_bank[np.full(m.n, j + 3)], 0].astype(np.float64)
     queries = m.queries(still)
