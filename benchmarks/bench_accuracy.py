@@ -182,7 +182,7 @@ def _recognition(
     out: dict[str, Any] = {}
     for seconds in (1.0, 2.0, 3.0):
         m = Matcher(layer, bank, MatchSettings(window=seconds))
-        shape, centre, _ = m._global_tables()
+        shape, centre, _ = m.windows.tables()
         # every window inside one clip: the whole reference take, as issue 9's baseline
         ends = np.arange(g.n_frames) + m.n - 1
         take = np.flatnonzero(ends < g.n_frames)
@@ -195,7 +195,9 @@ def _recognition(
                 continue
             rows = x[end - m.n : end]
             rows = rows[np.isfinite(rows).all(axis=1)]  # as locate does
-            query = performer_sequence(rows, m.mean, m.proj, m.settings.centre_weight, m.desc)
+            query = performer_sequence(
+                rows, m.windows.mean, m.windows.proj, m.settings.centre_weight, m.desc
+            )
             st = m.settings
             s, _, _ = dtw_best_window(query, shape, centre, take, m.n, st.band, st.recency)
             hits.append(

@@ -52,10 +52,10 @@ def _within_one_action(m: Matcher, clips: Any, perf: np.ndarray) -> dict[str, An
     vote = ActionVote(1, m.n // 2)
     vote.actions, vote.voted = keys, int(keys[squat])
     only = vote.starts(m.n)
-    shape, centre, starts = m._global_tables()
+    shape, centre, starts = m.windows.tables()
     allowed = starts[only[starts]]
     t = time.perf_counter()
-    m.index().prepare(np.where(only, 0, -1))  # (as a performance does when it starts)
+    m.windows.index().prepare(np.where(only, 0, -1))  # (as a performance does when it starts)
     made = (time.perf_counter() - t) * 1e3
     times, hits, total = [], 0, 0
     for end in range(m.n, perf.shape[0] + 1):
@@ -63,7 +63,9 @@ def _within_one_action(m: Matcher, clips: Any, perf: np.ndarray) -> dict[str, An
         assert queries is not None
         t = time.perf_counter()
         st = m.settings
-        got = m.index().search(queries, st.band, st.landing.top_windows, only, recency=st.recency)
+        got = m.windows.index().search(
+            queries, st.band, st.landing.top_windows, only, recency=st.recency
+        )
         times.append((time.perf_counter() - t) * 1e3)
         if end % 4 == 0:
             b = best_window(queries, shape, centre, allowed, m.n, st.band, st.recency)
@@ -89,7 +91,7 @@ def main() -> None:
     bank, _, _ = cached_bank(lib.clips, settings)
     m = Matcher(_Layer(g), bank, MatchSettings())  # type: ignore[arg-type]
     t0 = time.perf_counter()
-    index = m.index()
+    index = m.windows.index()
     build = time.perf_counter() - t0
     src = VideoSource(RECORDING, silhouette=True)
     feats = []

@@ -187,7 +187,7 @@ def matcher_latency(
     # the vote (its classifier and each action's search) and the facing
     t0 = time.perf_counter()
     _ = avatar.jump_costs.features
-    matcher.index()
+    matcher.windows.index()
     # perform's throwaway decision, so that no timed one compiles a kernel (one takes
     # hundreds of milliseconds without numba's cache), then the vote
     matcher.warm_up(avatar.frame, avatar.recent(matcher.recent_frames), avatar.jump_costs)

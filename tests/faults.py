@@ -164,8 +164,8 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
     )
     bank, _ = ensure_bank(lib.clips, SMALL_BANK, root / "bank", workers=1)
     matcher = Matcher(layer, bank, MatchSettings())
-    index = matcher.index()  # stored in the bank's folder, and the tables beside it
-    tables = tuple(np.array(t) for t in matcher._global_tables())
+    index = matcher.windows.index()  # stored in the bank's folder, and the tables beside it
+    tables = tuple(np.array(t) for t in matcher.windows.tables())
     write_motion_arrays(root / "arrays" / "02_01.motion.npz", lib.clips[0].motion)
     arrays = read_motion_arrays(root / "arrays" / "02_01.motion.npz")
 
@@ -193,11 +193,11 @@ def artifacts(mocap: Path, root: Path) -> tuple[list[Artifact], dict[str, Any]]:
 
     def load_index(r: Path) -> Any:
         stored = ensure_bank(lib.clips, SMALL_BANK, r / "bank", workers=1)[0]
-        return Matcher(layer, stored, MatchSettings()).index()
+        return Matcher(layer, stored, MatchSettings()).windows.index()
 
     def load_tables(r: Path) -> Any:
         stored = ensure_bank(lib.clips, SMALL_BANK, r / "bank", workers=1)[0]
-        return Matcher(layer, stored, MatchSettings())._global_tables()
+        return Matcher(layer, stored, MatchSettings()).windows.tables()
 
     def moved(a: dict[str, Any], key: str) -> None:
         a[key] = a[key] + np.array([1.0, 0.0, 0.0], dtype=a[key].dtype)  # 1 m along x

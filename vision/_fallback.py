@@ -70,7 +70,7 @@ class SilhouetteFallback:
         # one vote, whoever decides
         self.matcher = matcher = Matcher(layer, bank, settings, vote=main.vote)
         if settings.landing.jumps:
-            matcher.index()
+            matcher.windows.index()
             matcher.warm_up(avatar.frame, avatar.recent(matcher.recent_frames), costs)
         matcher.ready(clips, period)
         self.blank = np.full(matcher.n_features, np.nan)

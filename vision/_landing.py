@@ -1,71 +1,62 @@
-"""Where the avatar goes next, for ``Matcher``: a direct jump lands on the frame after
-one of the search's best windows, placed by the performer's last frames
+"""Where the avatar goes next, one of ``Matcher``'s collaborators: a direct jump lands on
+the frame after one of the search's best windows, placed by the performer's last frames
 (``phased_targets``), unless the avatar is there already, weighed by the action vote
-(``_gated``); or, for a performer standing still, the avatar holds its frame (``held``).
+(``gated``); or, for a performer standing still, the avatar holds its frame (``held``).
 What a jump must beat is the avatar's own cost (``own_cost`` of ``own_frames``)."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
 
 from control.avatar import JumpCosts
-from control.dtw import ShapeTable, dtw_batch
-from control.graph import MotionGraph
+from control.dtw import dtw_batch
 
 from ._decision import Decision
-from ._facing import Facing, Ranked
-from ._index import WindowIndex, best_of
+from ._facing import Ranked
+from ._index import best_of
+from ._search import Windows, WindowSearch
 from ._settings import MatchSettings
 from ._vote import ActionVote
 from ._windows import phased_targets, window_costs
 
-__all__ = ["Gate", "Landing"]
+__all__ = ["Gate", "Lander"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 #: ``(target, ok, there)``: the frames after the windows, which a jump may land on, and
 #: which the avatar is at already
 Gate = tuple[IntArray, NDArray[np.bool_], NDArray[np.bool_]]
-#: a decision's best windows ``(start, table view, cost)``
-Windows = list[tuple[int, int, float]]
 
 
-class Landing:
-    """What ``Matcher`` inherits for its jumps' targets, its own cost and for holding
-    still; it sets the attributes below."""
+class Lander:
+    """Where the avatar lands: the targets of its jumps, what a jump must beat (its own
+    cost), the action vote's part in a jump, and holding still. ``windows``: the
+    matcher's window search; ``vote``: its action vote; ``recent_frames``: the avatar's
+    frames a decision reads."""
 
-    graph: MotionGraph
-    settings: MatchSettings
-    n: int
-    plays: NDArray[np.bool_]
-    _runs: IntArray
-    _global_tables: Callable[[], tuple[ShapeTable, FloatArray, IntArray]]
-    _bank_sequences: Callable[[IntArray], FloatArray]
-    ring_views: int
-    last_own: float
-    recent_frames: int
-    vote: ActionVote
-    index: Callable[[], WindowIndex]
-    #: the performer's facing, for silhouettes read both ways (set by the caller, who has
-    #: the library's motion: ``Performance``)
-    facing: Facing | None
-
-    def weighed(self, costs: FloatArray, middle: int) -> FloatArray:
-        """Costs ``(readings, V)`` of one window (its middle frame ``middle``) in each
-        view, weighed by the performer's ``facing`` when there is one."""
-        return costs if self.facing is None else self.facing.weigh_views(costs, middle)
+    def __init__(
+        self,
+        windows: WindowSearch,
+        settings: MatchSettings,
+        vote: ActionVote,
+        n: int,
+        recent_frames: int,
+    ) -> None:
+        self.windows, self.settings, self.vote = windows, settings, vote
+        self.graph, self.plays = windows.graph, windows.plays
+        self.n, self.recent_frames = n, recent_frames
 
     def held(
-        self, frame: int, queries: list[FloatArray], rival: Decision | None
+        self, frame: int, queries: list[FloatArray], rival: Decision | None, own: float
     ) -> Decision | None:
         """The avatar holding ``frame`` still (shown again, as a performer standing
         still does), when ``settings.landing.hold_still`` and that matches the performer's window
         better than ``rival`` (the jump ``Matcher.jump`` chose, unless it leaves for the
-        voted action) or, without one, than playing on; else ``None``. The library has no
+        voted action) or, without one, than playing on (``own``, the avatar's own cost);
+        else ``None``. The library has no
         still second (its stillest windows still turn a joint 1.5-5 degrees a frame), so
         without it the avatar jumped about 4 times a second among near-still windows
         while the performer stood still. With the vote's margin, a frame of another
@@ -75,18 +66,17 @@ class Landing:
             rival is not None and rival.jump is not None and rival.jump.leaves
         ):
             return None
-        against = rival.cost if rival is not None else self.last_own
+        against = rival.cost if rival is not None else own
         if not np.isfinite(against):
             return None
         # the frame's features taken once, seen from every view (restricted to the best
-        # window's view and its two neighbours, the avatar held less: on bench_accuracy's
-        # pauses, 13_31 with landmarks, 129 -> 204 jumps a minute while the performer
-        # stood still)
-        one = self._bank_sequences(np.array([frame], dtype=np.int64))  # (V, 1, F)
+        # window's view and its neighbours, the avatar holds less while the performer
+        # stands still)
+        one = self.windows.sequences(np.array([frame], dtype=np.int64))  # (V, 1, F)
         refs = np.repeat(one, self.n, axis=1)  # (one frame: its centre does not move)
         band = self.settings.band
         r = self.settings.recency
-        costs = self.weighed(
+        costs = self.windows.weighed(
             np.array([dtw_batch(q, refs, window=band, recency=r) for q in queries]), frame
         )
         cost = float(costs.min())
@@ -103,7 +93,7 @@ class Landing:
             cluster_path=np.zeros(0, dtype=np.int64),
             cost=cost,
             runner_up=against,
-            view=int(np.argmin(costs.min(axis=0))) % self.ring_views,
+            view=int(np.argmin(costs.min(axis=0))) % self.windows.ring_views,
             candidates=1,
             latency_ms=0.0,
             how="held",
@@ -113,29 +103,29 @@ class Landing:
         """DTW cost of the avatar's last frames ``recent`` (best view) against the
         performer: how well it follows now. The frames that lead into a window's first
         stand in for those not yet shown; ``inf`` where its clip has none."""
-        w = self._lead_in(recent)[-self.n :]
+        w = self.lead_in(recent)[-self.n :]
         if w.size < self.n:
             return float("inf")
         band, r = self.settings.band, self.settings.recency
-        if np.all(np.diff(w) == 1) and self._same_run(int(w[0]), w[-1:])[0]:
-            shape, centre, _ = self._global_tables()  # a library window: as the search costs it
+        if np.all(np.diff(w) == 1) and self.windows.same_run(int(w[0]), w[-1:])[0]:
+            shape, centre, _ = self.windows.tables()  # a library window: as the search costs it
             costs = window_costs(queries, shape, centre, int(w[0]), self.n, band, r)
         else:
-            refs = self._bank_sequences(w)
+            refs = self.windows.sequences(w)
             costs = np.array([dtw_batch(q, refs, window=band, recency=r) for q in queries])
-        return float(self.weighed(costs, int(w[self.n // 2])).min())
+        return float(self.windows.weighed(costs, int(w[self.n // 2])).min())
 
     def own_frames(self, frame: int, recent: IntArray) -> IntArray:
         """The frames whose cost is the avatar's own (``jump``): with
         ``settings.landing.own_from_library`` the library window that plays into ``frame`` (when
         its clip has one), else the avatar's ``recent`` frames shown."""
         if self.settings.landing.own_from_library:
-            lib = self._lead_in(np.array([frame], dtype=np.int64))
+            lib = self.lead_in(np.array([frame], dtype=np.int64))
             if lib.size >= self.n:
                 return lib
         return recent
 
-    def _lead_in(self, recent: IntArray) -> IntArray:
+    def lead_in(self, recent: IntArray) -> IntArray:
         """``recent``, preceded by the frames that play on into its first one, up to
         ``recent_frames`` in all."""
         need = self.recent_frames - recent.size
@@ -148,7 +138,7 @@ class Landing:
             lead.append(f)
         return np.concatenate((np.array(lead[::-1], dtype=np.int64), recent))
 
-    def _gated(
+    def gated(
         self,
         frame: int,
         queries: list[FloatArray],
@@ -170,19 +160,19 @@ class Landing:
             return got, target, ok, np.ones(len(got)), 1.0
         margin = self.settings.action.margin
         if not (ok & voted).any():
-            more = self._voted_windows(frame, queries, ranked, costs, there & voted)
+            more = self.voted_windows(frame, queries, ranked, costs, there & voted)
             if math.isinf(margin):
                 got, target, ok, voted = more
             else:
                 got = [*got, *more[0]]
                 target = np.concatenate((target, more[1]))
                 ok, voted = np.concatenate((ok, more[2])), np.concatenate((voted, more[3]))
-        away = self.vote.leaves(frame, int(self._playback(frame)[: self.n // 2 + 1][-1]))
+        away = self.vote.leaves(frame, int(self.windows.playback(frame)[: self.n // 2 + 1][-1]))
         if math.isinf(margin):
             return got, target, ok & voted, np.ones(len(got)), math.inf if away else 1.0
         return got, target, ok, np.where(voted, 1.0, 1.0 + margin), 1.0 + margin if away else 1.0
 
-    def _voted_windows(
+    def voted_windows(
         self,
         frame: int,
         queries: list[FloatArray],
@@ -190,28 +180,27 @@ class Landing:
         costs: JumpCosts,
         at_voted: NDArray[np.bool_],
     ) -> tuple[Windows, IntArray, NDArray[np.bool_], NDArray[np.bool_]]:
-        """None of the best windows shows the voted action: the best that do, from the same short
-        lists ``ranked`` when they hold any, else by a search among those windows alone,
-        unless the avatar is already at one of them (``at_voted``): no search can beat its
-        own cost by much (in bench_accuracy's 13_29 base, 66 -> 30 second searches, every
-        decision the same). ``(got, target, ok, voted)`` as ``jump`` has them."""
+        """None of the best windows shows the voted action: the best that do, from the
+        same short lists ``ranked`` when they hold any, else by a search among those
+        windows alone, unless the avatar is already at one of them (``at_voted``): no
+        search can beat its own cost by much. ``(got, target, ok, voted)`` as ``jump``
+        has them."""
         st = self.settings
         only = self.vote.starts(self.n)
         got = best_of(ranked, st.landing.top_windows, only)
-        target, ok, _ = self._targets(frame, got, costs, queries)
+        target, ok, _ = self.targets(frame, got, costs, queries)
         voted = self.vote.gate(target)
         if not (ok & voted).any() and not at_voted.any():
             lists: Ranked = []
-            got = self.index().search(
-                queries, st.band, st.landing.top_windows, only, lists, st.recency
-            )
-            if self.facing is not None:
-                got = best_of(self.facing.weigh(lists, observe=False), st.landing.top_windows, only)
-            target, ok, _ = self._targets(frame, got, costs, queries)
+            got = self.windows.ranked(queries, lists, only)
+            facing = self.windows.facing
+            if facing is not None:
+                got = best_of(facing.weigh(lists, observe=False), st.landing.top_windows, only)
+            target, ok, _ = self.targets(frame, got, costs, queries)
             voted = self.vote.gate(target)
         return got, target, ok, voted
 
-    def _targets(
+    def targets(
         self,
         frame: int,
         got: list[tuple[int, int, float]],
@@ -224,22 +213,11 @@ class Landing:
         on keeps the avatar in step)."""
         target = np.array([g[0] for g in got], dtype=np.int64) + self.n
         views = np.array([g[1] for g in got], dtype=np.int64)
-        shape = self._global_tables()[0]
+        shape = self.windows.tables()[0]
         target = phased_targets(
-            target, views, queries, shape, self._runs, self.settings.landing.phase_frames
+            target, views, queries, shape, self.windows.runs, self.settings.landing.phase_frames
         )
         ok = target < self.graph.n_frames
         ok[ok] &= costs.landing[target[ok]] & self.plays[target[ok] - 1]
-        there = (np.abs(target - frame) <= 2) & self._same_run(frame, target)
+        there = (np.abs(target - frame) <= 2) & self.windows.same_run(frame, target)
         return target, ok & ~there, there
-
-    def _playback(self, frame: int) -> IntArray:
-        """``frame`` and up to a window of frames playing on from it."""
-        out = [frame]
-        while len(out) <= self.n and self.plays[out[-1]]:
-            out.append(out[-1] + 1)
-        return np.array(out, dtype=np.int64)
-
-    def _same_run(self, frame: int, target: IntArray) -> NDArray[np.bool_]:
-        """Whether ``frame`` plays on to each of ``target`` (or back from it)."""
-        return self._runs[np.clip(target, 0, self.graph.n_frames - 1)] == self._runs[frame]

@@ -136,7 +136,7 @@ class Performance:
             # while this one opens the search's index (mostly reading: 0.9 s there)
             with ThreadPoolExecutor(1) as pool:
                 computing = pool.submit(lambda: self.costs.features)
-                matcher.index()
+                matcher.windows.index()
                 computing.result()
         self.avatar = self.new_avatar(start)
         if jumps:
@@ -280,7 +280,7 @@ class Performance:
             self.views.append(self.view)
 
     def place_avatar(self, t: float, entry: dict[str, Any]) -> None:
-        """Half a window in (``Matcher.early_search``; else at the first whole window):
+        """Half a window in (``WindowSearch.early``; else at the first whole window):
         start the avatar where the library looks most like the performer (its motion so
         far is dropped), at the frame that matches the performer's latest."""
         matcher = self.matcher
@@ -389,7 +389,7 @@ class Performance:
         # the avatar is placed as soon as half a window is in (then played on until the
         # window is whole), unless told where to start
         if not self.located and settings.match.paths.start_at_best and self.start is None:
-            half = filled >= max(2, (matcher.n + 1) // 2) and matcher.early_search
+            half = filled >= max(2, (matcher.n + 1) // 2) and matcher.windows.early
             if full or half:
                 self.place_avatar(t, entry)
                 avatar = self.avatar
@@ -441,8 +441,8 @@ class Performance:
         )
         if 0 <= matcher.vote.voted < len(matcher.vote.names):  # the action voted for
             entry["voted"] = matcher.vote.names[matcher.vote.voted]
-        if self.matcher.facing is not None:  # which way the performer is taken to face
-            entry["facing"] = "camera" if self.matcher.facing.toward else "away"
+        if self.matcher.windows.facing is not None:  # which way the performer is taken to face
+            entry["facing"] = "camera" if self.matcher.windows.facing.toward else "away"
         return entry
 
     def run(

@@ -5,7 +5,7 @@ One decision's best window can be wrong (another action that looks alike for a m
 the performer's action lasts seconds. So on a library whose clips are labelled, each
 decision votes for an action (a label; an unlabelled clip counts as an action of its
 own): its best window's, or as the library's action classifier settles it between the
-best windows of the actions (``vision._classify``, ``Matcher._choice``), and the avatar
+best windows of the actions (``vision._classify``, ``ActionChoice``), and the avatar
 keeps to the action most voted for over the last ``ActionSettings.vote`` decisions (or
 voted for by the last third of them, all alike: a new action is taken up in 0.5 s, not
 when it has outvoted the old one), and leaves a motion that is not that action, or will
@@ -35,11 +35,15 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from ._settings import ActionSettings
+from ._classify import ActionClassifier, action_scores, cached_action_classifier
+from ._search import WindowSearch
+from ._settings import ActionSettings, MatchSettings
+from ._windows import tempo_readings
 
-__all__ = ["ActionVote"]
+__all__ = ["ActionChoice", "ActionVote"]
 
 IntArray = NDArray[np.int64]
+FloatArray = NDArray[np.float64]
 
 
 class ActionVote:
@@ -203,3 +207,53 @@ class ActionVote:
         or its clip's end), shows another action than the voted one at either."""
         assert self.actions is not None
         return {int(self.actions[frame]), int(self.actions[ahead])} != {self.voted}
+
+
+class ActionChoice:
+    """Each decision's ballot: the action the performer's window votes for, as the
+    library's action classifier (``vision._classify``) and the search's costs agree
+    (``action_scores``), the performer read at ``settings.action.tempos`` too.
+    ``windows``: the matcher's window search, whose tables the classifier is learned
+    from and stored beside (in ``folder``, the bank's)."""
+
+    def __init__(
+        self, windows: WindowSearch, settings: MatchSettings, n: int, folder: str | None
+    ) -> None:
+        self.windows, self.settings, self.n, self.folder = windows, settings, n, folder
+        self._classifier: tuple[ActionClassifier | None, int] | None = None
+
+    def classifier(self, actions: IntArray | None) -> ActionClassifier | None:
+        """The classifier of the library's ``actions``, learned on first use and stored;
+        ``None`` without actions or with ``settings.action.classify`` off."""
+        if actions is None or not self.settings.action.classify:
+            return None
+        if self._classifier is None:
+            shape, centre, starts = self.windows.tables()
+            key = self.windows.key
+            got = cached_action_classifier(shape, centre, starts, self.n, actions, self.folder, key)
+            self._classifier = (got, int(actions.max()) + 1 if actions.size else 0)
+        return self._classifier[0]
+
+    def choose(
+        self,
+        vote: ActionVote,
+        queries: list[FloatArray],
+        ranked: list[tuple[IntArray, IntArray, FloatArray]],
+        performer: FloatArray,
+    ) -> tuple[int | None, FloatArray | None]:
+        """The action this decision votes for in ``vote`` (``None``: the best window's)
+        and every action's score, from the search's short lists ``ranked``."""
+        if vote.actions is None or vote.size <= 0:
+            return None, None
+        st, w = self.settings, self.windows
+        args = (w.desc, w.mean, w.proj, st.centre_weight)
+        extra = tempo_readings(performer, self.n, st.action.tempos, queries[0].shape[0], *args)
+        if extra:
+            ranked = list(ranked)
+            w.ranked(extra, ranked)
+        clf = self.classifier(vote.actions)
+        n = self._classifier[1] if self._classifier else 0
+        scores = action_scores(ranked, vote.actions, self.n, clf, queries + extra, n)
+        if scores is None or not np.isfinite(scores).any():
+            return None, None
+        return int(np.argmin(scores)), scores

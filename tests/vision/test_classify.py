@@ -131,21 +131,21 @@ def test_the_matchers_vote_goes_to_the_classifiers_choice(setup) -> None:
     queries = m.queries(x)
     assert queries is not None
     ranked: list = []
-    m.index().search(
+    m.windows.index().search(
         queries,
         m.settings.band,
         m.settings.landing.top_windows,
         ranked=ranked,
         recency=m.settings.recency,
     )
-    choice, scores = m._choice(queries, ranked, x)
+    choice, scores = m.ballot.choose(m.vote, queries, ranked, x)
     assert choice is not None and choice == int(keys[100 + m.n - 1])
     assert scores is not None and int(np.argmin(scores)) == choice  # (the filter's evidence)
     assert list(Path(bank.path).glob("actions-*.npz"))
     off = Matcher(
         layer, bank, MatchSettings(action=ActionSettings(vote=3, classify=False)), actions=keys
     )
-    assert off._choice(queries, ranked, x) == (None, None)
+    assert off.ballot.choose(off.vote, queries, ranked, x) == (None, None)
 
 
 def test_perform_says_whether_the_classifier_settles_the_vote(

@@ -130,9 +130,12 @@ def test_the_avatar_raises_the_knee_the_performer_raises(
         r = run.run()
         shares.append(_own_side(r.decisions, lib.clips[0].motion, perf.motion, first))
         if facing:
-            assert run.matcher.facing is not None and run.matcher.facing.toward == toward
+            assert (
+                run.matcher.windows.facing is not None
+                and run.matcher.windows.facing.toward == toward
+            )
             said = {d["facing"] for d in r.decisions[-5:] if d["decision"] is not None}
             assert said == {"camera" if toward else "away"}  # (the decision log says so)
         else:
-            assert run.matcher.facing is None
+            assert run.matcher.windows.facing is None
     assert shares[0] >= 0.7 and shares[0] > shares[1] + 0.1, shares

@@ -158,11 +158,14 @@ def test_right_after_a_jump_the_own_cost_is_the_window_played_into(setup) -> Non
     j = 200
     window = np.arange(j - m.n + 1, j + 1)
     shown = np.concatenate((np.arange(20, 20 + m.n), [j]))  # frames 20.., then the jump
-    assert np.array_equal(m.own_frames(j, shown), window)
-    performer = bank.features[m.to_bank[window], 0].astype(np.float64)
+    assert np.array_equal(m.lander.own_frames(j, shown), window)
+    performer = bank.features[m.windows.to_bank[window], 0].astype(np.float64)
     queries = m.queries(performer)
     assert queries is not None
-    own, shown_cost = m.own_cost(queries, m.own_frames(j, shown)), m.own_cost(queries, shown)
+    own, shown_cost = (
+        m.lander.own_cost(queries, m.lander.own_frames(j, shown)),
+        m.lander.own_cost(queries, shown),
+    )
     assert own < 0.25 * shown_cost
     # a library window is costed from the search's tables (float32 shape numbers), the
     # frames shown from the bank: the same cost to float32's precision
@@ -170,14 +173,14 @@ def test_right_after_a_jump_the_own_cost_is_the_window_played_into(setup) -> Non
         q += 0.05 * np.random.default_rng(1).normal(size=q.shape)  # not the window itself
     st = m.settings
     by_bank = min(
-        dtw_batch(q, m._bank_sequences(window), None, st.band, st.recency).min() for q in queries
+        dtw_batch(q, m.windows.sequences(window), None, st.band, st.recency).min() for q in queries
     )
-    assert m.own_cost(queries, window) == pytest.approx(by_bank, rel=1e-5)
+    assert m.lander.own_cost(queries, window) == pytest.approx(by_bank, rel=1e-5)
     # without own_from_library, the frames shown; and at a clip's first frames, which
     # have no window of their own, those too
     before = Matcher(layer, bank, MatchSettings(landing=LandingSettings(own_from_library=False)))
-    assert np.array_equal(before.own_frames(j, shown), shown)
-    assert np.array_equal(m.own_frames(3, shown), shown)
+    assert np.array_equal(before.lander.own_frames(j, shown), shown)
+    assert np.array_equal(m.lander.own_frames(3, shown), shown)
 
 
 def test_a_jump_is_scored_by_its_match_and_with_a_blend_weight_by_its_blend_too(setup) -> None:
@@ -209,14 +212,14 @@ def test_a_jump_is_scored_by_its_match_and_with_a_blend_weight_by_its_blend_too(
             MatchSettings(landing=LandingSettings(blend_weight=w, min_play=0.0, phase_frames=0)),
         )
         window = np.arange(j - m.n + 1, j + 1)
-        performer = bank.features[m.to_bank[window], 3].astype(np.float64)
+        performer = bank.features[m.windows.to_bank[window], 3].astype(np.float64)
         performer += 0.02 * np.random.default_rng(0).normal(size=performer.shape)
         queries = m.queries(performer)
         assert queries is not None
-        got = m.index().search(
+        got = m.windows.index().search(
             queries, m.settings.band, m.settings.landing.top_windows, recency=m.settings.recency
         )
-        target, ok, _ = m._targets(frame, got, costs, queries)
+        target, ok, _ = m.lander.targets(frame, got, costs, queries)
         assert ok.sum() >= 3
         costs.near = int(target[ok][2])  # the third best match
         d = m.jump(frame, performer, recent, costs, queries)
@@ -291,11 +294,13 @@ def test_a_performer_standing_still_is_held_still(setup, monkeypatch) -> None:
     j = 200  # mid-squat in 13_30
     recent = np.arange(j - 30, j + 1, dtype=np.int64)
     noise = 0.01 * np.random.default_rng(2).normal(size=(m.n, bank.features.shape[2]))
-    still = np.repeat(bank.features[m.to_bank[[j]], 3].astype(np.float64), m.n, axis=0) + noise
+    still = (
+        np.repeat(bank.features[m.windows.to_bank[[j]], 3].astype(np.float64), m.n, axis=0) + noise
+    )
     d = m.decide(j, still, recent, costs)
     assert d is not None and d.how == "held"
     assert np.all(d.frames == j) and np.all(d.edges == -1) and d.cost < d.runner_up
-    window = m.to_bank[np.arange(j - m.n + 1, j + 1)]
+    window = m.windows.to_bank[np.arange(j - m.n + 1, j + 1)]
     moving = bank.features[window, 3].astype(np.float64) + noise
     d2 = m.decide(j, moving, recent, costs)
     assert d2 is not None and d2.how != "held"
@@ -310,7 +315,7 @@ def test_a_performer_standing_still_is_held_still(setup, monkeypatch) -> None:
         target = np.array([g[0] for g in got], dtype=np.int64) + m.n
         return target, np.zeros(len(got), dtype=bool), np.zeros(len(got), dtype=bool)
 
-    monkeypatch.setattr(m, "_targets", nowhere)
+    monkeypatch.setattr(m.lander, "targets", nowhere)
     d3 = m.decide(j, still, recent, costs)
     assert d3 is not None and d3.how == "held" and np.isfinite(d3.runner_up)
     # the avatar takes the hold: its frame shown again, standing where it stood

@@ -46,7 +46,7 @@ def _inverted_file(setup) -> tuple[Matcher, WindowIndex, np.ndarray]:
     action of each of its frames."""
     lib, layer, bank = setup
     m = Matcher(layer, bank, MatchSettings())
-    index = WindowIndex(*m._global_tables(), m.n, flat_below=0)
+    index = WindowIndex(*m.windows.tables(), m.n, flat_below=0)
     keys = action_keys(lib.clips)
     assert keys is not None
     return m, index, keys
@@ -55,7 +55,7 @@ def _inverted_file(setup) -> tuple[Matcher, WindowIndex, np.ndarray]:
 def test_dtw_windows_is_dtw_of_each_window(setup, rng) -> None:
     _, layer, bank = setup
     m = Matcher(layer, bank)
-    shape, centre, starts = m._global_tables()
+    shape, centre, starts = m.windows.tables()
     s = rng.choice(starts, 20)
     v = rng.integers(0, shape.shape[1], 20)
     q = rng.normal(size=(m.n - 3, shape.shape[2] + 2))
@@ -75,7 +75,7 @@ def test_index_finds_the_brute_force_best(setup) -> None:
     against the one brute force."""
     _, layer, bank = setup
     m = Matcher(layer, bank, MatchSettings())
-    shape, centre, starts = m._global_tables()
+    shape, centre, starts = m.windows.tables()
     indexes = [WindowIndex(shape, centre, starts, m.n, flat_below=f) for f in (100_000, 0)]
     for index, flat_below in zip(indexes, (100_000, 0), strict=True):
         assert index.size == starts.size * shape.shape[1]
@@ -113,7 +113,7 @@ def test_the_pose_descriptors_readings_find_the_brute_force_best(
     lib, layer, _ = setup
     bank = build_bank(lib.clips, BankSettings(descriptor="pose"), tmp_path / "pose", workers=1)
     m = Matcher(layer, bank, MatchSettings(mirror=mirror))
-    shape, centre, starts = m._global_tables()
+    shape, centre, starts = m.windows.tables()
     index = WindowIndex(shape, centre, starts, m.n, flat_below=0)
     clip = load_library(mocap, fps=layer.graph.fps, clips=["13_29"]).clip("13_29")
     rng = np.random.default_rng(2)
@@ -146,7 +146,7 @@ def test_index_top_windows_are_distinct_and_sorted(setup) -> None:
 def test_a_stored_index_is_the_built_one(setup, tmp_path, caplog, flat_below) -> None:
     _, layer, bank = setup
     m = Matcher(layer, bank, MatchSettings())
-    shape, centre, starts = m._global_tables()
+    shape, centre, starts = m.windows.tables()
     built = cached_window_index(shape, centre, starts, m.n, tmp_path, flat_below=flat_below)
     (stored,) = tmp_path.glob("index-*.npz")
     loaded = cached_window_index(shape, centre, starts, m.n, tmp_path, flat_below=flat_below)
@@ -202,7 +202,7 @@ def test_a_search_within_flagged_starts_finds_their_brute_force_best(
     monkeypatch.setattr(index_module, "SUBSET_FLAT", subset_flat)
     lib, layer, bank = setup
     m = Matcher(layer, bank, MatchSettings())
-    shape, centre, starts = m._global_tables()
+    shape, centre, starts = m.windows.tables()
     index = WindowIndex(shape, centre, starts, m.n, flat_below=flat_below)
     keys = action_keys(lib.clips)
     assert keys is not None
@@ -235,7 +235,7 @@ def test_summaries_of_runs_of_starts_are_the_summaries(setup, rng) -> None:
     (a gather a frame) gives, in every view, runs broken anywhere."""
     _, layer, bank = setup
     m = Matcher(layer, bank, MatchSettings())
-    shape, centre, starts = m._global_tables()
+    shape, centre, starts = m.windows.tables()
     bounds = _bounds(m.n, 5)
     pick = np.sort(rng.choice(starts, 40, replace=False))
     pick = np.unique(np.concatenate((pick, starts[10:30])))  # one long run too
@@ -249,7 +249,7 @@ def test_each_action_s_search_is_made_ready_at_once(setup, monkeypatch) -> None:
     search ready before a decision asks for it, within ``FLAT_ROWS``, and the search a
     decision then makes is the one made."""
     m, index, keys = _inverted_file(setup)
-    bank, (shape, centre, starts) = setup[2], m._global_tables()
+    bank, (shape, centre, starts) = setup[2], m.windows.tables()
     vote = ActionVote(1, m.n // 2)
     vote.actions = keys
     each = vote.window_actions(m.n)

@@ -60,7 +60,7 @@ def test_matcher_finds_a_path_from_its_own_silhouettes(setup, banks, descriptor)
         frames = matcher.paths.window_frames(cands[k][1])
         view = int(rng.integers(18))
         # the performer is exactly the avatar doing candidate k, seen from one ring view
-        b = matcher.to_bank[frames]
+        b = matcher.windows.to_bank[frames]
         feats = bank.features[b, view].astype(float)
         move = bank.root_motion[b, view].astype(float)
         centre = np.cumsum(move, axis=0) - move[0] + feats[:, -2:]
@@ -80,12 +80,12 @@ def test_locate_finds_the_window_the_performer_replays(setup, banks, descriptor)
     bank = banks[descriptor]
     assert bank.settings.descriptor == descriptor
     matcher = Matcher(layer, bank, MatchSettings(window=1.0))
-    _, _, starts = matcher._global_tables()
+    _, _, starts = matcher.windows.tables()
     rng = np.random.default_rng(5)
     for s in rng.choice(starts, 8, replace=False):
         frames = np.arange(s, s + matcher.n)
         view = int(rng.integers(18))
-        b = matcher.to_bank[frames]
+        b = matcher.windows.to_bank[frames]
         feats = bank.features[b, view].astype(float)
         move = bank.root_motion[b, view].astype(float)
         centre = np.cumsum(move, axis=0) - move[0] + feats[:, -2:]
@@ -209,7 +209,7 @@ def test_a_clip_of_another_skeleton_in_the_library_leaves_the_vote_on(
     run = Performance(source, layer, bank, [other, *lib.clips], settings, None, 0)
     actions = run.matcher.vote.actions
     assert actions is not None and actions.size == layer.graph.n_frames
-    assert run.matcher.facing is not None  # (the facing's per-frame headings too)
+    assert run.matcher.windows.facing is not None  # (the facing's per-frame headings too)
     got = run.run()
     strip = lambda r: [{k: v for k, v in d.items() if k != "latency_ms"} for d in r.decisions]  # noqa: E731
     assert strip(got) == strip(alone)
@@ -278,7 +278,7 @@ def test_another_person_in_view_is_said_and_the_largest_followed(setup) -> None:
 def test_a_library_too_large_to_search_by_brute_force_waits_for_a_whole_window(
     setup, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr("vision._matcher.EARLY_WINDOWS", 0)
+    monkeypatch.setattr("vision._search.EARLY_WINDOWS", 0)
     r = _run(setup, VideoSource(RECORDING, silhouette=True), seconds=3.0)
     assert [i for i, d in enumerate(r.decisions) if "located" in d] == [9]  # t = 1.0 s
 
@@ -476,9 +476,9 @@ def test_a_bank_with_variants_reports_ring_views(setup, tmp_path: Path) -> None:
     bank = build_bank(lib.clips, settings, tmp_path / "bank", workers=1)
     assert bank.features.shape[1] == 12
     matcher = Matcher(layer, bank, MatchSettings(window=1.0))
-    _, _, starts = matcher._global_tables()
+    _, _, starts = matcher.windows.tables()
     s = int(starts[len(starts) // 2])
-    b = matcher.to_bank[np.arange(s, s + matcher.n)]
+    b = matcher.windows.to_bank[np.arange(s, s + matcher.n)]
     view = 6 + 5  # the shadowed variant of ring view 5
     feats = bank.features[b, view].astype(float)
     move = bank.root_motion[b, view].astype(float)
@@ -508,7 +508,7 @@ def test_the_keep_clip_bonus_keeps_the_action_unless_another_fits_clearly_better
         other = next(c for c in cands if (c[2][: plain.n - 1] >= 0).any())
 
         def seen(frames: np.ndarray) -> np.ndarray:
-            b = plain.to_bank[plain.paths.window_frames(frames)]
+            b = plain.windows.to_bank[plain.paths.window_frames(frames)]
             feats = bank.features[b, 3].astype(float)
             move = bank.root_motion[b, 3].astype(float)
             centre = np.cumsum(move, axis=0) - move[0] + feats[:, -2:]
@@ -586,7 +586,7 @@ def test_the_pose_descriptor_finds_a_skeletons_own_frame_and_view(setup, tmp_pat
     matcher = Matcher(layer, bank, MatchSettings(window=1.0))
     every = Matcher(layer, bank, MatchSettings(window=1.0, mirror=True))  # four readings
     desc = get_descriptor("pose")
-    _, _, starts = matcher._global_tables()
+    _, _, starts = matcher.windows.tables()
     # windows inside the graph's component (the sample this test was written with)
     starts = np.array([s for s in starts if layer.graph.in_scc[s : s + matcher.n].all()])
     clip = lib.clip("13_30")

@@ -45,7 +45,7 @@ def test_stored_tables_are_the_made_ones_and_are_mapped_next_time(
     np.testing.assert_array_equal(proj, want_proj)
     assert (folder / "windows-stats.npz").is_file()
     m = Matcher(layer, bank, MatchSettings())
-    frames, cs, w = m.to_bank, layer.graph.clip_start, m.settings.centre_weight
+    frames, cs, w = m.windows.to_bank, layer.graph.clip_start, m.settings.centre_weight
     want = window_tables(bank, frames, cs, mean, proj, w)
     shape, centre, key = cached_window_tables(bank, frames, cs, mean, proj, w)
     assert key and isinstance(shape, np.memmap) and isinstance(centre, np.memmap)
@@ -66,9 +66,9 @@ def test_stored_tables_are_the_made_ones_and_are_mapped_next_time(
     assert again[2] == key
     np.testing.assert_array_equal(again[0], want[0])
     # the matcher's index is keyed by them, and found again by a second matcher
-    m.index()
+    m.windows.index()
     (index,) = folder.glob("index-*.npz")
-    Matcher(layer, bank, MatchSettings()).index()
+    Matcher(layer, bank, MatchSettings()).windows.index()
     assert list(folder.glob("index-*.npz")) == [index]
     monkeypatch.undo()
     # a damaged table is made again, with a warning naming it
@@ -103,7 +103,7 @@ def test_tables_just_written_are_checked_in_the_background(setup, tmp_path, monk
     bank = _copy(session_bank, tmp_path)
     m = Matcher(layer, bank, MatchSettings())
     mean, proj = cached_shape_stats(bank)
-    args = (bank, m.to_bank, layer.graph.clip_start, mean, proj, m.settings.centre_weight)
+    args = (bank, m.windows.to_bank, layer.graph.clip_start, mean, proj, m.settings.centre_weight)
     want = cached_window_tables(*args)
     assert [j.__self__.name for j in waited] == ["mimic-check-tables"]
     for thread in tables_module.CHECKING:
@@ -126,10 +126,12 @@ def test_a_bank_not_read_from_its_folder_keeps_its_tables_in_memory(setup, tmp_p
     changed = dataclasses.replace(bank, features=np.array(bank.features) * 2)
     m = Matcher(layer, changed, MatchSettings())
     shape, centre, key = cached_window_tables(
-        changed, m.to_bank, layer.graph.clip_start, m.mean, m.proj, 1.0
+        changed, m.windows.to_bank, layer.graph.clip_start, m.windows.mean, m.windows.proj, 1.0
     )
     assert key == "" and not isinstance(shape, np.memmap)
     assert not list(Path(bank.path).glob("windows-*"))
-    want = window_tables(changed, m.to_bank, layer.graph.clip_start, m.mean, m.proj, 1.0)
+    want = window_tables(
+        changed, m.windows.to_bank, layer.graph.clip_start, m.windows.mean, m.windows.proj, 1.0
+    )
     np.testing.assert_array_equal(shape, want[0])
     np.testing.assert_array_equal(centre, want[1])

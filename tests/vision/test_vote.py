@@ -141,7 +141,7 @@ def test_the_avatar_leaves_an_action_the_performer_is_not_doing(setup) -> None:
         )
         m = Matcher(layer, bank, st, actions=keys)
         s = squat[len(squat) // 2]
-        performer = bank.features[m.to_bank[np.arange(s - m.n + 1, s + 1)], 0]
+        performer = bank.features[m.windows.to_bank[np.arange(s - m.n + 1, s + 1)], 0]
         j = jog[len(jog) // 2]
         shown = np.arange(j - m.recent_frames + 1, j + 1)  # played on: settled
         d = m.decide(j, performer.astype(np.float64), shown, costs)
@@ -176,11 +176,13 @@ def test_the_avatar_jumps_into_the_voted_action_unless_another_fits_far_better(
     for _ in range(10):
         m.vote.cast(np.array([squat[len(squat) // 2]]))
     j = jog[len(jog) // 3]
-    performer = bank.features[m.to_bank[np.arange(j - m.n + 1, j + 1)], 0].astype(np.float64)
+    performer = bank.features[m.windows.to_bank[np.arange(j - m.n + 1, j + 1)], 0].astype(
+        np.float64
+    )
     queries = m.queries(performer)
     assert queries is not None
     st = m.settings
-    best = m.index().search(queries, st.band, st.landing.top_windows, recency=st.recency)
+    best = m.windows.index().search(queries, st.band, st.landing.top_windows, recency=st.recency)
     assert all(labels[s + m.n] != "Squat" for s, _, _ in best)  # the best windows jog
     a = jog[2 * len(jog) // 3]
     shown = np.arange(a - m.recent_frames + 1, a + 1)  # played on: settled
@@ -190,7 +192,7 @@ def test_the_avatar_jumps_into_the_voted_action_unless_another_fits_far_better(
     if math.isinf(margin):
         assert labels[d.jump.target] == "Squat"
         return
-    squats = m.index().search(
+    squats = m.windows.index().search(
         queries, st.band, st.landing.top_windows, m.vote.starts(m.n), recency=st.recency
     )
     assert labels[d.jump.target] == "Jog" and not d.jump.leaves
@@ -247,14 +249,13 @@ def test_holding_still_in_another_action_costs_the_margin_too(setup, margin: flo
         layer, bank, MatchSettings(action=ActionSettings(vote=15, margin=margin)), actions=keys
     )
     j = jog[len(jog) // 2]
-    still = bank.features[m.to_bank[np.full(m.n, j + 3)], 0].astype(np.float64)
+    still = bank.features[m.windows.to_bank[np.full(m.n, j + 3)], 0].astype(np.float64)
     queries = m.queries(still)
     assert queries is not None
-    m.last_own = 1e9  # (playing on, the rival, costs far more)
     held = []
     for voted in (keys[j], keys[squat[0]]):
         m.vote.voted = int(voted)
-        d = m.held(j, queries, None)
+        d = m.lander.held(j, queries, None, 1e9)  # (playing on, the rival, costs far more)
         assert d is not None and d.how == "held"
         held.append(d.cost)
     assert held[0] > 0
