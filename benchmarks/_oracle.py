@@ -60,7 +60,7 @@ def pose_oracle(
     """Label agreement (best at lags <= 1 s) of the true-pose nearest window, alone and
     voted. ``lib_q``, ``truth_q``: weighted joints' rotations ``(F, K, 4)`` at ``fps``;
     ``lib_actions`` each library frame's action (its label, else its clip's name, as
-    ``vision.action_keys`` tells them apart), ``truth_labels`` the performer's. Also
+    ``control.motion.action_keys`` tells them apart), ``truth_labels`` the performer's. Also
     ``pose_error``: the mean pose distance of each best window's last frame to the
     performer's frame at the decision (what an avatar showing it at once would score)."""
     n = max(2, round(fps))

@@ -23,8 +23,9 @@ from typing import Any
 import numpy as np
 
 from benchmarks._report import machine, save
+from control.jobs import run_jobs
 from control.motion import default_library_path, load_library
-from silhouette_bank import BankSettings, build_bank, run_jobs
+from silhouette_bank import BankSettings, build_bank
 from silhouette_bank import _bank as bank_module
 from silhouette_bank._metric import metric_jobs
 

@@ -23,9 +23,9 @@ import numpy as np
 
 from benchmarks._report import machine, save
 from control.graph import GraphOptions, build_graph
-from control.motion import default_library_path, load_library
+from control.motion import action_keys, default_library_path, load_library
 from silhouette_bank import BankSettings, cached_bank, robust_settings, silhouette_features
-from vision import ActionVote, Matcher, MatchSettings, VideoSource, action_keys, best_window
+from vision import ActionVote, Matcher, MatchSettings, VideoSource, best_window
 
 RECORDING = Path("recordings/13_29_first12s_160x120.mkv")
 

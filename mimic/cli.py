@@ -11,8 +11,9 @@ import threading
 from collections.abc import Sequence
 
 from control.graph import GraphFileError
+from control.jobs import ClusterError
 from control.motion import MotionFormatError
-from silhouette_bank import BankFileError, ClusterError
+from silhouette_bank import BankFileError
 from vision import SourceError
 
 from .bank import add_bank_commands

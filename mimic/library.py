@@ -10,12 +10,12 @@ from typing import Any
 
 import numpy as np
 
+from control.artifacts import atomic_write
 from control.motion import (
     EMBEDDED_CLIPS,
     EMBEDDED_LIBRARY,
     EMBEDDED_MAX_BYTES,
     Library,
-    atomic_write,
     clean_labels,
     default_library_path,
     embed_library,

@@ -1,7 +1,5 @@
 """Offline half of the vision interface (Lee et al. §5.3): the silhouette bank."""
 
-from control.jobs import CLUSTER_ENV, ClusterError, cluster_address, run_jobs
-
 from ._arrays import (
     RACY_NS,
     block_hashes,
@@ -64,7 +62,6 @@ from ._settings import (
 )
 
 __all__ = [
-    "CLUSTER_ENV",
     "DEFAULT_DESCRIPTOR",
     "DESCRIPTORS",
     "POSE_JOINTS",
@@ -75,7 +72,6 @@ __all__ = [
     "BodyShape",
     "CameraRing",
     "CapsuleBody",
-    "ClusterError",
     "Descriptor",
     "GLRenderer",
     "GridDescriptor",
@@ -89,7 +85,6 @@ __all__ = [
     "cached_bank",
     "capsule_body",
     "capsule_segments",
-    "cluster_address",
     "draw_ground_shadow",
     "ensure_bank",
     "get_descriptor",
@@ -109,7 +104,6 @@ __all__ = [
     "rasterize",
     "render_motion_video",
     "robust_settings",
-    "run_jobs",
     "shaded_frames",
     "silhouette_features",
     "with_proportions",

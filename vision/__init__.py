@@ -34,7 +34,6 @@ from ._library import (
     FLOOR_ABOVE,
     FLOOR_SECONDS,
     VISION_COORDS,
-    action_keys,
     floor_level,
     on_the_floor,
 )
@@ -154,7 +153,6 @@ __all__ = [
     "VideoSource",
     "WindowIndex",
     "WindowTablesError",
-    "action_keys",
     "action_runs",
     "agreement",
     "avatar_labels",

@@ -16,13 +16,12 @@ from collections.abc import Sequence
 import numpy as np
 
 from control.graph import longest_off_floor, lowest_foot
-from control.motion import Clip, action_keys
+from control.motion import Clip
 
 __all__ = [
     "FLOOR_ABOVE",
     "FLOOR_SECONDS",
     "VISION_COORDS",
-    "action_keys",
     "floor_level",
     "on_the_floor",
 ]

@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from control.avatar import JUMP, JumpCosts
 from control.clusters import HigherLayer
 from control.dtw import dtw_batch
-from control.motion import Clip, action_names
+from control.motion import Clip, action_keys, action_names
 from silhouette_bank import Bank
 
 from ._classify import ActionClassifier
@@ -37,7 +37,6 @@ from ._decision import Decision, Jump
 from ._facing import Facing
 from ._index import best_of
 from ._landing import Lander
-from ._library import action_keys
 from ._paths import CandidatePaths
 from ._search import WindowSearch
 from ._settings import MatchSettings
@@ -55,7 +54,7 @@ IntArray = NDArray[np.int64]
 class Matcher:
     """Matches a performer's recent features against the avatar's candidate actions.
 
-    ``actions`` (each graph frame's action key, ``vision.action_keys``; ``None``: an
+    ``actions`` (each graph frame's action key, ``control.motion.action_keys``; ``None``: an
     unlabelled library) and their ``names`` are the vote's; ``vote``: one to share with
     another matcher of the same graph (the silhouette beside the landmarks), so that the
     avatar's action does not restart when the evidence changes hands."""

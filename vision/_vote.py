@@ -64,7 +64,7 @@ class ActionVote:
         self.switch, self.temperature, self.min_stay = switch, temperature, max(1, min_stay)
         self.confidence = confidence
         self._belief: NDArray[np.float64] | None = None
-        #: the action of every graph frame (``vision.action_keys``); ``None``: the library
+        #: the action of every graph frame (``control.motion.action_keys``); ``None``: the library
         #: names no actions, and nothing is voted
         self.actions: IntArray | None = None
         #: the name of each action number (``control.motion.action_names``)

@@ -19,7 +19,6 @@ from ._graph import (
     GraphOptions,
     MotionGraph,
     build_graph,
-    clips_digest,
     graph_sigma,
     select_clips,
 )
@@ -67,7 +66,6 @@ __all__ = [
     "cached_graph",
     "captured_terrain",
     "case4",
-    "clips_digest",
     "compose",
     "follow_turns",
     "foot_slide",

@@ -4,7 +4,6 @@ Quaternions are ``(w, x, y, z)``; Y is up; lengths are metres. See ``_quat`` for
 glossary and ``_types`` for the joint conventions.
 """
 
-from ..artifacts import atomic_write, current_umask
 from ._amc import read_amc
 from ._arrays import read_motion_arrays, write_motion_arrays
 from ._asf import AsfSkeleton, read_asf
@@ -69,11 +68,9 @@ __all__ = [
     "Skeleton",
     "action_keys",
     "action_names",
-    "atomic_write",
     "clean_labels",
     "clips_digest",
     "contact_events",
-    "current_umask",
     "cut",
     "default_cache_dir",
     "default_library_path",

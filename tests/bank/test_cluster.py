@@ -9,15 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from control.jobs import CLUSTER_ENV, ClusterError, cluster_address, run_jobs
 from control.motion import Library
 from mimic.cli import main
-from silhouette_bank import (
-    CLUSTER_ENV,
-    ClusterError,
-    build_bank,
-    cluster_address,
-    run_jobs,
-)
+from silhouette_bank import build_bank
 from tests.bank.conftest import SMALL
 
 

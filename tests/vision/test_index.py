@@ -9,6 +9,7 @@ import pytest
 
 from benchmarks._landmarks import landmark_points
 from control.dtw import dtw, dtw_windows
+from control.motion import action_keys
 from silhouette_bank import silhouette_features
 from tests.vision.conftest import RECORDING
 from vision import (
@@ -18,7 +19,6 @@ from vision import (
     RecordSettings,
     VideoSource,
     WindowIndex,
-    action_keys,
     best_window,
     cached_window_index,
 )

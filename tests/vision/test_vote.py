@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from control.avatar import JumpCosts
-from control.motion import Library, load_library
+from control.motion import Library, action_keys, load_library
 from mimic.cli import main
 from tests.vision.conftest import RECORDING
-from vision import ActionSettings, ActionVote, LandingSettings, Matcher, MatchSettings, action_keys
+from vision import ActionSettings, ActionVote, LandingSettings, Matcher, MatchSettings
 
 
 def _squats_and_jogs(lib: Library) -> tuple[list[str | None], list[int], list[int]]:
