@@ -106,8 +106,10 @@ def fit_mixture(
     seed: int = 0,
     restarts: int = 5,
     max_iter: int = 200,
+    means_init: FloatArray | None = None,
 ) -> Clustering:
-    """Fit a ``k``-component spherical mixture to the rows of ``x``."""
+    """Fit a ``k``-component spherical mixture to the rows of ``x`` (EM started from
+    ``means_init`` where given: a fit of a sample of the same states, say)."""
     from sklearn.mixture import GaussianMixture
 
     if seeding not in SEEDINGS:
@@ -116,7 +118,18 @@ def fit_mixture(
     if not 1 <= k <= n:
         raise ValueError(f"k must lie in 1..{n}, not {k}")
     seeds = np.zeros(0, dtype=np.int64)
-    if seeding == "keyframes":
+    if means_init is not None:
+        if means_init.shape != (k, x.shape[1]):
+            raise ValueError(f"means_init must be ({k}, {x.shape[1]}), not {means_init.shape}")
+        gm = GaussianMixture(
+            k,
+            covariance_type="spherical",
+            means_init=means_init,
+            max_iter=max_iter,
+            random_state=seed,
+            reg_covar=1e-6,
+        )
+    elif seeding == "keyframes":
         seeds = keyframe_seeds(x, k, seed)
         gm = GaussianMixture(
             k,
@@ -191,6 +204,7 @@ def select_by_bic(
     seed: int = 0,
     clip_start: NDArray[np.int64] | None = None,
     cluster: str | None = None,
+    n_eff: float | None = None,
 ) -> tuple[Clustering, list[Clustering], dict[str, object]]:
     """Fit every ``k`` in ``ks``; return the best, all fits in order, and the curve.
     The fits are made here, or as jobs (one a ``k``) on the Dask cluster that
@@ -198,8 +212,10 @@ def select_by_bic(
 
     With ``clip_start`` the choice uses ``effective_bic`` (frames are not independent:
     plain BIC keeps rising with k on motion data); without, plain BIC as in the paper.
-    The curve holds ``k``, ``bic``, ``bic_effective`` (or None), the log-likelihood and the
-    decorrelation length.
+    ``n_eff``: ``x`` is a sample of states whose effective size is this (their
+    decorrelation measured on them all); the choice is then by ``effective_bic`` with it,
+    each fit's likelihood per state standing for the whole's. The curve holds ``k``,
+    ``bic``, ``bic_effective`` (or None), the log-likelihood and the decorrelation length.
     """
     address = cluster_address(cluster)
     if address is None:
@@ -212,7 +228,12 @@ def select_by_bic(
         "bic": [f.bic for f in fits],
         "log_likelihood": [f.log_likelihood for f in fits],
     }
-    if clip_start is None:
+    if n_eff is not None:
+        eff = [effective_bic(f, n, n_eff) for f in fits]
+        best = fits[int(np.argmax(eff))]
+        curve["bic_effective"] = eff
+        curve["effective_states"] = n_eff
+    elif clip_start is None:
         best = max(fits, key=lambda c: c.bic)
         curve["bic_effective"] = None
     else:

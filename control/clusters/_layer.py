@@ -12,13 +12,15 @@ from numpy.typing import NDArray
 from ..graph import MotionGraph, frame_features
 from ..motion import Clip
 from ._forest import ClusterForest, build_forest
-from ._gmm import SEEDINGS, Clustering, fit_mixture, select_by_bic
+from ._gmm import SEEDINGS, Clustering, decorrelation_frames, fit_mixture, select_by_bic
 from ._paths import ProbableMotion, most_probable_motion, transition_log_probs
 from ._state import state_vectors
 
 __all__ = ["DEFAULT_KS", "HigherLayer", "LayerSettings", "build_higher_layer"]
 
 DEFAULT_KS = tuple(range(5, 61, 5))
+#: the states the costly choices are made on by default (``LayerSettings.sample``)
+SAMPLE = 40_000
 
 
 @dataclass(frozen=True)
@@ -36,6 +38,13 @@ class LayerSettings:
     bound_seconds : how far ahead a cluster tree reaches (its time bound).
     max_nodes : the most nodes a cluster tree may have.
     max_states : the most search states a tree's build may visit.
+    sample : the most states the costly choices are made on, spread evenly over the
+        library (0: every state): the BIC search fits each candidate number of clusters
+        on them (the chosen one is then fitted on every state, EM starting from the
+        sample's means), and the reference orientation is chosen among them (measured
+        against every state). A library of that many frames or fewer is clustered exactly
+        as without it; a larger one in a time that grows with one full fit rather than
+        one per candidate.
     """
 
     k: int | None = None
@@ -45,6 +54,7 @@ class LayerSettings:
     bound_seconds: float = 15.0
     max_nodes: int = 4096
     max_states: int = 200_000
+    sample: int = SAMPLE
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "ks", tuple(int(k) for k in self.ks))
@@ -57,10 +67,14 @@ class LayerSettings:
             raise ValueError(f"seeding must be one of {', '.join(SEEDINGS)}, not {self.seeding!r}")
         if not self.bound_seconds > 0 or self.max_nodes < 1 or self.max_states < 1:
             raise ValueError("bound_seconds, max_nodes and max_states must be positive")
+        if self.sample < 0:
+            raise ValueError(f"sample must be a number of states >= 0, not {self.sample}")
 
     def key(self) -> dict[str, Any]:
-        """The settings as the layer cache's key names them."""
-        return {
+        """The settings as the layer cache's key names them (``sample`` only where it is
+        not the default: a library under it is clustered the same either way, and a
+        layer cached before it existed, from every state, serves as well)."""
+        out = {
             "k": self.k,
             "ks": list(self.ks),
             "seeding": self.seeding,
@@ -69,6 +83,9 @@ class LayerSettings:
             "max_nodes": self.max_nodes,
             "max_states": self.max_states,
         }
+        if self.sample != SAMPLE:
+            out["sample"] = self.sample
+        return out
 
 
 FloatArray = NDArray[np.float64]
@@ -147,18 +164,37 @@ def build_higher_layer(
     k, seeding, seed = st.k, st.seeding, st.seed
     chosen = graph.clips_of(clips)
     feat = frame_features(chosen, graph.options.coords)
-    x, q_hat = state_vectors(feat)
+    x, q_hat = state_vectors(feat, candidates=st.sample or None)
     if k is not None:
         best = fit_mixture(x, k, seeding=seeding, seed=seed)
         fits: list[Clustering] = [best]
         curve: dict[str, Any] = {"k": [k], "bic": [best.bic], "chosen_k": k}
-    else:
+    elif not 0 < st.sample < x.shape[0]:
         best, fits, curve = select_by_bic(
             x, st.ks, seeding=seeding, seed=seed, clip_start=feat.clip_start, cluster=cluster
         )
+    else:
+        best, fits, curve = _sampled_bic(x, feat.clip_start, st, cluster)
     forest = build_forest(
         graph, best.labels, st.bound_seconds, st.max_nodes, st.max_states, cluster
     )
     return HigherLayer(
         graph, x, q_hat, best, tuple(fits), curve, forest, transition_log_probs(graph)
     )
+
+
+def _sampled_bic(
+    x: FloatArray, clip_start: NDArray[np.int64], st: LayerSettings, cluster: str | None
+) -> tuple[Clustering, list[Clustering], dict[str, Any]]:
+    """``select_by_bic`` on ``st.sample`` states spread evenly over ``x``, with the
+    effective size of all of them; then the chosen ``k`` fitted on every state from the
+    sample fit's means. ``fits`` are the sample's; the curve says the sample's size."""
+    n = x.shape[0]
+    sample = np.unique(np.linspace(0, n - 1, st.sample).round().astype(np.int64))
+    n_eff = n / decorrelation_frames(x, clip_start)
+    chosen, fits, curve = select_by_bic(
+        x[sample], st.ks, seeding=st.seeding, seed=st.seed, cluster=cluster, n_eff=n_eff
+    )
+    best = fit_mixture(x, chosen.k, st.seeding, st.seed, means_init=chosen.means)
+    curve["sample"] = int(sample.size)
+    return best, fits, curve

@@ -44,9 +44,14 @@ def _nearest_dots(rows: FloatArray, q: FloatArray, step: int) -> FloatArray:
     return worst
 
 
-def reference_orientation(q: FloatArray, block: int = 2048, sample: int = 2048) -> FloatArray:
+def reference_orientation(
+    q: FloatArray, block: int = 2048, sample: int = 2048, candidates: int | None = None
+) -> FloatArray:
     """The orientation among ``q`` (N, 4) that minimises the distance to the farthest one
-    (the first such, in order).
+    (the first such, in order); with ``candidates``, among at most that many of ``q``
+    spread evenly over it, each still measured against every orientation (on a large
+    library the distances to the farthest are nearly all alike, and measuring every
+    candidate costs frames squared).
 
     Exact, without all pairs: the distance is ``arccos(|q_a . q_b|)``, so the farthest
     orientation from ``a`` is the one with the smallest ``|q_a . q_b|`` (``worst(a)``).
@@ -60,12 +65,16 @@ def reference_orientation(q: FloatArray, block: int = 2048, sample: int = 2048) 
         raise ValueError("q must be a non-empty (N, 4) array")
     n = q.shape[0]
     some = q[np.linspace(0, n - 1, min(n, sample)).astype(np.int64)]
-    bound = np.empty(n)
-    for s in range(0, n, block):
-        bound[s : s + block] = np.min(np.abs(q[s : s + block] @ some.T), axis=1)
-    order = np.argsort(-bound, kind="stable")
+    bound = np.full(n, -np.inf)  # (-inf: not a candidate)
+    pool = np.arange(n)
+    if candidates is not None and candidates < n:
+        pool = np.unique(np.linspace(0, n - 1, candidates).round().astype(np.int64))
+    for s in range(0, pool.size, block):
+        rows = pool[s : s + block]
+        bound[rows] = np.min(np.abs(q[rows] @ some.T), axis=1)
+    order = np.argsort(-bound, kind="stable")[: pool.size]
     best, best_i = -np.inf, n
-    for s in range(0, n, block):
+    for s in range(0, order.size, block):
         idx = order[s : s + block]
         if bound[idx[0]] < best:  # no orientation left can beat (or tie) the best
             break
@@ -76,15 +85,18 @@ def reference_orientation(q: FloatArray, block: int = 2048, sample: int = 2048) 
     return q[best_i].copy()
 
 
-def state_vectors(feat: FrameFeatures) -> tuple[FloatArray, FloatArray]:
-    """``(X (n, 3 + 3 + 3K), q_hat (4,))``: eq. 4 for every frame of ``feat``."""
+def state_vectors(
+    feat: FrameFeatures, candidates: int | None = None
+) -> tuple[FloatArray, FloatArray]:
+    """``(X (n, 3 + 3 + 3K), q_hat (4,))``: eq. 4 for every frame of ``feat``, ``q_hat``
+    chosen among at most ``candidates`` frames (``reference_orientation``)."""
     if feat.coords == "terrain":
         root_q = qmul(yaw_q(-yaw_of(feat.root_q)), feat.root_q)
         root_p = np.zeros_like(feat.world_p)
         root_p[:, 1] = feat.world_p[:, 1]
     else:
         root_q, root_p = feat.root_q, feat.root_p
-    q_hat = reference_orientation(root_q)
+    q_hat = reference_orientation(root_q, candidates=candidates)
     root = 0.5 * qlog(qmul(qconj(q_hat), root_q))
     joints = 0.5 * qlog(feat.joint_q).reshape(feat.n, -1)
     return np.concatenate((root_p, root, joints), axis=1), q_hat

@@ -7,7 +7,13 @@ import logging
 import numpy as np
 import pytest
 
-from control.clusters import LayerFileError, LayerSettings, cached_higher_layer, load_layer
+from control.clusters import (
+    LayerFileError,
+    LayerSettings,
+    build_higher_layer,
+    cached_higher_layer,
+    load_layer,
+)
 from control.graph import GraphOptions, build_graph
 
 
@@ -120,3 +126,19 @@ def test_layer_settings_are_checked_and_keyed_as_before() -> None:
         "max_nodes": 4096,
         "max_states": 200_000,
     }
+
+
+def test_a_layer_over_its_sample_is_clustered_from_a_sample_and_refit(graph, walk_lib) -> None:
+    ks = {"ks": (3, 5, 8), **SMALL}
+    whole = build_higher_layer(graph, walk_lib.clips, LayerSettings(sample=0, **ks))
+    n = whole.states.shape[0]
+    # at least as many as the states: exactly the search over every state
+    big = build_higher_layer(graph, walk_lib.clips, LayerSettings(sample=n, **ks))
+    np.testing.assert_array_equal(big.labels, whole.labels)
+    assert "sample" not in big.curve
+    sampled = build_higher_layer(graph, walk_lib.clips, LayerSettings(sample=n // 2, **ks))
+    assert sampled.curve["sample"] == n // 2 and sampled.labels.size == n
+    assert sampled.clustering.k in ks["ks"] and all(f.labels.size == n // 2 for f in sampled.fits)
+    assert LayerSettings(sample=n).key() != LayerSettings(sample=0).key()
+    with pytest.raises(ValueError, match="sample"):
+        LayerSettings(sample=-1)

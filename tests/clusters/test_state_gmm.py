@@ -46,6 +46,11 @@ def test_reference_orientation_is_the_minimax_one(
         expect = q[int(np.argmax(all_pairs))]
         for block, sample in ((17, 23), (256, 64), (2048, 2048)):
             np.testing.assert_array_equal(reference_orientation(q, block, sample), expect)
+        # among a spread of candidates, still measured against every orientation
+        np.testing.assert_array_equal(reference_orientation(q, candidates=n), expect)
+        pool = np.unique(np.linspace(0, n - 1, 97).round().astype(np.int64))
+        among = pool[int(np.argmax(all_pairs[pool]))]
+        np.testing.assert_array_equal(reference_orientation(q, 17, 23, candidates=97), q[among])
 
 
 def test_orientation_distance_is_half_the_angle() -> None:
@@ -140,3 +145,24 @@ def test_decorrelation_of_smooth_and_white_signals(rng: np.random.Generator) -> 
     smooth = np.sin(t / 20.0 + np.arange(4)) + 0.01 * white
     d = decorrelation_frames(smooth, np.array([0, 200, 400]))
     assert 10 < d < 60
+
+
+def test_a_sample_of_the_states_chooses_the_k_the_whole_would_and_the_fit_labels_all(
+    rng: np.random.Generator,
+) -> None:
+    # smooth runs of frames (each 40 frames long, one blob a run), as motion is
+    centres = np.array([[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [0.0, 4.0, 4.0]])
+    truth = np.repeat(rng.integers(0, 3, 60), 40)
+    x = centres[truth] + rng.normal(scale=0.5, size=(truth.size, 3))
+    cs = np.arange(0, truth.size + 1, 400)
+    whole = select_by_bic(x, [1, 2, 3, 4, 5], clip_start=cs)
+    n_eff = x.shape[0] / decorrelation_frames(x, cs)
+    sample = np.unique(np.linspace(0, x.shape[0] - 1, 300).round().astype(np.int64))
+    got = select_by_bic(x[sample], [1, 2, 3, 4, 5], n_eff=n_eff)
+    assert got[0].k == whole[0].k == 3 and got[2]["effective_states"] == n_eff
+    refit = fit_mixture(x, 3, means_init=got[0].means)
+    assert refit.labels.size == x.shape[0] and refit.seeds.size == 0
+    same = {(int(a), int(b)) for a, b in zip(refit.labels, whole[0].labels, strict=True)}
+    assert len(same) == 3  # the same clusters, up to naming
+    with pytest.raises(ValueError, match="means_init must be"):
+        fit_mixture(x, 2, means_init=got[0].means)
