@@ -117,7 +117,8 @@ def prepare(settings: RunSettings, source: Source) -> Prepared:
     match = settings.perform.match
     _say_unreachable(graph, not match.landing.jumps)
     with step("higher layer (clusters and trees)"):
-        layer, _, layer_built = cached_higher_layer(graph, clips, settings.layer)
+        fits = bar("higher layer: mixture fits", "fits")
+        layer, _, layer_built = cached_higher_layer(graph, clips, settings.layer, progress=fits)
     print(
         f"library: {len(graph.clip_names)} clips, {graph.n_frames} frames "
         f"({int(graph.in_scc.sum())} reachable); graph coords {graph.options.coords}; "

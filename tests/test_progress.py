@@ -38,3 +38,22 @@ def test_a_terminal_redraws_the_bar_in_place() -> None:
     update(1, 3)
     update(3, 3)
     assert tty.getvalue().count("\r") == 2 and tty.getvalue().endswith("s\n")
+
+
+def test_a_long_build_is_said_with_its_rate_and_time_left() -> None:
+    now = [0.0]
+    log = io.StringIO()
+    update = bar("bank", "renders", stream=log, quiet_s=1.0, every_s=30.0, clock=lambda: now[0])
+    for t, done in ((10.0, 100), (31.0, 310), (40.0, 400), (61.5, 615), (100.0, 1000)):
+        now[0] = t
+        update(done, 1000)
+    lines = log.getvalue().splitlines()
+    assert len(lines) == 3  # at 31 s and 61.5 s (30 s apart at most), then finished
+    assert lines[0].endswith("310/1000 renders, 10 renders/s, ETA 1:09")
+    assert lines[1].endswith("615/1000 renders, 10 renders/s, ETA 0:38")
+    assert lines[2].endswith("1000/1000 renders, 10 renders/s, 100.0 s")
+    tty, now[0] = _Tty(), 0.0
+    update = bar("layer", stream=tty, quiet_s=0.0, clock=lambda: now[0])
+    now[0] = 4000.0
+    update(1, 3)  # 4,000 s for one of three: 8,000 s left
+    assert tty.getvalue().endswith("1/3, 0.00025/s, ETA 2:13:20")

@@ -13,7 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -239,18 +239,19 @@ def cached_higher_layer(
     cache_dir: str | Path | None = None,
     rebuild: bool = False,
     cluster: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> tuple[HigherLayer, Path, bool]:
     """The higher layer of ``graph`` with ``settings`` from the cache (beside the
     graphs), built and stored when missing, stale or unreadable (with a warning naming
-    the file; its trees built on ``cluster`` where one is named). Returns ``(layer, path,
-    built)``."""
+    the file; its trees built on ``cluster`` where one is named; ``progress``: as
+    ``build_higher_layer`` calls it). Returns ``(layer, path, built)``."""
     settings = settings or LayerSettings()
     key = _key(graph, settings.key())
     folder = Path(cache_dir) if cache_dir is not None else graph_cache_dir()
     path = folder / f"layer-{key}.npz"
 
     def make() -> HigherLayer:
-        layer = build_higher_layer(graph, clips, settings, cluster)
+        layer = build_higher_layer(graph, clips, settings, cluster, progress)
         save_layer(layer, path, key)
         return layer
 

@@ -11,13 +11,13 @@ restarts from data points, keeping the best log-likelihood.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..jobs import cluster_address, map_jobs
+from ..jobs import cluster_address, run_jobs
 from ..motion import FloatArray
 
 __all__ = [
@@ -205,6 +205,7 @@ def select_by_bic(
     clip_start: NDArray[np.int64] | None = None,
     cluster: str | None = None,
     n_eff: float | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> tuple[Clustering, list[Clustering], dict[str, object]]:
     """Fit every ``k`` in ``ks``; return the best, all fits in order, and the curve.
     The fits are made here, or as jobs (one a ``k``) on the Dask cluster that
@@ -216,12 +217,22 @@ def select_by_bic(
     decorrelation measured on them all); the choice is then by ``effective_bic`` with it,
     each fit's likelihood per state standing for the whole's. The curve holds ``k``,
     ``bic``, ``bic_effective`` (or None), the log-likelihood and the decorrelation length.
+    ``progress(done, len(ks))`` is called as each fit comes in.
     """
     address = cluster_address(cluster)
+    got: dict[int, Clustering] = {}
+
+    def take(i: int, fit: Clustering) -> None:
+        got[i] = fit
+        if progress is not None:
+            progress(len(got), len(ks))
+
     if address is None:
-        fits = [fit_mixture(x, k, seeding=seeding, seed=seed) for k in ks]
+        for i, k in enumerate(ks):
+            take(i, fit_mixture(x, k, seeding=seeding, seed=seed))
     else:  # one job a k, the states sent to each worker once
-        fits = map_jobs(_fit_job, list(ks), cluster=address, shared=(x, seeding, seed))
+        run_jobs(_fit_job, list(ks), take, cluster=address, shared=(x, seeding, seed))
+    fits = [got[i] for i in range(len(ks))]
     n = x.shape[0]
     curve: dict[str, object] = {
         "k": [f.k for f in fits],

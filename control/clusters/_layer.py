@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -155,11 +155,13 @@ def build_higher_layer(
     clips: Sequence[Clip],
     settings: LayerSettings | None = None,
     cluster: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> HigherLayer:
     """Cluster the graph's frames (``settings.k`` clusters, or chosen by effective BIC
     over ``settings.ks``) and build the cluster forest with its time bound (the BIC
     search's fits and the trees as jobs on ``cluster``, or ``$MIMIC_CLUSTER``, where one
-    is named: ``select_by_bic``, ``build_forest``)."""
+    is named: ``select_by_bic``, ``build_forest``). ``progress(done, total)`` counts the
+    mixture fits as they come in (the search's, and the full fit after a sample's)."""
     st = settings or LayerSettings()
     k, seeding, seed = st.k, st.seeding, st.seed
     chosen = graph.clips_of(clips)
@@ -169,12 +171,14 @@ def build_higher_layer(
         best = fit_mixture(x, k, seeding=seeding, seed=seed)
         fits: list[Clustering] = [best]
         curve: dict[str, Any] = {"k": [k], "bic": [best.bic], "chosen_k": k}
+        if progress is not None:
+            progress(1, 1)
     elif not 0 < st.sample < x.shape[0]:
         best, fits, curve = select_by_bic(
-            x, st.ks, seeding=seeding, seed=seed, clip_start=feat.clip_start, cluster=cluster
+            x, st.ks, seeding, seed, feat.clip_start, cluster, progress=progress
         )
     else:
-        best, fits, curve = _sampled_bic(x, feat.clip_start, st, cluster)
+        best, fits, curve = _sampled_bic(x, feat.clip_start, st, cluster, progress)
     forest = build_forest(
         graph, best.labels, st.bound_seconds, st.max_nodes, st.max_states, cluster
     )
@@ -184,7 +188,11 @@ def build_higher_layer(
 
 
 def _sampled_bic(
-    x: FloatArray, clip_start: NDArray[np.int64], st: LayerSettings, cluster: str | None
+    x: FloatArray,
+    clip_start: NDArray[np.int64],
+    st: LayerSettings,
+    cluster: str | None,
+    progress: Callable[[int, int], None] | None,
 ) -> tuple[Clustering, list[Clustering], dict[str, Any]]:
     """``select_by_bic`` on ``st.sample`` states spread evenly over ``x``, with the
     effective size of all of them; then the chosen ``k`` fitted on every state from the
@@ -192,9 +200,13 @@ def _sampled_bic(
     n = x.shape[0]
     sample = np.unique(np.linspace(0, n - 1, st.sample).round().astype(np.int64))
     n_eff = n / decorrelation_frames(x, clip_start)
+    total = len(st.ks) + 1
+    each = None if progress is None else lambda done, _: progress(done, total)
     chosen, fits, curve = select_by_bic(
-        x[sample], st.ks, seeding=st.seeding, seed=st.seed, cluster=cluster, n_eff=n_eff
+        x[sample], st.ks, st.seeding, st.seed, cluster=cluster, n_eff=n_eff, progress=each
     )
     best = fit_mixture(x, chosen.k, st.seeding, st.seed, means_init=chosen.means)
+    if progress is not None:
+        progress(total, total)
     curve["sample"] = int(sample.size)
     return best, fits, curve

@@ -136,7 +136,14 @@ def test_a_layer_over_its_sample_is_clustered_from_a_sample_and_refit(graph, wal
     big = build_higher_layer(graph, walk_lib.clips, LayerSettings(sample=n, **ks))
     np.testing.assert_array_equal(big.labels, whole.labels)
     assert "sample" not in big.curve
-    sampled = build_higher_layer(graph, walk_lib.clips, LayerSettings(sample=n // 2, **ks))
+    said: list[tuple[int, int]] = []
+    sampled = build_higher_layer(
+        graph,
+        walk_lib.clips,
+        LayerSettings(sample=n // 2, **ks),
+        progress=lambda *a: said.append(a),
+    )
+    assert said == [(1, 4), (2, 4), (3, 4), (4, 4)]  # three candidates, then the full fit
     assert sampled.curve["sample"] == n // 2 and sampled.labels.size == n
     assert sampled.clustering.k in ks["ks"] and all(f.labels.size == n // 2 for f in sampled.fits)
     assert LayerSettings(sample=n).key() != LayerSettings(sample=0).key()
