@@ -5,12 +5,15 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from control.artifacts import atomic_write
+from control.estimate import cold_build_seconds
+from control.graph import select_clips
 from control.motion import (
     EMBEDDED_CLIPS,
     EMBEDDED_LIBRARY,
@@ -22,6 +25,8 @@ from control.motion import (
     load_library,
     source_label_rows,
 )
+from silhouette_bank import BankSettings, render_rate
+from vision import on_the_floor
 
 from .args import add_library_dir, library_dir, number
 
@@ -52,6 +57,13 @@ def add_library_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
     )
     info.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
     info.add_argument("--json", action="store_true", help="print the summary as JSON")
+    info.add_argument(
+        "--workers",
+        type=number(int, 1, 4096),
+        default=None,
+        help="workers the bank would render on, for the cold build's estimate (default: "
+        "this machine's cores, at most 4, as a bank build takes them)",
+    )
     info.set_defaults(func=_info)
     labels = lib_sub.add_parser(
         "labels",
@@ -191,6 +203,7 @@ def _info(args: argparse.Namespace) -> int:
         use_cache=not args.no_cache,
     )
     summary = library_summary(library)
+    summary["cold_build_estimate"] = _cold_build(library, args.workers)
     if args.json:
         print(json.dumps(summary, indent=2))
         return 0
@@ -212,4 +225,42 @@ def _info(args: argparse.Namespace) -> int:
         f"{cf['left']:.0%}, right {cf['right']:.0%}, both {cf['both']:.0%}, neither "
         f"{cf['none']:.0%}; {summary['contact_changes']} contact changes"
     )
+    est = summary["cold_build_estimate"]
+    if est is not None:
+        steps = ", ".join(
+            f"{name} {_duration(est[name])}"
+            for name in ("graph", "higher layer", "bank", "search index")
+        )
+        print(
+            f"a cold build here (mimic perform from an empty cache, {est['frames']} frames of "
+            f"clips on the floor): about {_duration(est['total'])}: {steps} (the bank on "
+            f"{est['workers']} workers; "
+            f"estimated from {est['render_rate']:,.0f} silhouettes/s rendered just now and "
+            "bench_scale's growth on the development machine)"
+        )
     return 0
+
+
+def _cold_build(library: Library, workers: int | None) -> dict[str, Any] | None:
+    """``control.estimate.cold_build_seconds`` on this machine for the clips of ``library``
+    that ``mimic perform`` builds from (the graph's skeleton group, on the floor), its
+    render rate measured on the longest; with the frames, the rate and the workers;
+    ``None`` without a clip to build."""
+    clips, _ = select_clips(library.clips)
+    clips, _ = on_the_floor(clips) if clips else ([], {})
+    if not clips:
+        return None
+    frames = sum(c.motion.n_frames for c in clips)
+    settings = BankSettings()
+    rate = render_rate(max(clips, key=lambda c: c.motion.n_frames), settings)
+    n = workers or min(4, os.cpu_count() or 1)
+    est = cold_build_seconds(frames, settings.n_views, rate, n)
+    rounded = {k: round(v, 1) for k, v in est.items()}
+    return {**rounded, "frames": frames, "render_rate": round(rate), "workers": n}
+
+
+def _duration(seconds: float) -> str:
+    """``40 s``, ``12 min``, ``2.5 h``."""
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    return f"{seconds / 60:.0f} min" if seconds < 5400 else f"{seconds / 3600:.1f} h"

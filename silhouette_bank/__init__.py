@@ -46,6 +46,7 @@ from ._metric import (
 from ._occlusion import joint_visibility
 from ._pose import joint_points, pose_visibility
 from ._raster import rasterize
+from ._rate import render_rate
 from ._render import (
     draw_ground_shadow,
     gl_features,
@@ -103,6 +104,7 @@ __all__ = [
     "pose_visibility",
     "rasterize",
     "render_motion_video",
+    "render_rate",
     "robust_settings",
     "shaded_frames",
     "silhouette_features",

@@ -257,9 +257,17 @@ def test_cli_library_info(small_lib: Path, capsys: pytest.CaptureFixture[str]) -
     assert out["clips"] == 3 and out["fps"] == 15
     assert out["frames"] == sum(c["frames"] for c in out["per_clip"])
     assert 0 < out["contact_fraction"]["left"] < 1
+    # how long mimic perform's cold build would take here, for the clips it would keep
+    est = out["cold_build_estimate"]
+    assert 0 < est["frames"] <= out["frames"] and est["render_rate"] > 0 and est["workers"] >= 1
+    parts = ("graph", "higher layer", "bank", "search index")
+    assert est["total"] == pytest.approx(sum(est[k] for k in parts), abs=0.3)
     assert main(["library", "info", str(small_lib)]) == 0
     text = capsys.readouterr().out
     assert "02_03" in text and "3 clips" in text
+    assert f"a cold build here (mimic perform from an empty cache, {est['frames']} frames" in text
+    assert main(["library", "info", str(small_lib), "--json", "--workers", "8"]) == 0
+    assert json.loads(capsys.readouterr().out)["cold_build_estimate"]["workers"] == 8
     assert main(["library", "info", str(small_lib / "nowhere")]) == 2
     assert "is not a directory" in capsys.readouterr().err
 
