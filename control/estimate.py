@@ -27,8 +27,8 @@ REFERENCE_STEPS: dict[str, tuple[tuple[int, float], ...]] = {
     "higher layer": ((50_000, 25.0), (200_000, 63.82), (500_000, 91.73)),
     "search index": ((50_000, 17.7), (200_000, 73.3), (500_000, 176.5)),
 }
-#: silhouettes a second ``silhouette_bank.render_rate`` measures there (the shared
-#: library's longest clip, 2026-12-05: 12,900-14,200 in six runs)
+#: silhouettes a second ``silhouette_bank.render_rate`` measures there (on the shared
+#: library's longest clip; the runs are in ``benchmarks/HISTORY.md``)
 REFERENCE_RENDER_RATE = 14_000.0
 #: silhouettes a second one worker put into a bank there, shards written and merged (18
 #: views, 320x240, the outline): half what the render alone does
