@@ -96,6 +96,7 @@ def run_settings(args: argparse.Namespace) -> RunSettings:
             margin=args.vote_margin,
             switch_chance=args.vote_switch,
             confidence=args.vote_confidence,
+            strict_share=args.vote_strict,
             classify=not args.no_classify,
         ),
     )
@@ -244,6 +245,15 @@ def _add_jump_args(p: argparse.ArgumentParser) -> None:
         help="with the vote, a window of another action is taken when it fits better even "
         "at 1 + M times its cost, and the avatar's own motion of another action costs as "
         "much more (default %(default)s; inf: only the voted action)",
+    )
+    p.add_argument(
+        "--vote-strict",
+        type=number(float, 0, 1),
+        default=ActionSettings.strict_share,
+        metavar="SHARE",
+        help="with the counted vote, no margin (as --vote-margin inf) for a decision where "
+        "at least this share of the last votes went to the voted action (default "
+        "%(default)s; 0: the margin always)",
     )
     p.add_argument(
         "--vote-switch",

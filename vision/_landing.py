@@ -80,7 +80,7 @@ class Lander:
             np.array([dtw_batch(q, refs, window=band, recency=r) for q in queries]), frame
         )
         cost = float(costs.min())
-        margin = self.settings.action.margin
+        margin = self.margin()
         voting = self.vote.actions is not None and self.vote.size > 0 and math.isfinite(margin)
         if voting and self.vote.leaves(frame, frame):  # (held: the frame shows no other)
             cost *= 1.0 + margin  # (weighed as the avatar's own motion is, however taken)
@@ -138,6 +138,14 @@ class Lander:
             lead.append(f)
         return np.concatenate((np.array(lead[::-1], dtype=np.int64), recent))
 
+    def margin(self) -> float:
+        """The vote's margin for this decision (``ActionSettings.margin``; infinite where
+        the last votes agree on the voted action by ``strict_share`` at least)."""
+        st = self.settings.action
+        if 0 < st.strict_share <= self.vote.share():
+            return math.inf
+        return st.margin
+
     def gated(
         self,
         frame: int,
@@ -158,7 +166,7 @@ class Lander:
         got, target, ok, there = found
         if voted is None:
             return got, target, ok, np.ones(len(got)), 1.0
-        margin = self.settings.action.margin
+        margin = self.margin()
         if not (ok & voted).any():
             more = self.voted_windows(frame, queries, ranked, costs, there & voted)
             if math.isinf(margin):

@@ -167,6 +167,13 @@ class ActionSettings:
     classify : bool
         Each decision votes for the action the library's action classifier and the
         search's costs agree on (``vision._classify``), not the best window's alone.
+    strict_share : float
+        With the counted vote, where at least this share of the last ``vote`` decisions
+        voted for the voted action, that decision's margin is infinite: the avatar keeps
+        strictly to an action the performer is clearly doing, and where the vote is
+        split the margin lets it take a nearer pose of another (0: off). 0.9 made the
+        avatar steadier on every fold without costing the pose score or the real squat
+        clip; 0.8 cost both (``benchmarks/HISTORY.md``).
     tempos : tuple of float
         The vote also reads the performer at these tempos against the library's (0.6:
         the performer moves at 0.6 times its speed, so their last ``window / 0.6``
@@ -182,6 +189,7 @@ class ActionSettings:
     min_points: int = 1
     confidence: float = 0.0
     classify: bool = True
+    strict_share: float = 0.9
     tempos: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
@@ -191,6 +199,8 @@ class ActionSettings:
             raise ValueError(f"margin must be >= 0 (inf: strict), got {self.margin}")
         if not 0.0 <= self.switch_chance < 1.0:
             raise ValueError(f"switch_chance must lie in [0, 1), got {self.switch_chance}")
+        if not 0.0 <= self.strict_share <= 1.0:
+            raise ValueError(f"strict_share must lie in [0, 1], got {self.strict_share}")
         if not (self.temperature > 0 and math.isfinite(self.temperature)):
             raise ValueError(f"temperature must be positive, got {self.temperature}")
         object.__setattr__(self, "tempos", tuple(self.tempos))

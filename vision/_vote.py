@@ -168,6 +168,12 @@ class ActionVote:
             self.voted = self._votes[-1]  # the last ``quick`` votes agree: at once
         return self.gate(target)
 
+    def share(self) -> float:
+        """The share of the last votes that went to the voted action (0 before any)."""
+        if not self._votes or self.voted < 0:
+            return 0.0
+        return sum(1 for v in self._votes if v == self.voted) / len(self._votes)
+
     def gate(self, target: IntArray) -> NDArray[np.bool_]:
         """Which of ``target`` show the action voted for and still show it ``span``
         frames on (clipped to the library's last frame)."""

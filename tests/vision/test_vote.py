@@ -164,15 +164,15 @@ def test_the_avatar_jumps_into_the_voted_action_unless_another_fits_far_better(
     for the best squat windows. With the strict vote (``ActionSettings.margin`` infinite) it jumps
     into one of them, never into a jog (before the vote it stayed, or jumped to the best
     jog window); with a margin of 0.2 the best jog window, whose cost even 1.2 times is
-    far below the best squat window's, wins, at 1.2 times its cost."""
+    far below the best squat window's, wins, at 1.2 times its cost (the margin held
+    whatever share of the votes agree: ``strict_share`` 0)."""
     lib, layer, bank = setup
     labels, squat, jog = _squats_and_jogs(lib)
     keys = action_keys(lib.clips)
     assert keys is not None and squat and jog
     costs = JumpCosts(layer.graph, lib.clips, anywhere=True)
-    m = Matcher(
-        layer, bank, MatchSettings(action=ActionSettings(vote=15, margin=margin)), actions=keys
-    )
+    vote = ActionSettings(vote=15, margin=margin, strict_share=0.0)
+    m = Matcher(layer, bank, MatchSettings(action=vote), actions=keys)
     for _ in range(10):
         m.vote.cast(np.array([squat[len(squat) // 2]]))
     j = jog[len(jog) // 3]
@@ -305,3 +305,29 @@ def test_a_confident_filter_keeps_its_action_while_two_are_about_as_likely() -> 
             last = vote.voted
         steady.append(changes)
     assert steady[1] == 0 and steady[0] > 10  # (the most believed flips at every point)
+
+
+def test_a_vote_that_agrees_keeps_strictly_to_its_action() -> None:
+    """``ActionSettings.strict_share``: where at least that share of the last votes went
+    to the voted action, the decision's margin is infinite; where the vote is split, the
+    settings' margin holds."""
+    from vision._landing import Lander
+
+    vote = ActionVote(10, 3)
+    vote.actions = np.array([0] * 10 + [1] * 10, dtype=np.int64)
+    settings = MatchSettings(action=ActionSettings(vote=10, margin=0.2))  # (0.9: the default)
+    lander = Lander.__new__(Lander)  # (the margin reads only the settings and the vote)
+    lander.settings, lander.vote = settings, vote
+    assert vote.share() == 0.0 and lander.margin() == 0.2  # no votes yet
+    for _ in range(9):
+        vote.cast(np.array([2]))  # action 0
+    assert vote.share() == 1.0 and math.isinf(lander.margin())
+    vote.cast(np.array([12]))  # one for action 1: 9 of 10 still agree
+    assert vote.voted == 0 and vote.share() == 0.9 and math.isinf(lander.margin())
+    vote.cast(np.array([12]))  # 8 of 10: split enough for the margin
+    assert vote.share() == pytest.approx(0.8) and lander.margin() == 0.2
+    lander.settings = MatchSettings(action=ActionSettings(margin=0.2, strict_share=0.0))  # off
+    vote.cast(np.array([2]))
+    assert vote.share() == pytest.approx(0.8) and lander.margin() == 0.2
+    with pytest.raises(ValueError, match="strict_share must lie in"):
+        ActionSettings(strict_share=1.5)
