@@ -171,9 +171,11 @@ class ActionSettings:
         With the counted vote, where at least this share of the last ``vote`` decisions
         voted for the voted action, that decision's margin is infinite: the avatar keeps
         strictly to an action the performer is clearly doing, and where the vote is
-        split the margin lets it take a nearer pose of another (0: off). 0.9 made the
-        avatar steadier on every fold without costing the pose score or the real squat
-        clip; 0.8 cost both (``benchmarks/HISTORY.md``).
+        split the margin lets it take a nearer pose of another (0: off). Off by default:
+        0.9 made the avatar steadier on every fold without costing the pose score or the
+        real squat clip, but a performer who stands still was no longer mirrored by an
+        avatar holding still where the vote names another action than the avatar's
+        (``benchmarks/HISTORY.md``).
     tempos : tuple of float
         The vote also reads the performer at these tempos against the library's (0.6:
         the performer moves at 0.6 times its speed, so their last ``window / 0.6``
@@ -189,7 +191,7 @@ class ActionSettings:
     min_points: int = 1
     confidence: float = 0.0
     classify: bool = True
-    strict_share: float = 0.9
+    strict_share: float = 0.0
     tempos: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:

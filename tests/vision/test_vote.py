@@ -315,7 +315,7 @@ def test_a_vote_that_agrees_keeps_strictly_to_its_action() -> None:
 
     vote = ActionVote(10, 3)
     vote.actions = np.array([0] * 10 + [1] * 10, dtype=np.int64)
-    settings = MatchSettings(action=ActionSettings(vote=10, margin=0.2))  # (0.9: the default)
+    settings = MatchSettings(action=ActionSettings(vote=10, margin=0.2, strict_share=0.9))
     lander = Lander.__new__(Lander)  # (the margin reads only the settings and the vote)
     lander.settings, lander.vote = settings, vote
     assert vote.share() == 0.0 and lander.margin() == 0.2  # no votes yet
@@ -326,7 +326,7 @@ def test_a_vote_that_agrees_keeps_strictly_to_its_action() -> None:
     assert vote.voted == 0 and vote.share() == 0.9 and math.isinf(lander.margin())
     vote.cast(np.array([12]))  # 8 of 10: split enough for the margin
     assert vote.share() == pytest.approx(0.8) and lander.margin() == 0.2
-    lander.settings = MatchSettings(action=ActionSettings(margin=0.2, strict_share=0.0))  # off
+    lander.settings = MatchSettings(action=ActionSettings(margin=0.2))  # (off by default)
     vote.cast(np.array([2]))
     assert vote.share() == pytest.approx(0.8) and lander.margin() == 0.2
     with pytest.raises(ValueError, match="strict_share must lie in"):
