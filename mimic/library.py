@@ -246,8 +246,10 @@ def _cold_build(library: Library, workers: int | None) -> dict[str, Any] | None:
     that ``mimic perform`` builds from (the graph's skeleton group, on the floor), its
     render rate measured on the longest; with the frames, the rate and the workers;
     ``None`` without a clip to build."""
-    clips, _ = select_clips(library.clips)
-    clips, _ = on_the_floor(clips) if clips else ([], {})
+    # in perform's order: the clips on the floor (of the whole library's floor), then the
+    # graph's skeleton group among them
+    clips, _ = on_the_floor(library.clips) if library.clips else ([], {})
+    clips, _ = select_clips(clips) if clips else ([], [])
     if not clips:
         return None
     frames = sum(c.motion.n_frames for c in clips)

@@ -165,11 +165,14 @@ def _add_vision_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--window",
         type=number(float, 0, 10, above=True),
-        default=1.0,
+        default=MatchSettings.window,
         help="seconds of performer matched",
     )
     p.add_argument(
-        "--lookahead", type=number(float, 0, 60), default=1.5, help="candidate actions within, s"
+        "--lookahead",
+        type=number(float, 0, 60),
+        default=PathSettings.lookahead,
+        help="candidate actions within, s",
     )
     p.add_argument(
         "--segmentation",

@@ -9,7 +9,6 @@ from numpy.typing import NDArray
 
 __all__ = ["Decision", "Jump"]
 
-FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 

@@ -85,7 +85,6 @@ class Matcher:
         self.windows = WindowSearch(self.graph, bank, self.settings, self.n, self.plays, jumps)
         #: what one performer frame is reduced to: the bank's descriptor
         self.desc = self.windows.desc
-        self.descriptor = self.desc.name
         self.n_features = self.desc.size
         reject = self.settings.reject
         self.reject = self.desc.reject if reject is None else reject
