@@ -146,11 +146,17 @@ class Chromium:
 
     def wait_for(self, expression: str, timeout: float = 60.0) -> Any:
         """The value of ``expression`` once it is truthy (an expression that throws, as
-        one naming what the page has not made yet, is false)."""
+        one naming what the page has not made yet, is false; so is a page that has no
+        script context yet, still loading)."""
         guarded = f"(() => {{ try {{ return ({expression}); }} catch (e) {{ return null; }} }})()"
         t0 = time.monotonic()
         while time.monotonic() - t0 < timeout:
-            value = self.evaluate(guarded)
+            try:
+                value = self.evaluate(guarded)
+            except RuntimeError as e:
+                if "execution context" not in str(e):
+                    raise
+                value = None
             if value:
                 return value
             time.sleep(0.2)

@@ -75,7 +75,7 @@ def _close_dask() -> None:
 HEAVY = frozenset(
     {
         "actions", "banks", "chainer", "dask_cluster", "exercise", "graph", "lib",
-        "medium_lib", "playground", "playground_lib", "pose_bank", "setup", "squats",
+        "films", "medium_lib", "playground", "playground_lib", "pose_bank", "setup", "squats",
         "walk", "walk_lib", "walks",
     }
 )  # fmt: skip
@@ -121,7 +121,7 @@ def _private_cache(session_cache: Path) -> Iterator[None]:
 
 
 #: the session fixtures whose artifacts tests/prebuild.py builds, and the part of each
-PREBUILT = {"playground": "playground", "actions": "walks", "setup": "bank"}
+PREBUILT = {"playground": "playground", "actions": "walks", "setup": "bank", "films": "films"}
 
 
 class Prebuild:

@@ -1,8 +1,8 @@
 """What the slowest session fixtures build, built in a background process from the
 session's start (``conftest.prebuild``) while the first tests run on the other core: the
 playground's graph and higher layer (the choice tests), the walks' higher layer (the
-sketch tests) and the 13_30 bank (the vision fixtures), into the tests' cache
-($MIMIC_CACHE).
+sketch tests), the 13_30 bank (the vision fixtures) and the colour films of 13_29 that
+the view tests read with the pose model, into the tests' cache ($MIMIC_CACHE).
 
 Each part, once built, leaves a marker ``prebuilt-<part>`` in the cache. A fixture that
 needs a part waits for its marker (or for this process to end, whatever its outcome) and
@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 
 #: the parts, in the order the tests need them (clusters, sketch, then vision tests)
-PARTS = ("playground", "walks", "bank")
+PARTS = ("playground", "walks", "bank", "films")
 
 
 def build(part: str) -> None:
@@ -50,6 +50,11 @@ def build(part: str) -> None:
 
         lib = load_library(MOCAP, clips=["13_30"])
         cached_bank(lib.clips, BankSettings(), workers=1)
+    elif part == "films":  # tests/vision/test_views.py: films
+        from tests.vision.test_views import FILMS, film
+
+        for seconds, how in FILMS:
+            film(MOCAP, Path(os.environ["MIMIC_CACHE"]) / "films", seconds, **how)
     elif part == "kernels":  # started apart from the others (conftest.prebuild)
         warm_kernels()
     else:

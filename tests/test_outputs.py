@@ -222,6 +222,7 @@ def test_the_set_checks_itself(tmp_path: Path) -> None:
     assert a.path.read_text() == "new" and sorted(os.listdir(tmp_path)) == ["in", "link", "x"]
 
 
+@pytest.mark.slow  # (it builds the library's graph, layer and bank first)
 def test_a_stop_before_the_first_frame_says_stopped_and_writes_nothing(
     mocap: Path, video: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:

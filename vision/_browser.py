@@ -53,6 +53,11 @@ def jpeg_size(data: bytes) -> tuple[int, int] | None:
     return None
 
 
+#: seconds the run waits for a closed camera page to come back (a reload) before the
+#: source ends
+GRACE_S = 5.0
+
+
 class BrowserCamera:
     """Frames from the stage's camera page (module docstring)."""
 
@@ -62,14 +67,15 @@ class BrowserCamera:
     def __init__(
         self,
         stage: Any,
-        grace: float = 5.0,
+        grace: float | None = None,
         max_bytes: int = 4 << 20,
         max_side: int = 4096,
         wait: float = 0.25,
     ) -> None:
         self.name = "the page's camera"
         self.stage = stage
-        self.grace, self.max_bytes, self.max_side, self.wait = grace, max_bytes, max_side, wait
+        self.grace = GRACE_S if grace is None else grace
+        self.max_bytes, self.max_side, self.wait = max_bytes, max_side, wait
         self._cond = threading.Condition()
         self._owner: int | None = None  # the page that is the camera
         self._offset: float | None = None  # media t = page ms / 1000 - offset

@@ -52,6 +52,7 @@ def test_white_frames_are_no_performer(setup, tmp_path: Path) -> None:
     assert {d["reason"] for d in r.decisions} == {"the mask covers 100% of the frame"}
 
 
+@pytest.mark.slow  # (mimic perform builds the library's graph, layer and bank first)
 def test_a_truncated_video_is_said(mocap: Path, tmp_path: Path, capsys) -> None:
     cut = tmp_path / "cut.mkv"
     cut.write_bytes(RECORDING.read_bytes()[:60_000])

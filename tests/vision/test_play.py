@@ -61,7 +61,8 @@ def test_a_click_and_a_drawn_path_drive_the_avatar_in_the_page(
 
     port = free_port()
     out = tmp_path / "play.bvh"
-    argv = ["play", str(mocap), "--clips", "13_30", "--k", "12", "--seconds", "14"]
+    # (the page has drawn its path about 5 s in)
+    argv = ["play", str(mocap), "--clips", "13_30", "--k", "12", "--seconds", "10"]
     argv += ["--live-port", str(port), "--out", str(out)]
     done: dict[str, int] = {}
     run = threading.Thread(target=lambda: done.update(rc=main(argv)))

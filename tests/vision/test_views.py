@@ -15,6 +15,7 @@ import pytest
 
 from control.motion import load_library
 from silhouette_bank import BankSettings, build_bank
+from tests.conftest import Prebuild
 from vision import (
     PerformSettings,
     PersonSegmenter,
@@ -40,13 +41,41 @@ def pose_bank(setup: Any, tmp_path_factory: pytest.TempPathFactory) -> Any:
     )
 
 
-def _film(mocap: Path, folder: Path, seconds: tuple[float, float], **how: Any) -> Path:
-    """13_29 between ``seconds``, filmed in colour at 15 frames/s as ``how`` says."""
-    clip = load_library(mocap, fps=15, clips=["13_29"]).clip("13_29")
-    video = folder / "performer.mkv"
-    settings = RecordSettings(colour=True, width=480, height=360, **how)
-    record_clip(clip, video, settings, round(seconds[0] * 15), round(seconds[1] * 15))
+#: the takes the tests film, as ``(seconds, how)``: ``tests/prebuild.py`` films them in
+#: the background (part ``films``) while the earlier tests run
+FILMS: tuple[tuple[tuple[float, float], dict[str, float]], ...] = (
+    ((0.0, 8.0), {"azimuth": 90.0}),
+    ((0.0, 8.0), {"azimuth": 0.0, "turn": 90.0}),
+    ((32.0, 38.0), {"azimuth": 20.0}),
+    ((0.0, 9.0), {"azimuth": 20.0}),
+    ((0.0, 6.0), {"azimuth": 0.0}),
+    ((32.0, 38.0), {"azimuth": 0.0}),
+)
+
+
+def film(mocap: Path, folder: Path, seconds: tuple[float, float], **how: float) -> Path:
+    """13_29 between ``seconds``, filmed in colour at 15 frames/s as ``how`` says, into
+    ``folder`` (kept there: a film the session has made is not made again)."""
+    name = "-".join([f"{s:g}" for s in seconds] + [f"{k}{v:g}" for k, v in sorted(how.items())])
+    video = folder / f"13_29-{name}.mkv"
+    if not video.with_name(video.name + ".json").exists():
+        clip = load_library(mocap, fps=15, clips=["13_29"]).clip("13_29")
+        settings = RecordSettings(colour=True, width=480, height=360, **how)
+        record_clip(clip, video, settings, round(seconds[0] * 15), round(seconds[1] * 15))
     return video
+
+
+def _film(mocap: Path, films: Path, seconds: tuple[float, float], **how: float) -> Path:
+    assert (seconds, how) in FILMS, "a take the tests film is listed in FILMS"
+    return film(mocap, films, seconds, **how)
+
+
+@pytest.fixture(scope="module")
+def films(prebuild: Prebuild, session_cache: Path) -> Path:
+    """The folder of the session's films (``FILMS``), once the background has made them
+    (or given up: a film not there is made by the test that needs it)."""
+    prebuild.wait("films")
+    return session_cache / "films"
 
 
 def _frames(video: Path) -> list[np.ndarray]:
@@ -83,11 +112,11 @@ def _follow(setup: Any, bank: Any, video: Path) -> tuple[dict[str, Any], list[di
 
 @pytest.mark.gl
 def test_a_side_view_is_matched_and_its_action_found(
-    setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
+    setup: Any, pose_bank: Any, mocap: Path, films: Path
 ) -> None:
     # jumping jacks, then side twists, seen from the performer's left: the right arm and
     # leg are hidden much of the time, and every frame is matched all the same
-    video = _film(mocap, tmp_path, (0.0, 8.0), azimuth=90.0)
+    video = _film(mocap, films, (0.0, 8.0), azimuth=90.0)
     report, decisions = _follow(setup, pose_bank, video)
     hidden = [d for d in decisions if any(j.startswith("right") for j in d.get("hidden", []))]
     assert len(hidden) > len(decisions) // 3  # the test shows what a side view hides
@@ -102,10 +131,10 @@ def test_a_side_view_is_matched_and_its_action_found(
 
 @pytest.mark.gl
 def test_a_performer_who_turns_is_followed_throughout(
-    setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
+    setup: Any, pose_bank: Any, mocap: Path, films: Path
 ) -> None:
     # from facing the camera to showing it their side over 8 s
-    video = _film(mocap, tmp_path, (0.0, 8.0), azimuth=0.0, turn=90.0)
+    video = _film(mocap, films, (0.0, 8.0), azimuth=0.0, turn=90.0)
     report, decisions = _follow(setup, pose_bank, video)
     assert report["decision_points"]["person_in_view_undecided_share"] <= 0.05
     late = [d for d in decisions if d["t"] > 5.0]  # turned 60 degrees or more
@@ -115,12 +144,12 @@ def test_a_performer_who_turns_is_followed_throughout(
 
 @pytest.mark.gl
 def test_a_performer_cut_off_at_the_knees_is_matched(
-    setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
+    setup: Any, pose_bank: Any, mocap: Path, films: Path, tmp_path: Path
 ) -> None:
     # squats with the frame cut above the knees, as a camera on a desk sees a performer:
     # the legs' landmarks are of low confidence for the whole clip, and the model still
     # places them; every frame is matched, and the squats found
-    video = _film(mocap, tmp_path, (32.0, 38.0), azimuth=20.0)
+    video = _film(mocap, films, (32.0, 38.0), azimuth=20.0)
 
     def cut_off(img: np.ndarray) -> np.ndarray:
         img[int(img.shape[0] * 0.62) :] = (60, 60, 60)
@@ -157,13 +186,13 @@ class _TorsoLost:
 
 @pytest.mark.gl
 def test_where_the_landmarks_fail_the_silhouette_decides(
-    setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
+    setup: Any, pose_bank: Any, mocap: Path, films: Path, tmp_path: Path
 ) -> None:
     # 13_29's jumping jacks and twists; from 2 to 7 s the torso's landmarks fail while
     # the person mask is good: half a window on, the silhouette bank decides (the log's
     # ``by``), and the avatar keeps doing the performer's action
     lib, layer, silhouettes = setup
-    video = _film(mocap, tmp_path, (0.0, 9.0), azimuth=20.0)
+    video = _film(mocap, films, (0.0, 9.0), azimuth=20.0)
     truth = truth_for(video)
     assert truth is not None
     runs = {}
@@ -197,11 +226,11 @@ def test_where_the_landmarks_fail_the_silhouette_decides(
 
 @pytest.mark.gl
 def test_a_performer_upside_down_is_still_rejected(
-    setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
+    setup: Any, pose_bank: Any, mocap: Path, films: Path, tmp_path: Path
 ) -> None:
     # garbage: the image upside down (the pose model may still find a body, whose torso
     # is then upside down); no decision follows it
-    video = _film(mocap, tmp_path, (0.0, 6.0), azimuth=0.0)
+    video = _film(mocap, films, (0.0, 6.0), azimuth=0.0)
     flipped = _rewrite(video, tmp_path / "upside.mkv", lambda img: img[::-1])
     lib, layer, silhouettes = setup
     for fallback in (None, silhouettes):  # nor does the silhouette follow it
@@ -220,12 +249,12 @@ def test_a_performer_upside_down_is_still_rejected(
 
 @pytest.mark.gl
 def test_a_performer_who_walks_out_and_back_is_followed_again(
-    setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
+    setup: Any, pose_bank: Any, mocap: Path, films: Path, tmp_path: Path
 ) -> None:
     # the room empty from 3 to 5 s: the frames seen last decide while they fill half the
     # window, then nobody is there; back, half a window fills, and the performer is
     # followed again
-    video = _film(mocap, tmp_path, (0.0, 9.0), azimuth=20.0)
+    video = _film(mocap, films, (0.0, 9.0), azimuth=20.0)
     seen = iter(range(10**6))
 
     def away(img: np.ndarray) -> np.ndarray:
@@ -246,13 +275,13 @@ def test_a_performer_who_walks_out_and_back_is_followed_again(
 
 @pytest.mark.gl
 def test_a_performer_cut_at_the_waist_is_not_taken_for_nobody(
-    setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
+    setup: Any, pose_bank: Any, mocap: Path, films: Path, tmp_path: Path
 ) -> None:
     # the frame's top 45% hidden: the pose model's detector looks for a face and
     # shoulders and finds nobody; the selfie model still finds the person, so the log
     # says that someone it cannot read is there (a point that counts against the run),
     # not that nobody is; their half silhouette matches nothing whole either
-    video = _film(mocap, tmp_path, (0.0, 9.0), azimuth=20.0)
+    video = _film(mocap, films, (0.0, 9.0), azimuth=20.0)
 
     def cut(img: np.ndarray) -> np.ndarray:
         img[: int(img.shape[0] * 0.45)] = (60, 60, 60)
@@ -267,15 +296,12 @@ def test_a_performer_cut_at_the_waist_is_not_taken_for_nobody(
 
 @pytest.mark.gl
 def test_of_two_people_in_view_one_is_followed(
-    setup: Any, pose_bank: Any, mocap: Path, tmp_path: Path
+    setup: Any, pose_bank: Any, mocap: Path, films: Path, tmp_path: Path
 ) -> None:
     # 13_29's jumping jacks on the left and its squats on the right, side by side: the
     # pose model follows one person, and the avatar does that person's action
-    films = []
-    for name, seconds in (("left", (0.0, 6.0)), ("right", (32.0, 38.0))):
-        (tmp_path / name).mkdir()
-        films.append(_film(mocap, tmp_path / name, seconds, azimuth=0.0))
-    left, right = (_frames(f) for f in films)
+    takes = [_film(mocap, films, seconds, azimuth=0.0) for seconds in ((0.0, 6.0), (32.0, 38.0))]
+    left, right = (_frames(f) for f in takes)
     both = tmp_path / "both.mkv"
     writer = cv2.VideoWriter(str(both), cv2.VideoWriter.fourcc(*"FFV1"), 15.0, (480, 360))
     for a, b in zip(left, right, strict=False):
@@ -286,8 +312,8 @@ def test_of_two_people_in_view_one_is_followed(
     points = decision_points(r.decisions)
     assert points["decided"] >= 0.5 * points["points"], points
     agree = []
-    for film in films:
-        truth = truth_for(film)
+    for take in takes:
+        truth = truth_for(take)
         assert truth is not None
         agree.append(evaluation(r.decisions, lib.clips, truth, r.media_seconds))
     best = max(a["best_at_lag_le_1s"] for a in agree)

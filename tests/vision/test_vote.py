@@ -210,6 +210,7 @@ def test_a_negative_or_infinite_recency_weighing_is_refused(mocap: Path, capsys)
     )
 
 
+@pytest.mark.slow  # (mimic evaluate builds the library's graph, layer and bank first)
 def test_the_hold_is_a_flag_and_a_bad_one_is_refused(mocap: Path, tmp_path: Path, capsys) -> None:
     for bad in (-0.1, math.inf, math.nan):
         with pytest.raises(ValueError, match="min_play must be a finite number of seconds >= 0"):
