@@ -254,10 +254,9 @@ def _add_jump_args(p: argparse.ArgumentParser) -> None:
         type=number(float, 0, 1),
         default=ActionSettings.strict_share,
         metavar="SHARE",
-        help="with the counted vote, no margin (as --vote-margin inf) for a decision where "
-        "at least this share of the last votes went to the voted action (default "
-        "%(default)s: off). 0.9 is steadier on the folds, but a performer standing still "
-        "may see the avatar move on in the voted action rather than hold still",
+        help="with the counted vote, a decision where at least this share of the last votes "
+        "went to the voted action jumps only into that action (its own motion and holds keep "
+        "the margin); 0: off (default %(default)s)",
     )
     p.add_argument(
         "--vote-switch",

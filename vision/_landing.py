@@ -139,12 +139,17 @@ class Lander:
         return np.concatenate((np.array(lead[::-1], dtype=np.int64), recent))
 
     def margin(self) -> float:
-        """The vote's margin for this decision (``ActionSettings.margin``; infinite where
-        the last votes agree on the voted action by ``strict_share`` at least)."""
-        st = self.settings.action
-        if 0 < st.strict_share <= self.vote.share():
-            return math.inf
-        return st.margin
+        """The vote's margin (``ActionSettings.margin``): what another action's window,
+        and the avatar's own motion or hold of another action, cost more."""
+        return self.settings.action.margin
+
+    def strict(self) -> bool:
+        """Whether this decision's jumps go into the voted action alone: with the margin
+        infinite, or where the last votes agree on the voted action by ``strict_share``
+        at least. The avatar's own motion and its holds keep the margin: a performer
+        standing still is still mirrored by a held frame of another action."""
+        share = self.settings.action.strict_share
+        return math.isinf(self.margin()) or 0 < share <= self.vote.share()
 
     def gated(
         self,
@@ -160,25 +165,32 @@ class Lander:
         of the voted action added when none does (``_voted_windows``), and ``(got,
         target, ok, weight, own_weight)``: each window's cost is times ``weight`` (1 + the
         settings' ``action.margin`` for another action), the avatar's own times
-        ``own_weight`` (the same, where it shows another action). With the margin
-        infinite, windows of another action are not ``ok``, and ``own_weight`` is
-        infinite where the avatar must leave its action."""
+        ``own_weight`` (the same, where it shows another action). Where the decision is
+        ``strict``, windows of another action are not ``ok``; with the margin infinite,
+        ``own_weight`` is infinite where the avatar must leave its action."""
         got, target, ok, there = found
         if voted is None:
             return got, target, ok, np.ones(len(got)), 1.0
-        margin = self.margin()
+        margin, strict = self.margin(), self.strict()
         if not (ok & voted).any():
             more = self.voted_windows(frame, queries, ranked, costs, there & voted)
-            if math.isinf(margin):
+            if strict:
                 got, target, ok, voted = more
             else:
                 got = [*got, *more[0]]
                 target = np.concatenate((target, more[1]))
                 ok, voted = np.concatenate((ok, more[2])), np.concatenate((voted, more[3]))
-        away = self.vote.leaves(frame, int(self.windows.playback(frame)[: self.n // 2 + 1][-1]))
-        if math.isinf(margin):
-            return got, target, ok & voted, np.ones(len(got)), math.inf if away else 1.0
-        return got, target, ok, np.where(voted, 1.0, 1.0 + margin), 1.0 + margin if away else 1.0
+        ahead = int(self.windows.playback(frame)[: self.n // 2 + 1][-1])
+        away = self.vote.leaves(frame, ahead)
+        own = 1.0 + margin if away else 1.0
+        if strict:
+            # playing on out of the voted action is not weighed: the avatar leaves first
+            assert self.vote.actions is not None
+            voted_now = int(self.vote.actions[frame]) == self.vote.voted
+            if voted_now and int(self.vote.actions[ahead]) != self.vote.voted:
+                own = math.inf
+            return got, target, ok & voted, np.ones(len(got)), own
+        return got, target, ok, np.where(voted, 1.0, 1.0 + margin), own
 
     def voted_windows(
         self,

@@ -211,7 +211,7 @@ class Matcher:
         at = [g[2] for g, t in zip(got, there, strict=True) if t]
         gated = land.gated(frame, queries, ranked, costs, (got, target, ok, there), voted)
         got, target, ok, weight, own_weight = gated
-        # (strict vote) the avatar leaves an action the performer is not voted to do
+        # (an infinite margin) the avatar leaves an action the performer is not voted to do
         leave = math.isinf(own_weight)
         # the avatar's own cost, however it is taken, weighed alike
         mine = 1.0 if leave else own_weight

@@ -169,13 +169,13 @@ class ActionSettings:
         search's costs agree on (``vision._classify``), not the best window's alone.
     strict_share : float
         With the counted vote, where at least this share of the last ``vote`` decisions
-        voted for the voted action, that decision's margin is infinite: the avatar keeps
-        strictly to an action the performer is clearly doing, and where the vote is
-        split the margin lets it take a nearer pose of another (0: off). Off by default:
-        0.9 made the avatar steadier on every fold without costing the pose score or the
-        real squat clip, but a performer who stands still was no longer mirrored by an
-        avatar holding still where the vote names another action than the avatar's
-        (``benchmarks/HISTORY.md``).
+        voted for the voted action, that decision jumps only into the voted action, and
+        the avatar playing on out of it jumps before it does; where the vote is split,
+        the margin lets a jump take a nearer pose of another action (0: off). The
+        avatar's own motion of another action, and its holds, keep the margin: a
+        performer standing still is still mirrored by a held frame of whatever action.
+        0.9 is steadier than off on every fold, at the same pose score
+        (``benchmarks/HISTORY.md``, "Steadiness").
     tempos : tuple of float
         The vote also reads the performer at these tempos against the library's (0.6:
         the performer moves at 0.6 times its speed, so their last ``window / 0.6``
@@ -191,7 +191,7 @@ class ActionSettings:
     min_points: int = 1
     confidence: float = 0.0
     classify: bool = True
-    strict_share: float = 0.0
+    strict_share: float = 0.9
     tempos: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:

@@ -15,7 +15,9 @@ weighs rather than forbids (``ActionSettings.margin``, 0.2): a window of another
 action, and the avatar's own motion of another action, cost 1.2 times as much, so the
 avatar takes one only where it fits the performer far better (the library's labels are
 coarser than its poses); with the margin infinite the avatar never jumps into an action
-the performer is not voted to do. A source slower than the decisions has
+the performer is not voted to do. Where the last votes agree (``ActionSettings.
+strict_share``), a decision's jumps go into the voted action alone, and an avatar about
+to play on out of it jumps first (``Lander.strict``). A source slower than the decisions has
 decision points skipped (``missed``); each vote then stands for them too, so that the
 vote spans the same time at any frame rate.
 

@@ -310,25 +310,61 @@ def test_a_confident_filter_keeps_its_action_while_two_are_about_as_likely() -> 
 
 def test_a_vote_that_agrees_keeps_strictly_to_its_action() -> None:
     """``ActionSettings.strict_share``: where at least that share of the last votes went
-    to the voted action, the decision's margin is infinite; where the vote is split, the
-    settings' margin holds."""
+    to the voted action, the decision's jumps go into it alone; where the vote is split,
+    the settings' margin holds. The margin itself (the avatar's own motion, its holds)
+    stays as set."""
     from vision._landing import Lander
 
     vote = ActionVote(10, 3)
     vote.actions = np.array([0] * 10 + [1] * 10, dtype=np.int64)
     settings = MatchSettings(action=ActionSettings(vote=10, margin=0.2, strict_share=0.9))
-    lander = Lander.__new__(Lander)  # (the margin reads only the settings and the vote)
+    lander = Lander.__new__(Lander)  # (strictness reads only the settings and the vote)
     lander.settings, lander.vote = settings, vote
-    assert vote.share() == 0.0 and lander.margin() == 0.2  # no votes yet
+    assert vote.share() == 0.0 and not lander.strict()  # no votes yet
     for _ in range(9):
         vote.cast(np.array([2]))  # action 0
-    assert vote.share() == 1.0 and math.isinf(lander.margin())
+    assert vote.share() == 1.0 and lander.strict() and lander.margin() == 0.2
     vote.cast(np.array([12]))  # one for action 1: 9 of 10 still agree
-    assert vote.voted == 0 and vote.share() == 0.9 and math.isinf(lander.margin())
+    assert vote.voted == 0 and vote.share() == 0.9 and lander.strict()
     vote.cast(np.array([12]))  # 8 of 10: split enough for the margin
-    assert vote.share() == pytest.approx(0.8) and lander.margin() == 0.2
-    lander.settings = MatchSettings(action=ActionSettings(margin=0.2))  # (off by default)
+    assert vote.share() == pytest.approx(0.8) and not lander.strict()
+    lander.settings = MatchSettings(action=ActionSettings(margin=0.2))  # (off)
     vote.cast(np.array([2]))
-    assert vote.share() == pytest.approx(0.8) and lander.margin() == 0.2
+    assert vote.share() == pytest.approx(0.8) and not lander.strict()
+    lander.settings = MatchSettings(action=ActionSettings(margin=math.inf))
+    assert lander.strict()  # an infinite margin: always
     with pytest.raises(ValueError, match="strict_share must lie in"):
         ActionSettings(strict_share=1.5)
+
+
+def test_where_the_vote_agrees_the_avatar_leaves_its_action_before_playing_out_of_it() -> None:
+    """With the vote strict, a jump goes into the voted action alone, and an avatar about
+    to play on out of the voted action has no cost of its own (it jumps, as at a clip's
+    end); an avatar in another action keeps the margin (it may still hold still there)."""
+    from types import SimpleNamespace
+
+    from vision._landing import Lander
+
+    vote = ActionVote(10, 3)
+    vote.actions = np.array([0] * 10 + [1] * 10, dtype=np.int64)
+    for _ in range(10):
+        vote.cast(np.array([2]))  # action 0, all agree
+    lander = Lander.__new__(Lander)
+    lander.settings = MatchSettings(action=ActionSettings(vote=10, margin=0.2, strict_share=0.9))
+    lander.vote, lander.n = vote, 4
+    lander.windows = SimpleNamespace(playback=lambda f: np.arange(f, f + 4))
+    got = [(1, 0, 1.0), (13, 0, 0.5)]  # a window of action 0, a better one of action 1
+    found = (got, np.array([5, 17]), np.array([True, True]), np.array([False, False]))
+    voted = vote.gate(found[1])
+
+    def own(frame: int) -> tuple[list[bool], float]:
+        _, _, ok, weight, own_weight = lander.gated(frame, [], [], None, found, voted)
+        assert np.all(weight == 1.0)
+        return ok.tolist(), own_weight
+
+    assert own(2) == ([True, False], 1.0)  # in the action, and still in it 2 frames on
+    assert own(8) == ([True, False], math.inf)  # about to play on into action 1
+    assert own(12) == ([True, False], 1.2)  # in action 1 already: the margin
+    lander.settings = MatchSettings(action=ActionSettings(vote=10, margin=0.2, strict_share=0))
+    _, _, ok, weight, own_weight = lander.gated(8, [], [], None, found, voted)
+    assert ok.tolist() == [True, True] and weight.tolist() == [1.0, 1.2] and own_weight == 1.2
