@@ -96,6 +96,28 @@ def _peak_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+def _status_mb(field: str) -> float | None:
+    """``VmRSS`` or ``VmHWM`` (the peak since ``_reset_peak``) of this process, in MB;
+    ``None`` where ``/proc`` does not say (not Linux)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith(field + ":"):
+                return float(line.split()[1]) / 1024.0
+    except OSError:
+        return None
+    return None
+
+
+def _reset_peak() -> bool:
+    """Start this process's peak memory again from now (Linux's ``clear_refs``), so
+    that a step's own peak is measured apart from what came before it."""
+    try:
+        Path("/proc/self/clear_refs").write_text("5")
+    except OSError:
+        return False
+    return True
+
+
 def _graph(root: Path, n: int) -> dict[str, Any]:
     from control.graph import GraphOptions, build_graph
 
@@ -181,28 +203,36 @@ def _search(root: Path, n: int) -> dict[str, Any]:
     bank, _, _ = cached_bank(clips, BankSettings())
     desc = bank.settings.features
     reps = -(-n // bank.n_frames)
-    tiles = [bank.features if i % 2 == 0 else desc.mirror(bank.features) for i in range(reps)]
-    moves = [bank.root_motion * (1 if i % 2 == 0 else [-1, 1]) for i in range(reps)]
+    features = np.empty((n, *bank.features.shape[1:]), dtype=np.float32)  # (no copies)
+    moves = np.empty((n, *bank.root_motion.shape[1:]), dtype=np.float32)
+    for i in range(reps):
+        a, b = i * bank.n_frames, min(n, (i + 1) * bank.n_frames)
+        tile = bank.features if i % 2 == 0 else desc.mirror(bank.features)
+        features[a:b] = tile[: b - a]
+        moves[a:b] = (bank.root_motion * (1 if i % 2 == 0 else [-1, 1]))[: b - a]
     big = dataclasses.replace(
         bank,
-        features=np.concatenate(tiles)[:n].astype(np.float32),
-        root_motion=np.concatenate(moves)[:n].astype(np.float32),
+        features=features,
+        root_motion=moves,
         clip_start=np.unique(
             np.concatenate([bank.clip_start + i * bank.n_frames for i in range(reps)] + [[n]]).clip(
                 0, n
             )
         ),
     )
-    del tiles, moves
+    del features, moves
     st = MatchSettings()
     length = round(st.window * 15.0)
     mean, proj = shape_stats(bank)
     cs = big.clip_start
     starts = np.concatenate([np.arange(a, b - length + 1) for a, b in itertools.pairwise(cs)])
+    rss_before = _status_mb("VmRSS")
+    reset = _reset_peak()
     t = time.perf_counter()
     shape, centre = window_tables(big, np.arange(n), cs, mean, proj, st.centre_weight)
     index = WindowIndex(shape, centre, starts.astype(np.int64), length)
     build = time.perf_counter() - t
+    build_peak = _status_mb("VmHWM") if reset else None
     src = VideoSource(RECORDING, silhouette=True)
     feats = []
     while (f := src.read()) is not None:
@@ -223,6 +253,10 @@ def _search(root: Path, n: int) -> dict[str, Any]:
         "query_ms_p50": round(float(np.median(times[1:])), 2),
         "query_ms_p99": round(float(np.percentile(times[1:], 99)), 2),
         "peak_rss_mb": round(_peak_mb(), 1),
+        # the tables and the index built beside the bank (the bank, tiled to n frames,
+        # is what the process held before: ``rss_before_build_mb``)
+        "rss_before_build_mb": None if rss_before is None else round(rss_before, 1),
+        "build_peak_rss_mb": None if build_peak is None else round(build_peak, 1),
     }
 
 

@@ -18,6 +18,8 @@ import hashlib
 import itertools
 import logging
 import math
+import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -188,34 +190,58 @@ class WindowIndex:
         self.mean = sample.mean(axis=0)
         k = max(1, min(dims, sample.shape[1], sample.shape[0]))
         self.basis = _principal_axes(sample - self.mean, k)
-        z = np.empty((rows, k), dtype=np.float32)
-        for a in range(0, starts.size, _CHUNK):  # in chunks: never every summary at once
-            x = _summaries(
-                self.shape, self.centre, starts[a : a + _CHUNK], self.length, self.bounds
-            )
-            z[a * v : a * v + x.shape[0] * v] = (x.reshape(-1, x.shape[2]) - self.mean) @ self.basis
-        n = z.shape[0]
         # an exact broad phase where a flat scan is fast enough (a 48,000-window fold of
         # bench_accuracy: 0.8 ms a query flat, against about 0.1 ms through the lists,
         # with every decision of its 12 runs the same)
-        if n < flat_below:
+        if rows < flat_below:
             self.index = faiss.IndexFlatL2(k)
             self.nprobe = 0
-        else:
-            nlist = int(min(4096, max(16, 2 * math.sqrt(n))))
-            quantizer = faiss.IndexFlatL2(k)
-            # each summary stored as 8-bit numbers: a quarter of the float32 lists to scan
-            # and to store (500k frames: 7.5 ms p99 a decision against 14 ms, 0.35 GB
-            # against 1.18 GB, the same best window in all 340 decisions of bench_scale's)
-            self.index = faiss.IndexIVFScalarQuantizer(
-                quantizer, k, nlist, faiss.ScalarQuantizer.QT_8bit
+            for z in self._projected_chunks():
+                self.index.add(z)
+            return
+        nlist = int(min(4096, max(16, 2 * math.sqrt(rows))))
+        quantizer = faiss.IndexFlatL2(k)
+        # each summary stored as 8-bit numbers: a quarter of the float32 lists to scan
+        # and to store (500k frames: 7.5 ms p99 a decision against 14 ms, 0.35 GB
+        # against 1.18 GB, the same best window in all 340 decisions of bench_scale's)
+        self.index = faiss.IndexIVFScalarQuantizer(
+            quantizer, k, nlist, faiss.ScalarQuantizer.QT_8bit
+        )
+        self.nprobe = max(32, nlist // 32)  # 1/32 of the lists (and at least 32) are scanned
+        self.index.nprobe = self.nprobe
+        self.index.cp.seed = seed
+        train = rng.choice(rows, min(rows, 64 * nlist), replace=False)
+        # The lists are trained before they are filled, and every window's summary is
+        # never held at once (500k frames: 8.6 million windows, 1.1 GB as float32): one
+        # pass over the windows a chunk at a time keeps the training rows (in faiss's
+        # order: its seeding) and spools the rest to a temporary file, read back to fill.
+        order = np.argsort(train)
+        first = train[order]
+        picked = np.empty((train.size, k), dtype=np.float32)
+        with tempfile.TemporaryFile() as spool:
+            sizes = []
+            for a, z in enumerate(self._projected_chunks()):
+                lo, hi = np.searchsorted(
+                    first, [a * _CHUNK * v, (a * _CHUNK + z.shape[0] // v) * v]
+                )
+                picked[order[lo:hi]] = z[first[lo:hi] - a * _CHUNK * v]
+                spool.write(z.tobytes())
+                sizes.append(z.shape[0])
+            self.index.train(picked)
+            del picked
+            spool.seek(0)
+            for m in sizes:
+                self.index.add(np.frombuffer(spool.read(m * k * 4), np.float32).reshape(m, k))
+
+    def _projected_chunks(self) -> Iterator[NDArray[np.float32]]:
+        """The PCA'd summaries of every index row (start ``r // V``, view ``r % V``), a
+        chunk of ``_CHUNK`` starts at a time."""
+        for a in range(0, self.starts.size, _CHUNK):
+            x = _summaries(
+                self.shape, self.centre, self.starts[a : a + _CHUNK], self.length, self.bounds
             )
-            train = z[rng.choice(n, min(n, 64 * nlist), replace=False)]
-            self.index.cp.seed = seed
-            self.index.train(train)
-            self.nprobe = max(32, nlist // 32)  # 1/32 of the lists (and at least 32) are scanned
-            self.index.nprobe = self.nprobe
-        self.index.add(z)
+            z = (x.reshape(-1, x.shape[2]) - self.mean) @ self.basis
+            yield np.ascontiguousarray(z, dtype=np.float32)
 
     @property
     def size(self) -> int:
