@@ -297,3 +297,43 @@ def test_the_best_flagged_windows_of_a_search_s_short_lists(setup) -> None:
     )[:5]
     assert [(c, s) for s, _, c in flagged] == [(c, s) for c, s in want]
     assert best_of(ranked, 5, np.zeros_like(only)) == []
+
+
+@pytest.mark.parametrize("flat_below", [100_000, 0])  # a flat scan; an inverted file
+def test_an_index_filled_in_small_chunks_is_the_one_filled_at_once(
+    setup, monkeypatch, flat_below
+) -> None:
+    """The index is filled a chunk of starts at a time (its inverted file's training rows
+    picked out on the way, the rest spooled to a file): in chunks of 7 starts, it is
+    the index trained and filled from every window's summary at once, answer for
+    answer."""
+    import faiss
+
+    from vision import _index
+
+    _, layer, bank = setup
+    m = Matcher(layer, bank)
+    shape, centre, starts = m.windows.tables()
+    monkeypatch.setattr(_index, "_CHUNK", 7)
+    chunked = WindowIndex(shape, centre, starts, m.n, flat_below=flat_below)
+    z = np.vstack(list(chunked._projected_chunks()))  # every summary (mean and axes: chunked's)
+    assert z.shape[0] == chunked.size == starts.size * m.windows.ring_views
+    rng = np.random.default_rng(0)  # (the build's seed, drawn as the build draws)
+    rng.choice(z.shape[0], min(z.shape[0], 50_000), replace=False)  # (the PCA's sample)
+    if flat_below:
+        assert chunked.nprobe == 0
+        at_once = faiss.IndexFlatL2(z.shape[1])
+    else:
+        nlist = int(chunked.index.nlist)
+        at_once = faiss.IndexIVFScalarQuantizer(
+            faiss.IndexFlatL2(z.shape[1]), z.shape[1], nlist, faiss.ScalarQuantizer.QT_8bit
+        )
+        at_once.cp.seed = 0
+        at_once.train(z[rng.choice(z.shape[0], min(z.shape[0], 64 * nlist), replace=False)])
+        at_once.nprobe = chunked.nprobe
+    at_once.add(z)
+    for s in np.random.default_rng(3).choice(starts, 20, replace=False):
+        q = np.concatenate((shape[s : s + m.n, 2], centre[s : s + m.n, 2]), axis=1)
+        x = chunked.summary(q)
+        for k in (1, 10, 96):
+            np.testing.assert_array_equal(at_once.search(x, k)[1], chunked.index.search(x, k)[1])
