@@ -198,7 +198,15 @@ class WindowIndex:
             self.nprobe = 0
             for z in self._projected_chunks():
                 self.index.add(z)
-            return
+        else:
+            self._fill_lists(rows, k, rng, seed)
+
+    def _fill_lists(self, rows: int, k: int, rng: np.random.Generator, seed: int) -> None:
+        """The inverted-file index of ``rows`` summaries of ``k`` numbers, trained on a
+        sample of them drawn by ``rng`` (k-means seeded by ``seed``), then filled."""
+        import faiss
+
+        v = self.n_views
         nlist = int(min(4096, max(16, 2 * math.sqrt(rows))))
         quantizer = faiss.IndexFlatL2(k)
         # each summary stored as 8-bit numbers: a quarter of the float32 lists to scan
