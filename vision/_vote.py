@@ -15,11 +15,11 @@ weighs rather than forbids (``ActionSettings.margin``, 0.2): a window of another
 action, and the avatar's own motion of another action, cost 1.2 times as much, so the
 avatar takes one only where it fits the performer far better (the library's labels are
 coarser than its poses); with the margin infinite the avatar never jumps into an action
-the performer is not voted to do. Where the last votes agree (``ActionSettings.
-strict_share``), a decision's jumps go into the voted action alone, and an avatar about
-to play on out of it jumps first (``Lander.strict``). A source slower than the decisions has
-decision points skipped (``missed``); each vote then stands for them too, so that the
-vote spans the same time at any frame rate.
+the performer is not voted to do. Where the last votes agree
+(``ActionSettings.strict_share``), a decision's jumps go into the voted action alone, and
+an avatar about to play on out of it jumps first (``Lander.strict``). A source slower
+than the decisions has decision points skipped (``missed``); each vote then stands for
+them too, so that the vote spans the same time at any frame rate.
 
 With ``ActionSettings.switch_chance`` the voted action is not counted but filtered
 (``ActionVote.filter``): a hidden (semi-)Markov model over the actions, each decision's

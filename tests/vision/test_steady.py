@@ -58,9 +58,10 @@ def test_one_action_for_nine_seconds_is_one_avatar_action(
 def test_a_clean_switch_is_followed_once(setup: Any, pose_bank: Any, mocap: Path) -> None:
     # 13_29's jumping jacks, then its twists from 3.9 s (its frame 469): the avatar
     # jumps, then twists, once, at most 1.5 s after the performer does (a label's
-    # boundary is not exact: the last jack already turns), and stays. (The issue asks
-    # for a lag under 0.5 s; today's is about 1.2 s here.) Without the strict vote, the
-    # avatar played on from its jumping jacks into the library's next action and back.
+    # boundary is not exact: the last jack already turns), and stays (the steadiness
+    # issue's target is a lag under 0.5 s; here it is about 1.2 s). Without the strict
+    # vote the avatar plays on from its jumping jacks into the library's next action,
+    # and back.
     runs = _runs(_follow(setup, pose_bank, mocap, 0, 1100))
     switch = 468 / 120
     jacks = next(t for a, t in runs if a == "jumpjack")
