@@ -185,9 +185,7 @@ class Lander:
         own = 1.0 + margin if away else 1.0
         if strict:
             # playing on out of the voted action is not weighed: the avatar leaves first
-            assert self.vote.actions is not None
-            voted_now = int(self.vote.actions[frame]) == self.vote.voted
-            if voted_now and int(self.vote.actions[ahead]) != self.vote.voted:
+            if away and not self.vote.leaves(frame, frame):
                 own = math.inf
             return got, target, ok & voted, np.ones(len(got)), own
         return got, target, ok, np.where(voted, 1.0, 1.0 + margin), own
