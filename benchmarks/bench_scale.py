@@ -3,6 +3,7 @@ frames.
 
 Usage: python -m benchmarks.bench_scale [LIBRARY_DIR] [--sizes 50000,200000,500000]
        [--steps graph,layer,bank,search,open] [--timeout 900] [--out FILE]
+       [--cluster local:2]
 
 The synthetic library: every shared clip with the exercise subject's 31 joints, loaded
 at 15, 16, 17, ... frames/s and each played back at 15 frames/s (so a clip loaded at
@@ -11,7 +12,8 @@ velocities), each also mirrored left for right, joined in that order until ``N``
 (the last clip cut). Each step runs in a fresh process (its time, and its peak resident
 memory, which includes the library's):
 
-- ``graph``: ``build_graph`` with the default options;
+- ``graph``: ``build_graph`` with the default options, each job's pairs kept in a folder
+  as the cache's build keeps them (so that a stopped build resumes);
 - ``layer``: the higher layer as ``mimic perform`` builds it (2 s trees), on that graph;
 - ``bank``: the default 18-view bank of the library's first 1,000 frames rendered by one
   worker, scaled to ``N`` frames per worker (the shards are independent), and the bank's
@@ -38,6 +40,7 @@ import argparse
 import dataclasses
 import itertools
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -49,6 +52,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks._report import machine, save
+from control.jobs import CLUSTER_ENV, cluster_address
 from control.motion import (
     EMBEDDED_LIBRARY,
     Clip,
@@ -124,18 +128,37 @@ def _graph(root: Path, n: int) -> dict[str, Any]:
     clips = synthetic_clips(root, n)
     build_graph(clips[:2], GraphOptions())  # the kernels compiled outside the timing
     before = _peak_mb()
-    t = time.perf_counter()
-    g = build_graph(clips, GraphOptions())
+    with tempfile.TemporaryDirectory() as tmp:  # (each job kept, as the cache builds it)
+        t = time.perf_counter()
+        g = build_graph(clips, GraphOptions(), work=Path(tmp) / "parts")
+        took = time.perf_counter() - t
+    search = g.report["seconds"]["search"]
     return {
         "frames": g.n_frames,
-        "seconds": round(time.perf_counter() - t, 2),
+        "seconds": round(took, 2),
         "peak_rss_mb": round(_peak_mb(), 1),
         "rss_before_mb": round(before, 1),
         "edges": g.n_edges,
         "likely_pairs": g.report["likelihood"],  # (held until the similarity rule)
         "candidates": g.report["candidates"],  # (the lower bound's)
+        "jobs": g.report["jobs"],
         "parts_seconds": g.report["seconds"],
+        **_spread(took, search),
     }
+
+
+def _spread(took: float, jobs_s: float) -> dict[str, Any]:
+    """On a cluster (``--cluster``): its address, and the step's time extrapolated to 8
+    workers from its jobs' time ``jobs_s``: the rest as it was, the jobs' seconds times
+    the workers / 8 (each worker as fast as these, the scheduler not limiting)."""
+    address = cluster_address()
+    if address is None:
+        return {}
+    workers = int(address.split(":")[1]) if address.startswith("local:") else None
+    out: dict[str, Any] = {"cluster": address, "jobs_seconds": round(jobs_s, 2)}
+    if workers:
+        out["extrapolated_8_workers_seconds"] = round(took - jobs_s + jobs_s * workers / 8, 1)
+    return out
 
 
 def _layer(root: Path, n: int) -> dict[str, Any]:
@@ -147,14 +170,18 @@ def _layer(root: Path, n: int) -> dict[str, Any]:
     before = _peak_mb()
     t = time.perf_counter()
     layer = build_higher_layer(g, clips, LayerSettings(bound_seconds=2.0))
+    took = time.perf_counter() - t
+    forest_s = float(layer.forest.report["seconds"])
     return {
         "frames": g.n_frames,
-        "seconds": round(time.perf_counter() - t, 2),
+        "seconds": round(took, 2),
         "peak_rss_mb": round(_peak_mb(), 1),
         "rss_before_mb": round(before, 1),
         "clusters": layer.clustering.k,
         "trees": layer.forest.report["trees"],
         "lazy": layer.forest.report["lazy"],  # (trees built on first use: none here)
+        "forest_seconds": round(forest_s, 2),
+        **_spread(took, forest_s),  # (the trees' jobs; the BIC search's fits not counted)
     }
 
 
@@ -327,8 +354,16 @@ def main() -> None:
         action="store_true",
         help="keep the results already in --out of the other steps and sizes",
     )
+    ap.add_argument(
+        "--cluster",
+        help="run the graph's and the layer's jobs on this Dask cluster (local:2: two "
+        "worker processes here); each result says it, and its time extrapolated to 8 "
+        "workers from its jobs' time",
+    )
     ap.add_argument("--one", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.cluster:
+        os.environ[CLUSTER_ENV] = args.cluster  # (read by each step's own process too)
     root = Path(args.root)
     if args.one:
         step, n = args.one.split(":")

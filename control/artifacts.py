@@ -13,6 +13,8 @@ The cache lives in ``$MIMIC_CACHE`` (else ``$XDG_CACHE_HOME/mimic``, else
 
     motion/<hash>.npz        one parsed motion file
     graph/graph-<hash>.npz   one motion graph
+    graph/graph-<hash>.parts/  the finished jobs of a graph build stopped midway
+    graph/layer-<hash>.parts/  those of a higher layer's build
     graph/layer-<hash>.npz   one higher layer (cluster forest)
     bank/<hash>/             one silhouette bank (manifest.json, bank.npz, features.npy, ...)
 
@@ -278,6 +280,10 @@ def cache_entries(root: Path | None = None) -> list[CacheEntry]:
         found.append(("motion", p))
     for p in files(root / "graph", "graph-*.npz"):
         found.append(("graph", p))
+    for kind in ("graph", "layer"):  # (a build stopped midway: its finished jobs)
+        for p in files(root / "graph", f"{kind}-*.parts"):
+            if p.is_dir():
+                found.append((kind, p))
     for p in files(root / "graph", "layer-*.npz"):
         found.append(("layer", p))
     for p in files(root / "bank", "*"):

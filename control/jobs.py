@@ -9,7 +9,8 @@ machine, started for the build and closed after it). The jobs are the same every
 every job's result comes back to this process, which writes it: so a cluster's workers
 need the project installed but no shared disk, and a bank built on a cluster is the local
 build bit for bit. A worker lost mid-build has its jobs run again by the scheduler (up to
-``RETRIES`` times); a build stopped altogether keeps the shards it wrote and resumes.
+``RETRIES`` times); a build stopped altogether keeps what it wrote and resumes: the bank
+its shards, other builds each finished job's result (``JobStore``).
 
 Why Dask and not Ray (``benchmarks/bench_cluster.py``: a local cluster of 2 workers,
 the 18-view bank of 13_29 + 13_30): the render jobs take as long on either, an empty
@@ -23,15 +24,33 @@ tcp://scheduler:8786``).
 from __future__ import annotations
 
 import functools
+import json
+import logging
 import multiprocessing
 import os
+import shutil
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
-__all__ = ["CLUSTER_ENV", "RETRIES", "ClusterError", "cluster_address", "map_jobs", "run_jobs"]
+import numpy as np
+
+from .artifacts import atomic_write, read_checked_npz, write_checked_npz
+
+__all__ = [
+    "CLUSTER_ENV",
+    "RETRIES",
+    "ClusterError",
+    "JobStore",
+    "cluster_address",
+    "map_jobs",
+    "run_jobs",
+]
+
+log = logging.getLogger(__name__)
 
 #: the environment variable naming a cluster when no ``cluster`` argument does
 CLUSTER_ENV = "MIMIC_CLUSTER"
@@ -106,6 +125,62 @@ def map_jobs(
     got: dict[int, Any] = {}
     run_jobs(fn, jobs, got.__setitem__, workers, cluster, shared)
     return [got[i] for i in range(len(jobs))]
+
+
+class JobStore:
+    """The finished jobs of one build, each job's arrays a file in ``folder``
+    (``part-000012.npz``, checksummed, written whole or not at all), so that a build
+    stopped (Ctrl-C, a lost machine, a cluster gone) runs only the jobs it had not
+    finished when it runs again. ``key`` names the build and its job table: a folder left
+    by another build (other options, library or job sizes) is emptied, never mixed in.
+    The build removes the folder once its result is stored (``remove``)."""
+
+    _MANIFEST = "jobs.json"
+
+    def __init__(self, folder: str | Path, key: str) -> None:
+        self.folder, self.key = Path(folder), key
+        manifest = self.folder / self._MANIFEST
+        try:
+            same = json.loads(manifest.read_text()).get("key") == key
+        except (OSError, ValueError, AttributeError):
+            same = False
+        if not same:
+            self.remove()
+            self.folder.mkdir(parents=True, exist_ok=True)
+            with atomic_write(manifest) as fh:
+                json.dump({"key": key}, fh)
+
+    def _path(self, i: int) -> Path:
+        return self.folder / f"part-{i:06d}.npz"
+
+    def done(self, n_jobs: int, keys: Sequence[str]) -> dict[int, dict[str, np.ndarray]]:
+        """The arrays ``keys`` of every job of the ``n_jobs`` finished before; a part
+        that cannot be read back (damaged, cut short) is said, removed and run again."""
+        got: dict[int, dict[str, np.ndarray]] = {}
+        for i in range(n_jobs):
+            path = self._path(i)
+            if not path.is_file():
+                continue
+            try:
+                got[i] = read_checked_npz(path, keys, _PartError, "a finished job's part")
+            except _PartError as exc:
+                log.warning("running a job again: %s", exc)
+                path.unlink(missing_ok=True)
+        return got
+
+    def save(self, i: int, arrays: dict[str, np.ndarray]) -> None:
+        """Job ``i``'s result, kept (its folder made again if it was removed meanwhile)."""
+        self.folder.mkdir(parents=True, exist_ok=True)
+        write_checked_npz(self._path(i), arrays)
+
+    def remove(self) -> None:
+        """The folder and every part in it, gone."""
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
+class _PartError(ValueError):
+    def __init__(self, path: Path, problem: str) -> None:
+        super().__init__(f"{path}: {problem}")
 
 
 #: a local worker process's ``shared`` (``run_jobs``), set as it starts

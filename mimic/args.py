@@ -20,7 +20,7 @@ from control.motion import (
     default_library_path,
     load_library,
 )
-from control.progress import step
+from control.progress import bar, step
 
 __all__ = [
     "MOST_MOTION_SECONDS",
@@ -280,7 +280,11 @@ def graph_for(
     library = library or library_for(args)
     with step("motion graph"):
         graph, path, built = cached_graph(
-            library.clips, options, rebuild=args.rebuild, cluster=getattr(args, "cluster", None)
+            library.clips,
+            options,
+            rebuild=args.rebuild,
+            cluster=getattr(args, "cluster", None),
+            progress=bar("motion graph: frame pairs", "jobs"),
         )
     return library, graph, path, built
 

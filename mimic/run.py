@@ -112,7 +112,8 @@ def prepare(settings: RunSettings, source: Source) -> Prepared:
     clips = _clips(settings)
     t0 = time.perf_counter()
     with step("motion graph"):
-        graph, _, _ = cached_graph(clips, settings.graph, rebuild=settings.rebuild)
+        pairs = bar("motion graph: frame pairs", "jobs")
+        graph, _, _ = cached_graph(clips, settings.graph, rebuild=settings.rebuild, progress=pairs)
     clips = _graph_clips(graph, clips)
     match = settings.perform.match
     _say_unreachable(graph, not match.landing.jumps)

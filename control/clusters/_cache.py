@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import shutil
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -244,15 +245,23 @@ def cached_higher_layer(
     """The higher layer of ``graph`` with ``settings`` from the cache (beside the
     graphs), built and stored when missing, stale or unreadable (with a warning naming
     the file; its trees built on ``cluster`` where one is named; ``progress``: as
-    ``build_higher_layer`` calls it). Returns ``(layer, path, built)``."""
+    ``build_higher_layer`` calls it). Returns ``(layer, path, built)``. A build stopped
+    midway keeps its finished fits and trees beside the layer's file
+    (``layer-<key>.parts/``) and resumes from them; they are removed once it is
+    stored."""
     settings = settings or LayerSettings()
     key = _key(graph, settings.key())
     folder = Path(cache_dir) if cache_dir is not None else graph_cache_dir()
     path = folder / f"layer-{key}.npz"
 
+    work = path.with_suffix(".parts")
+
     def make() -> HigherLayer:
-        layer = build_higher_layer(graph, clips, settings, cluster, progress)
+        if rebuild:
+            shutil.rmtree(work, ignore_errors=True)  # (rebuilt: nothing of before kept)
+        layer = build_higher_layer(graph, clips, settings, cluster, progress, work)
         save_layer(layer, path, key)
+        shutil.rmtree(work, ignore_errors=True)
         return layer
 
     layer, built = cached_entry(path, lambda: _load_cached(path, graph), make, rebuild)

@@ -32,14 +32,12 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
-import numba
 import numpy as np
-from numba import types
-from numba.typed import Dict
 from numpy.typing import NDArray
 
 from ..graph import MotionGraph
-from ..jobs import cluster_address, map_jobs
+from ..jobs import JobStore, cluster_address, run_jobs
+from ._kernel import MAX_TREE_NODES, T_SHIFT, tree_kernel
 
 __all__ = ["LAZY_SECONDS", "ClusterForest", "ClusterTree", "LazyTrees", "build_forest"]
 
@@ -164,137 +162,6 @@ class _Runs:
         self.next_event = np.minimum.accumulate(at[::-1])[::-1].copy()
 
 
-#: a search state (time, frame, node) packed into one int64 that orders as the tuple
-#: does: 19 bits of time (frames), 28 of frame, 16 of node
-_T_SHIFT, _F_SHIFT = 44, 16
-MAX_TREE_NODES = 1 << 16
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _heap_push(heap: np.ndarray, n: int, item: np.int64) -> np.ndarray:
-    """Push ``item`` on the binary min-heap ``heap[:n]`` (grown when full)."""
-    if n == heap.size:
-        bigger = np.empty(2 * heap.size, np.int64)
-        bigger[:n] = heap[:n]
-        heap = bigger
-    i = n
-    while i > 0:
-        up = (i - 1) >> 1
-        if heap[up] <= item:
-            break
-        heap[i] = heap[up]
-        i = up
-    heap[i] = item
-    return heap
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _heap_pop(heap: np.ndarray, n: int) -> np.int64:
-    """Pop the least item of the binary min-heap ``heap[:n]`` (``n`` > 0)."""
-    top = heap[0]
-    last = heap[n - 1]
-    n -= 1
-    i = 0
-    while True:
-        child = 2 * i + 1
-        if child >= n:
-            break
-        if child + 1 < n and heap[child + 1] < heap[child]:
-            child += 1
-        if last <= heap[child]:
-            break
-        heap[i] = heap[child]
-        i = child
-    if n > 0:
-        heap[i] = last
-    return top
-
-
-@numba.njit(cache=True, nogil=True)
-def _tree_kernel(
-    root: int,
-    labels: np.ndarray,
-    next_event: np.ndarray,
-    plays: np.ndarray,
-    indptr: np.ndarray,
-    dst: np.ndarray,
-    bound: int,
-    max_nodes: int,
-    n_clusters: int,
-    max_states: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool, int]:
-    parent = np.empty(max_nodes, np.int64)
-    cluster = np.empty(max_nodes, np.int64)
-    arrival = np.empty(max_nodes, np.int64)
-    parent[0] = -1
-    cluster[0] = labels[root]
-    arrival[0] = 0
-    n_nodes = 1
-    children = Dict.empty(types.int64, types.int64)
-    seen = Dict.empty(types.int64, types.int64)
-    # a min-heap of packed (time, frame, node) states: pops in the tuples' order
-    heap = np.empty(4096, np.int64)
-    heap = _heap_push(heap, 0, np.int64(root) << _F_SHIFT)
-    n_heap = 1
-    truncated = False
-    horizon = bound
-    stride = np.int64(max_nodes)
-    f_mask = np.int64((1 << (_T_SHIFT - _F_SHIFT)) - 1)
-    node_mask = np.int64((1 << _F_SHIFT) - 1)
-    while n_heap > 0:
-        item = _heap_pop(heap, n_heap)
-        n_heap -= 1
-        t = item >> _T_SHIFT
-        f = (item >> _F_SHIFT) & f_mask
-        node = item & node_mask
-        key = f * stride + node
-        if key in seen:
-            continue
-        seen[key] = 1
-        if len(seen) > max_states:
-            truncated = True
-            horizon = int(t)
-            break
-        g = next_event[f]
-        tg = t + (g - f)
-        if tg >= bound:
-            continue
-        lo = indptr[g]
-        hi = indptr[g + 1]
-        n_out = hi - lo + (1 if plays[g] else 0)
-        for k in range(n_out):
-            fn = g + 1 if (plays[g] and k == n_out - 1) else dst[lo + k]
-            c = labels[fn]
-            nd = node
-            if c != cluster[node]:
-                ck = node * n_clusters + c
-                if ck in children:
-                    nd = children[ck]
-                    if tg + 1 < arrival[nd]:  # runs differ in length: keep the earliest
-                        arrival[nd] = tg + 1
-                else:
-                    if n_nodes >= max_nodes:
-                        truncated = True
-                        continue
-                    nd = np.int64(n_nodes)
-                    children[ck] = nd
-                    parent[nd] = node
-                    cluster[nd] = c
-                    arrival[nd] = tg + 1
-                    n_nodes += 1
-            if (fn * stride + nd) not in seen:
-                packed = ((tg + 1) << _T_SHIFT) | (np.int64(fn) << _F_SHIFT) | nd
-                heap = _heap_push(heap, n_heap, packed)
-                n_heap += 1
-    return (
-        parent[:n_nodes].copy(),
-        cluster[:n_nodes].copy(),
-        arrival[:n_nodes].copy(),
-        truncated,
-        horizon,
-    )
-
-
 def _build_tree(
     root: int,
     labels: IntArray,
@@ -306,7 +173,7 @@ def _build_tree(
     n_clusters: int,
     max_states: int,
 ) -> ClusterTree:
-    parent, cluster, arrival, truncated, horizon = _tree_kernel(
+    parent, cluster, arrival, truncated, horizon = tree_kernel(
         root,
         labels,
         runs.next_event,
@@ -330,6 +197,69 @@ def _trees_job(shared: tuple[Any, ...], roots: list[int]) -> list[ClusterTree]:
     return [_build_tree(f, *shared) for f in roots]
 
 
+def _eager_trees(
+    branching: IntArray,
+    shared: tuple[Any, ...],
+    address: str | None,
+    threads: int,
+    sampled: dict[int, ClusterTree],
+    store: JobStore | None,
+) -> list[ClusterTree]:
+    """Every tree of the ``branching`` frames, in order, ``_TREES_PER_JOB`` a job: on the
+    cluster at ``address``, else here by ``threads`` threads (the kernel lets go of the
+    GIL; ``sampled`` trees are not built again). With ``store`` each job's trees are kept
+    as they come, and the jobs it holds already are read back, not run."""
+    roots = [int(f) for f in branching]
+    jobs = [roots[i : i + _TREES_PER_JOB] for i in range(0, len(roots), _TREES_PER_JOB)]
+    done: dict[int, list[ClusterTree]] = {}
+    if store is not None:
+        done = {i: _trees_of(a) for i, a in store.done(len(jobs), _TREE_KEYS).items()}
+    todo = [i for i in range(len(jobs)) if i not in done]
+
+    def finished(k: int, trees: list[ClusterTree]) -> None:
+        done[todo[k]] = trees
+        if store is not None:
+            store.save(todo[k], _tree_arrays(trees))
+
+    if address is not None:
+        run_jobs(_trees_job, [jobs[i] for i in todo], finished, cluster=address, shared=shared)
+    else:
+
+        def one(f: int) -> ClusterTree:
+            tree = sampled.get(f)
+            return tree if tree is not None else _build_tree(f, *shared)
+
+        with ThreadPoolExecutor(max_workers=threads) as pool:
+            for k, i in enumerate(todo):
+                finished(k, list(pool.map(one, jobs[i])))
+    return [t for i in range(len(jobs)) for t in done[i]]
+
+
+_TREE_KEYS = ("root", "size", "parent", "cluster", "arrival", "truncated", "horizon")
+
+
+def _tree_arrays(trees: list[ClusterTree]) -> dict[str, np.ndarray]:
+    """A job's trees as the arrays a ``JobStore`` keeps (their nodes end to end)."""
+    return {
+        "root": np.array([t.root_frame for t in trees], dtype=np.int64),
+        "size": np.array([t.size for t in trees], dtype=np.int64),
+        "parent": np.concatenate([t.parent for t in trees]).astype(np.int64),
+        "cluster": np.concatenate([t.cluster for t in trees]).astype(np.int64),
+        "arrival": np.concatenate([t.arrival for t in trees]).astype(np.int64),
+        "truncated": np.array([t.truncated for t in trees], dtype=bool),
+        "horizon": np.array([t.horizon for t in trees], dtype=np.int64),
+    }
+
+
+def _trees_of(a: dict[str, np.ndarray]) -> list[ClusterTree]:
+    cut = np.cumsum(a["size"])[:-1]
+    parts = [np.split(a[name], cut) for name in ("parent", "cluster", "arrival")]
+    return [
+        ClusterTree(int(r), p, c, t, bool(tr), int(h))
+        for r, p, c, t, tr, h in zip(a["root"], *parts, a["truncated"], a["horizon"], strict=True)
+    ]
+
+
 #: a forest projected (from a sample of its trees) to take longer than this, in seconds
 #: on this machine's threads, is built lazily (``LazyTrees``)
 LAZY_SECONDS = 120.0
@@ -345,12 +275,15 @@ def build_forest(
     max_states: int = 200_000,
     cluster: str | None = None,
     lazy: bool | None = None,
+    store: JobStore | None = None,
 ) -> ClusterForest:
     """Cluster trees for every branching frame of ``graph`` with frame clusters ``labels``:
     by threads here, or as jobs on a Dask cluster when ``cluster`` (or
     ``$MIMIC_CLUSTER``: ``control.jobs``) names one (the same trees, in the same order).
     ``lazy``: each tree built when first asked for (``None``: when a sample of trees
-    projects the whole build past ``LAZY_SECONDS``; never on a cluster)."""
+    projects the whole build past ``LAZY_SECONDS``; never on a cluster). With ``store``
+    the trees of an eager build are kept there ``_TREES_PER_JOB`` at a time, and those
+    kept by a build stopped before are not built again (``_eager_trees``)."""
     labels = np.asarray(labels, dtype=np.int64)
     if labels.shape != (graph.n_frames,):
         raise ValueError(f"labels must have one cluster per graph frame ({graph.n_frames})")
@@ -359,7 +292,7 @@ def build_forest(
             f"bound_seconds must be positive and max_nodes in 1..{MAX_TREE_NODES}, "
             f"not {bound_seconds} and {max_nodes}"
         )
-    if bound_seconds * graph.fps >= 1 << (63 - _T_SHIFT) or graph.n_frames >= 1 << 28:
+    if bound_seconds * graph.fps >= 1 << (63 - T_SHIFT) or graph.n_frames >= 1 << 28:
         raise ValueError("trees of over 2^19 frames, or graphs of over 2^28, are not built")
     t0 = time.perf_counter()
     bound = max(1, round(bound_seconds * graph.fps))
@@ -381,20 +314,8 @@ def build_forest(
         forest_of = LazyTrees(branching, shared)
         for f, tree in sampled.items():
             forest_of.built[int(np.searchsorted(branching, f))] = tree
-    elif address is not None:
-        roots = [int(f) for f in branching]
-        jobs = [roots[i : i + _TREES_PER_JOB] for i in range(0, len(roots), _TREES_PER_JOB)]
-        done = map_jobs(_trees_job, jobs, cluster=address, shared=shared)
-        trees = [t for part in done for t in part]
     else:
-
-        def one(f: int) -> ClusterTree:
-            tree = sampled.get(f)
-            return tree if tree is not None else _build_tree(f, *shared)
-
-        # the kernel releases the GIL: threads build trees in parallel
-        with ThreadPoolExecutor(max_workers=threads) as pool:
-            trees = list(pool.map(one, (int(f) for f in branching)))
+        trees = _eager_trees(branching, shared, address, threads, sampled, store)
     tree_of = np.full(graph.n_frames, -1, dtype=np.int64)
     tree_of[branching] = np.arange(branching.size)
     # single-exit frames: the tree of the first branching frame they play into

@@ -17,15 +17,18 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from ..jobs import cluster_address, run_jobs
+from ..jobs import JobStore, cluster_address, run_jobs
 from ..motion import FloatArray
 
 __all__ = [
+    "FIT_KEYS",
     "SEEDINGS",
     "Clustering",
     "decorrelation_frames",
     "effective_bic",
+    "fit_arrays",
     "fit_mixture",
+    "fit_of",
     "keyframe_seeds",
     "select_by_bic",
 ]
@@ -167,6 +170,42 @@ def fit_mixture(
     )
 
 
+#: the arrays a ``Clustering`` is kept as (``fit_arrays``)
+FIT_KEYS = (
+    "labels",
+    "posterior",
+    "means",
+    "variances",
+    "weights",
+    "log_likelihood",
+    "bic",
+    "n_params",
+    "seeding",
+    "seeds",
+)
+
+
+def fit_arrays(c: Clustering) -> dict[str, np.ndarray]:
+    """``c`` as arrays (a ``JobStore``'s part): ``fit_of`` gives it back, number for
+    number."""
+    return {k: np.asarray(getattr(c, k)) for k in FIT_KEYS}
+
+
+def fit_of(a: dict[str, np.ndarray]) -> Clustering:
+    return Clustering(
+        labels=a["labels"],
+        posterior=a["posterior"],
+        means=a["means"],
+        variances=a["variances"],
+        weights=a["weights"],
+        log_likelihood=float(a["log_likelihood"]),
+        bic=float(a["bic"]),
+        n_params=int(a["n_params"]),
+        seeding=str(a["seeding"]),
+        seeds=a["seeds"],
+    )
+
+
 def decorrelation_frames(x: FloatArray, clip_start: NDArray[np.int64], max_lag: int = 240) -> int:
     """Frames after which a motion no longer predicts itself: the first lag at which the
     autocorrelation of the standardised states (pooled over dimensions, within clips)
@@ -206,6 +245,7 @@ def select_by_bic(
     cluster: str | None = None,
     n_eff: float | None = None,
     progress: Callable[[int, int], None] | None = None,
+    store: JobStore | None = None,
 ) -> tuple[Clustering, list[Clustering], dict[str, object]]:
     """Fit every ``k`` in ``ks``; return the best, all fits in order, and the curve.
     The fits are made here, or as jobs (one a ``k``) on the Dask cluster that
@@ -217,21 +257,28 @@ def select_by_bic(
     decorrelation measured on them all); the choice is then by ``effective_bic`` with it,
     each fit's likelihood per state standing for the whole's. The curve holds ``k``,
     ``bic``, ``bic_effective`` (or None), the log-likelihood and the decorrelation length.
-    ``progress(done, len(ks))`` is called as each fit comes in.
+    ``progress(done, len(ks))`` is called as each fit comes in. With ``store`` each fit
+    is kept as it comes (job ``i``: ``ks[i]``), and those kept before are read back.
     """
     address = cluster_address(cluster)
     got: dict[int, Clustering] = {}
+    if store is not None:
+        got = {i: fit_of(a) for i, a in store.done(len(ks), FIT_KEYS).items()}
+    todo = [i for i in range(len(ks)) if i not in got]
 
-    def take(i: int, fit: Clustering) -> None:
-        got[i] = fit
+    def take(j: int, fit: Clustering) -> None:
+        got[todo[j]] = fit
+        if store is not None:
+            store.save(todo[j], fit_arrays(fit))
         if progress is not None:
             progress(len(got), len(ks))
 
     if address is None:
-        for i, k in enumerate(ks):
-            take(i, fit_mixture(x, k, seeding=seeding, seed=seed))
+        for j, i in enumerate(todo):
+            take(j, fit_mixture(x, ks[i], seeding=seeding, seed=seed))
     else:  # one job a k, the states sent to each worker once
-        run_jobs(_fit_job, list(ks), take, cluster=address, shared=(x, seeding, seed))
+        jobs = [ks[i] for i in todo]
+        run_jobs(_fit_job, jobs, take, cluster=address, shared=(x, seeding, seed))
     fits = [got[i] for i in range(len(ks))]
     n = x.shape[0]
     curve: dict[str, object] = {

@@ -4,15 +4,27 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ..artifacts import array_digest
 from ..graph import MotionGraph, frame_features
+from ..jobs import JobStore
 from ..motion import Clip
 from ._forest import ClusterForest, build_forest
-from ._gmm import SEEDINGS, Clustering, decorrelation_frames, fit_mixture, select_by_bic
+from ._gmm import (
+    FIT_KEYS,
+    SEEDINGS,
+    Clustering,
+    decorrelation_frames,
+    fit_arrays,
+    fit_mixture,
+    fit_of,
+    select_by_bic,
+)
 from ._paths import ProbableMotion, most_probable_motion, transition_log_probs
 from ._state import state_vectors
 
@@ -156,35 +168,83 @@ def build_higher_layer(
     settings: LayerSettings | None = None,
     cluster: str | None = None,
     progress: Callable[[int, int], None] | None = None,
+    work: str | Path | None = None,
 ) -> HigherLayer:
     """Cluster the graph's frames (``settings.k`` clusters, or chosen by effective BIC
     over ``settings.ks``) and build the cluster forest with its time bound (the BIC
     search's fits and the trees as jobs on ``cluster``, or ``$MIMIC_CLUSTER``, where one
     is named: ``select_by_bic``, ``build_forest``). ``progress(done, total)`` counts the
-    mixture fits as they come in (the search's, and the full fit after a sample's)."""
+    mixture fits as they come in (the search's, and the full fit after a sample's). With
+    ``work`` (a folder) the fits and the trees are kept there as they finish, so that a
+    build stopped midway resumes with them (``_Kept``)."""
     st = settings or LayerSettings()
     k, seeding, seed = st.k, st.seeding, st.seed
     chosen = graph.clips_of(clips)
     feat = frame_features(chosen, graph.options.coords)
     x, q_hat = state_vectors(feat, candidates=st.sample or None)
+    kept = _Kept(Path(work), x, st) if work is not None else None
     if k is not None:
-        best = fit_mixture(x, k, seeding=seeding, seed=seed)
+        best = _full_fit(x, k, st, None, kept)
         fits: list[Clustering] = [best]
         curve: dict[str, Any] = {"k": [k], "bic": [best.bic], "chosen_k": k}
         if progress is not None:
             progress(1, 1)
     elif not 0 < st.sample < x.shape[0]:
+        fit_store = kept.fits if kept is not None else None
         best, fits, curve = select_by_bic(
-            x, st.ks, seeding, seed, feat.clip_start, cluster, progress=progress
+            x, st.ks, seeding, seed, feat.clip_start, cluster, progress=progress, store=fit_store
         )
     else:
-        best, fits, curve = _sampled_bic(x, feat.clip_start, st, cluster, progress)
+        best, fits, curve = _sampled_bic(x, feat.clip_start, st, cluster, progress, kept)
     forest = build_forest(
-        graph, best.labels, st.bound_seconds, st.max_nodes, st.max_states, cluster
+        graph,
+        best.labels,
+        st.bound_seconds,
+        st.max_nodes,
+        st.max_states,
+        cluster,
+        store=kept.trees(best.labels) if kept is not None else None,
     )
     return HigherLayer(
         graph, x, q_hat, best, tuple(fits), curve, forest, transition_log_probs(graph)
     )
+
+
+class _Kept:
+    """Where a layer build keeps its jobs (``control.jobs.JobStore``): ``fits/`` (the
+    BIC search's, a job a candidate), ``full/`` (the chosen number of clusters fitted
+    on every state) and ``trees/`` (the forest's, a job of trees at a time), each keyed
+    by what it was made from (the states, the settings, the labels), so that nothing of
+    another build is read back."""
+
+    def __init__(self, folder: Path, x: FloatArray, st: LayerSettings) -> None:
+        self.folder = folder
+        self.key = array_digest(repr(st.key()), [x])[:24]
+        self.fits = JobStore(folder / "fits", self.key)
+
+    def full(self, means_init: FloatArray | None) -> JobStore:
+        arrays = [] if means_init is None else [means_init]
+        return JobStore(self.folder / "full", array_digest(self.key, arrays)[:24])
+
+    def trees(self, labels: NDArray[np.int64]) -> JobStore:
+        return JobStore(self.folder / "trees", array_digest(self.key, [labels])[:24])
+
+
+def _full_fit(
+    x: FloatArray,
+    k: int,
+    st: LayerSettings,
+    means_init: FloatArray | None,
+    kept: _Kept | None,
+) -> Clustering:
+    """``fit_mixture`` of every state, read back where a stopped build kept it."""
+    store = kept.full(means_init) if kept is not None else None
+    if store is not None and (done := store.done(1, FIT_KEYS)):
+        return fit_of(done[0])
+    fit = fit_mixture(x, k, st.seeding, st.seed, means_init=means_init)
+    if store is not None:
+        store.save(0, fit_arrays(fit))
+    return fit
 
 
 def _sampled_bic(
@@ -193,6 +253,7 @@ def _sampled_bic(
     st: LayerSettings,
     cluster: str | None,
     progress: Callable[[int, int], None] | None,
+    kept: _Kept | None = None,
 ) -> tuple[Clustering, list[Clustering], dict[str, Any]]:
     """``select_by_bic`` on ``st.sample`` states spread evenly over ``x``, with the
     effective size of all of them; then the chosen ``k`` fitted on every state from the
@@ -203,9 +264,16 @@ def _sampled_bic(
     total = len(st.ks) + 1
     each = None if progress is None else lambda done, _: progress(done, total)
     chosen, fits, curve = select_by_bic(
-        x[sample], st.ks, st.seeding, st.seed, cluster=cluster, n_eff=n_eff, progress=each
+        x[sample],
+        st.ks,
+        st.seeding,
+        st.seed,
+        cluster=cluster,
+        n_eff=n_eff,
+        progress=each,
+        store=kept.fits if kept is not None else None,
     )
-    best = fit_mixture(x, chosen.k, st.seeding, st.seed, means_init=chosen.means)
+    best = _full_fit(x, chosen.k, st, chosen.means, kept)
     if progress is not None:
         progress(total, total)
     curve["sample"] = int(sample.size)

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Sequence
+import shutil
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -160,12 +161,16 @@ def cached_graph(
     cache_dir: str | Path | None = None,
     rebuild: bool = False,
     cluster: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> tuple[MotionGraph, Path, bool]:
     """The graph of ``clips`` from the cache, built and stored when missing or stale
-    (built on ``cluster`` where one is named: ``build_graph``).
+    (built on ``cluster`` where one is named: ``build_graph``; ``progress(done,
+    total)`` counts its search's jobs).
 
     Returns ``(graph, path, built)``. A cache file that cannot be used (unreadable,
-    damaged, edited) is rebuilt, with a warning naming it.
+    damaged, edited) is rebuilt, with a warning naming it. A build stopped midway keeps
+    its finished jobs beside the graph's file (``graph-<key>.parts/``) and resumes from
+    them; they are removed once the graph is stored.
     """
     options = options or GraphOptions()
     chosen, _ = select_clips(list(clips))
@@ -173,9 +178,14 @@ def cached_graph(
     folder = Path(cache_dir) if cache_dir is not None else graph_cache_dir()
     path = folder / f"graph-{_key(options, digest)}.npz"
 
+    work = path.with_suffix(".parts")
+
     def make() -> MotionGraph:
-        graph = build_graph(clips, options, cluster=cluster)
+        if rebuild:
+            shutil.rmtree(work, ignore_errors=True)  # (rebuilt: nothing of before kept)
+        graph = build_graph(clips, options, cluster=cluster, work=work, jobs=progress)
         save_graph(graph, path)
+        shutil.rmtree(work, ignore_errors=True)
         return graph
 
     graph, built = cached_entry(path, lambda: _load_cached(path, digest), make, rebuild)

@@ -18,6 +18,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from functools import cached_property
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -299,12 +300,17 @@ def build_graph(
     options: GraphOptions | None = None,
     progress: Callable[[str], None] | None = None,
     cluster: str | None = None,
+    work: str | Path | None = None,
+    jobs: Callable[[int, int], None] | None = None,
 ) -> MotionGraph:
     """Build the pruned motion graph of ``clips`` (one frame rate).
 
-    The search for likely pairs (the lower bound and the exact distances) runs on a Dask
-    cluster when ``cluster`` (or ``$MIMIC_CLUSTER``, ``control.jobs``) names one, in
-    blocks of rows; the graph is the local build's, array for array.
+    The search for likely pairs (the lower bound and the exact distances, most of the
+    time) runs in jobs of blocks of rows (``likely_pairs``), on a Dask cluster when
+    ``cluster`` (or ``$MIMIC_CLUSTER``, ``control.jobs``) names one; the graph is the
+    local build's, array for array. With ``work`` (a folder) each finished job is kept
+    there, so that a build stopped midway resumes where it was; ``jobs(done, total)``
+    counts them (a progress bar).
 
     The report (``graph.report``) has the Table 1 counts: ``frames``, ``possible``
     (frames squared), then transitions left after ``contact``, ``likelihood``,
@@ -323,9 +329,10 @@ def build_graph(
     dmax = sigma * math.log(1.0 / options.threshold)
     t_feat = time.perf_counter()
 
-    (a, b, d, align), counts = likely_pairs(feat, options, dmax, cluster)
+    where = Path(work) if work is not None else None
+    (a, b, d, align), counts = likely_pairs(feat, options, dmax, cluster, where, jobs)
     n_likely = a.size
-    t_search = t_feat + counts["search"]
+    t_search = time.perf_counter()  # (the search's jobs, and a resumed build's parts read)
     if progress:
         progress(f"{n_likely} transitions under the likelihood threshold")
     (a, b, d, align), n_similar, n_case4 = _prune_rules(feat, options, fps, a, b, d, align)
@@ -343,6 +350,8 @@ def build_graph(
         "possible": n * n,
         "contact": counts["contact"],
         "candidates": counts["candidates"],
+        "jobs": counts["jobs"],
+        "resumed_jobs": counts["resumed"],
         "likelihood": int(n_likely),
         "similarity": n_similar,
         "case4": n_case4,
@@ -354,7 +363,7 @@ def build_graph(
         "seconds": {
             "features": round(t_feat - t0, 3),
             "search": round(t_search - t_feat, 3),
-            "exact_and_prune": round(t_prune - t_search, 3),
+            "prune": round(t_prune - t_search, 3),
             "scc": round(t_end - t_prune, 3),
             "total": round(t_end - t0, 3),
         },

@@ -1,16 +1,22 @@
 """The frame pairs under the likelihood threshold (``likely_pairs``): the lower bound's
 candidates found a block of rows at a time and measured by the exact kernel a batch at a
-time, in this process or as jobs on a cluster (``control.jobs``)."""
+time, in jobs run in this process or on a cluster (``control.jobs``), each job's result
+kept where a build may be stopped and resumed."""
 
 from __future__ import annotations
 
+import hashlib
+import json
+import logging
 import time
+from collections.abc import Callable
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..jobs import cluster_address, map_jobs
+from ..jobs import JobStore, run_jobs
 from ._broad import BroadPhase, wants_broad
 from ._distance import close_pair_blocks, lower_bound_features, pair_distances
 from ._features import FrameFeatures
@@ -21,6 +27,8 @@ if TYPE_CHECKING:
 
 __all__ = ["likely_pairs"]
 
+log = logging.getLogger(__name__)
+
 IntArray = NDArray[np.int64]
 
 
@@ -28,7 +36,7 @@ IntArray = NDArray[np.int64]
 _MEASURE = 1 << 21
 
 
-#: lower-bound comparisons (rows x columns) of one job on a cluster (``likely_pairs``)
+#: lower-bound comparisons (rows x columns) of one job (``likely_pairs``): a few seconds
 _JOB_ELEMS = 1 << 27
 
 _Pairs = tuple[IntArray, IntArray, NDArray[np.float64], NDArray[np.float32]]
@@ -83,8 +91,8 @@ def _pairs_job(
     shared: tuple[FrameFeatures, np.ndarray, np.ndarray, GraphOptions, float, list[Any]],
     job: tuple[int, int, int],
 ) -> tuple[list[_Pairs], int]:
-    """One cluster job: rows ``[r0, r1)`` of contact group ``g`` (``_search_rows``); its
-    likely pairs and its number of candidates."""
+    """One job: rows ``[r0, r1)`` of contact group ``g`` (``_search_rows``); its likely
+    pairs and its number of candidates."""
     feat, x, norms, options, dmax, groups = shared
     g, r0, r1 = job
     rows, cols, broad = groups[g]
@@ -92,54 +100,19 @@ def _pairs_job(
     return parts, n_candidates
 
 
-def likely_pairs(
-    feat: FrameFeatures, options: GraphOptions, dmax: float, cluster: str | None = None
-) -> tuple[_Pairs, dict[str, Any]]:
-    """Frame pairs ``(a, b)`` that the contact rule allows and whose exact distance ``d``
-    is within ``dmax`` (the likelihood rule), with the alignment ``align`` that takes
-    ``b`` onto ``a``. Rows are searched (lower bound, then exact distances) a block at a
-    time, so that no more than a batch of candidates is held beside the survivors; at
-    500,000 frames nearly every candidate survives, so the alignments are held at
-    float32, as the graph stores them (16 bytes a pair, not 32). On a ``cluster``
-    (``control.jobs``) blocks of rows of each contact group are jobs (the frame features
-    sent to each worker once), and the same pairs come back in the same order. The
-    counts: ``contact``, ``candidates``, and the seconds of the lower-bound ``search``
-    (on a cluster: of the jobs, search and measure together)."""
-    groups = contact_groups(feat.states, feat.clip_start, options.contact)
-    n_contact = 0
-    for rows, cols in groups:
-        n_contact += rows.size * cols.size - np.intersect1d(rows, cols, assume_unique=True).size
-    x, norms = lower_bound_features(feat, options.nu)
-    parts: list[_Pairs] = []  # the survivors, a part per measured batch
-    n_candidates = 0
-    t_search = 0.0
-    address = cluster_address(cluster)
-    if address is not None:
-        jobs = []
-        for g, (rows, cols) in enumerate(groups):
-            step = max(1, _JOB_ELEMS // max(1, cols.size))
-            jobs += [(g, r0, min(rows.size, r0 + step)) for r0 in range(0, rows.size, step)]
-        t0 = time.perf_counter()
-        # a large group's KD-tree made once here, and sent with the features
-        with_broad = [
-            (
-                rows,
-                cols,
-                BroadPhase.of(x, cols) if wants_broad(rows.size, cols.size) else None,
-            )
-            for rows, cols in groups
-        ]
-        shared = (feat, x, norms, options, dmax, with_broad)
-        for got, n in map_jobs(_pairs_job, jobs, cluster=address, shared=shared):
-            parts += got
-            n_candidates += n
-        t_search = time.perf_counter() - t0
-    else:
-        for rows, cols in groups:
-            got, n, t = _search_rows(feat, options, dmax, x, norms, rows, cols)
-            parts += got
-            n_candidates += n
-            t_search += t
+def _jobs(groups: list[tuple[IntArray, IntArray]]) -> list[tuple[int, int, int]]:
+    """``(group, first row, end row)``: each contact group's rows in blocks of about
+    ``_JOB_ELEMS`` comparisons."""
+    jobs = []
+    for g, (rows, cols) in enumerate(groups):
+        step = max(1, _JOB_ELEMS // max(1, cols.size))
+        jobs += [(g, r0, min(rows.size, r0 + step)) for r0 in range(0, rows.size, step)]
+    return jobs
+
+
+def _joined(parts: list[_Pairs]) -> _Pairs:
+    """``parts`` as one ``_Pairs``, joined one array at a time, each array's parts let go
+    once copied: the peak is the survivors and one more array, not the survivors twice."""
     empty = (
         np.zeros(0, dtype=np.int64),
         np.zeros(0, dtype=np.int64),
@@ -147,17 +120,112 @@ def likely_pairs(
         np.zeros((0, 4), dtype=np.float32),
     )
     columns: list[list[Any]] = [[part[i] for part in parts] or [empty[i]] for i in range(4)]
-    del parts
-    # joined one array at a time, its parts let go once copied: the peak is the
-    # survivors and one more array, not the survivors twice
+    parts.clear()
     joined = []
     for column in columns:
         joined.append(np.concatenate(column))
         column.clear()
-    pairs = (joined[0], joined[1], joined[2], joined[3])
+    return joined[0], joined[1], joined[2], joined[3]
+
+
+_PART_KEYS = ("a", "b", "d", "align", "candidates")
+
+
+def _to_part(got: tuple[list[_Pairs], int], n_frames: int) -> dict[str, np.ndarray]:
+    """A job's result as the arrays a ``JobStore`` keeps (frame numbers at 32 bits where
+    they fit: read back, the same numbers)."""
+    a, b, d, align = _joined(list(got[0]))
+    index = np.int32 if n_frames < np.iinfo(np.int32).max else np.int64
+    return {
+        "a": a.astype(index),
+        "b": b.astype(index),
+        "d": d,
+        "align": align,
+        "candidates": np.array(got[1], dtype=np.int64),
+    }
+
+
+def _from_part(part: dict[str, np.ndarray]) -> tuple[list[_Pairs], int]:
+    a, b = part["a"].astype(np.int64), part["b"].astype(np.int64)
+    return [(a, b, part["d"], part["align"])], int(part["candidates"])
+
+
+def likely_pairs(
+    feat: FrameFeatures,
+    options: GraphOptions,
+    dmax: float,
+    cluster: str | None = None,
+    work: Path | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> tuple[_Pairs, dict[str, Any]]:
+    """Frame pairs ``(a, b)`` that the contact rule allows and whose exact distance ``d``
+    is within ``dmax`` (the likelihood rule), with the alignment ``align`` that takes
+    ``b`` onto ``a``.
+
+    The rows of each contact group are searched (lower bound, then exact distances) in
+    jobs of about ``_JOB_ELEMS`` comparisons, so that no more than a batch of candidates
+    is held beside the survivors; at 500,000 frames nearly every candidate survives, so
+    the alignments are held at float32, as the graph stores them (16 bytes a pair, not
+    32). The jobs run in this process, or on a ``cluster`` (``control.jobs``; the frame
+    features and each large group's KD-tree sent to each worker once); the same pairs
+    come back in the same order either way. With ``work`` (a folder) each finished job's
+    pairs are kept there (``JobStore``), so that a stopped build runs only the jobs it
+    had not finished; ``progress(done, total)`` counts the jobs. The counts:
+    ``contact``, ``candidates``, ``jobs``, ``resumed`` (jobs kept from before) and the
+    seconds of the ``search`` (the lower bound and the exact distances)."""
+    groups = contact_groups(feat.states, feat.clip_start, options.contact)
+    n_contact = 0
+    for rows, cols in groups:
+        n_contact += rows.size * cols.size - np.intersect1d(rows, cols, assume_unique=True).size
+    x, norms = lower_bound_features(feat, options.nu)
+    jobs = _jobs(groups)
+    store = None
+    results: dict[int, tuple[list[_Pairs], int]] = {}
+    if work is not None:
+        table = json.dumps({"dmax": repr(dmax), "n": feat.n, "jobs": jobs})
+        store = JobStore(work, hashlib.sha256(table.encode()).hexdigest()[:24])
+        results = {i: _from_part(p) for i, p in store.done(len(jobs), _PART_KEYS).items()}
+        if results:
+            log.info(
+                "resuming the frame pairs: %d of %d jobs kept in %s", len(results), len(jobs), work
+            )
+    resumed = len(results)
+    todo = [i for i in range(len(jobs)) if i not in results]
+    if progress:
+        progress(len(results), len(jobs))
+
+    def finished(k: int, got: tuple[list[_Pairs], int]) -> None:
+        if store is not None:
+            part = _to_part(got, feat.n)
+            store.save(todo[k], part)
+            got = _from_part(part)  # (one array a column: a resumed build's parts too)
+        results[todo[k]] = got
+        if progress:
+            progress(len(results), len(jobs))
+
+    t0 = time.perf_counter()
+    if todo:
+        # a large group's KD-tree made once here, and sent with the features
+        with_broad = [
+            (rows, cols, BroadPhase.of(x, cols) if wants_broad(rows.size, cols.size) else None)
+            for rows, cols in groups
+        ]
+        shared = (feat, x, norms, options, dmax, with_broad)
+        # in this process the kernels use every core already: no worker processes
+        run_jobs(_pairs_job, [jobs[i] for i in todo], finished, 1, cluster, shared)
+    t_search = time.perf_counter() - t0
+    parts: list[_Pairs] = []
+    n_candidates = 0
+    for i in range(len(jobs)):
+        got, n = results.pop(i)
+        parts += got
+        n_candidates += n
+    pairs = _joined(parts)
     counts = {
         "contact": int(n_contact),
         "candidates": int(n_candidates),
+        "jobs": len(jobs),
+        "resumed": resumed,
         "search": t_search,
     }
     return pairs, counts

@@ -146,14 +146,14 @@ def test_a_graph_built_on_a_two_worker_cluster_is_the_local_build(
     options = GraphOptions(coords="relative")
     here = build_graph(medium_lib.clips, options)
     jobs: list[int] = []
-    real = _pairs.map_jobs
+    real = _pairs.run_jobs
 
-    def counted(*args: Any, **kwargs: Any) -> list[Any]:
+    def counted(*args: Any, **kwargs: Any) -> None:
         jobs.append(len(args[1]))
-        return real(*args, **kwargs)
+        real(*args, **kwargs)
 
     monkeypatch.setattr(_pairs, "_JOB_ELEMS", medium_lib.n_frames * 50)  # many small jobs
-    monkeypatch.setattr(_pairs, "map_jobs", counted)
+    monkeypatch.setattr(_pairs, "run_jobs", counted)
     there = build_graph(medium_lib.clips, options, cluster=dask_cluster)
     assert jobs and jobs[0] > 10
     for name in ("src", "dst", "dist", "align", "in_scc"):
