@@ -23,9 +23,9 @@ __all__ = [
 
 #: seconds of each step at 50,000 / 200,000 / 500,000 frames on the development machine
 REFERENCE_STEPS: dict[str, tuple[tuple[int, float], ...]] = {
-    "graph": ((50_000, 4.51), (200_000, 37.63), (500_000, 166.48)),
+    "graph": ((50_000, 3.5), (200_000, 34.36), (500_000, 149.09)),
     "higher layer": ((50_000, 25.0), (200_000, 63.82), (500_000, 91.73)),
-    "search index": ((50_000, 17.7), (200_000, 73.3), (500_000, 176.5)),
+    "search index": ((50_000, 17.7), (200_000, 73.3), (500_000, 96.8)),
 }
 #: silhouettes a second ``silhouette_bank.render_rate`` measures there (on the shared
 #: library's longest clip; the runs are in ``benchmarks/HISTORY.md``)

@@ -199,36 +199,56 @@ def _with_shared(fn: Callable[[Any, Any], Any], job: Any) -> Any:
 @contextmanager
 def _client(address: str) -> Iterator[Any]:
     try:
-        from distributed import Client, LocalCluster
+        from distributed import Client
     except ImportError as exc:
         raise ClusterError(
             f"building on the cluster {address!r} needs Dask's distributed "
             "(pip install 'mimic[cluster]' or distributed)"
         ) from exc
     if address.startswith("local:"):
+        # the scheduler and the workers' nannies run in this process: their lines of
+        # progress (dozens a build) are said only where this process says its own
+        # (``mimic --verbose``), not into the command's output
+        talk = logging.getLogger("distributed")
+        level = talk.level
+        if logging.getLogger().getEffectiveLevel() > logging.INFO:
+            talk.setLevel(logging.WARNING)
         try:
-            n = int(address.split(":", 1)[1])
-        except ValueError:
-            n = 0
-        if n < 1:
-            raise ClusterError(f"cluster {address!r}: local:N needs a number of workers N >= 1")
-        with (
-            LocalCluster(  # (its dashboard on a free port: None would take 8787, which
-                # another cluster on this machine may hold)
-                n_workers=n,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=":0",
-            ) as local,
-            Client(local) as client,
-        ):
-            yield client
+            with _local_client(address) as client:
+                yield client
+        finally:
+            talk.setLevel(level)
         return
     try:
         client = Client(address, timeout=30)
     except (OSError, TimeoutError, ValueError) as exc:
         raise ClusterError(f"cannot reach the cluster at {address!r}: {exc}") from exc
     with client:
+        yield client
+
+
+@contextmanager
+def _local_client(address: str) -> Iterator[Any]:
+    """A client of a cluster of ``N`` worker processes on this machine (``local:N``),
+    started here and closed after."""
+    from distributed import Client, LocalCluster
+
+    try:
+        n = int(address.split(":", 1)[1])
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise ClusterError(f"cluster {address!r}: local:N needs a number of workers N >= 1")
+    with (
+        LocalCluster(  # (its dashboard on a free port: None would take 8787, which
+            # another cluster on this machine may hold)
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=":0",
+        ) as local,
+        Client(local) as client,
+    ):
         yield client
 
 

@@ -280,10 +280,11 @@ def build_forest(
     """Cluster trees for every branching frame of ``graph`` with frame clusters ``labels``:
     by threads here, or as jobs on a Dask cluster when ``cluster`` (or
     ``$MIMIC_CLUSTER``: ``control.jobs``) names one (the same trees, in the same order).
-    ``lazy``: each tree built when first asked for (``None``: when a sample of trees
-    projects the whole build past ``LAZY_SECONDS``; never on a cluster). With ``store``
-    the trees of an eager build are kept there ``_TREES_PER_JOB`` at a time, and those
-    kept by a build stopped before are not built again (``_eager_trees``)."""
+    ``lazy``: each tree built here when first asked for (``None``: when a sample of
+    trees, built here, projects the whole build past ``LAZY_SECONDS`` on this machine's
+    threads, with or without a cluster). With ``store`` the trees of an eager build are
+    kept there ``_TREES_PER_JOB`` at a time, and those kept by a build stopped before
+    are not built again (``_eager_trees``)."""
     labels = np.asarray(labels, dtype=np.int64)
     if labels.shape != (graph.n_frames,):
         raise ValueError(f"labels must have one cluster per graph frame ({graph.n_frames})")
@@ -301,7 +302,9 @@ def build_forest(
     address = cluster_address(cluster)
     threads = min(4, os.cpu_count() or 1)
     sampled: dict[int, ClusterTree] = {}  # (kept: the build below does not make them again)
-    if lazy is None and address is None and branching.size > _SAMPLE:
+    # (on a cluster too: an eager forest of a dense graph is hours of trees on a few
+    # workers, where the avatar needs a few hundred of them)
+    if lazy is None and branching.size > _SAMPLE:
         picked = np.random.default_rng(0).choice(branching, _SAMPLE, replace=False)
         t = time.perf_counter()
         sampled = {int(f): _build_tree(int(f), *shared) for f in picked}
@@ -310,7 +313,7 @@ def build_forest(
     sample = list(sampled.values())
     forest_of: LazyTrees | None = None
     trees: list[ClusterTree] = []
-    if lazy and address is None:
+    if lazy:
         forest_of = LazyTrees(branching, shared)
         for f, tree in sampled.items():
             forest_of.built[int(np.searchsorted(branching, f))] = tree

@@ -100,3 +100,19 @@ def test_a_local_pool_that_loses_a_worker_says_why(monkeypatch: pytest.MonkeyPat
     monkeypatch.setattr("control.jobs.ProcessPoolExecutor", _PoolThatBreaks)
     with pytest.raises(ClusterError, match=r"worker process of the local pool .* workers=1"):
         run_jobs(abs, [1, 2], lambda i, r: None, workers=2)
+
+
+@pytest.mark.slow
+def test_a_local_cluster_says_nothing_into_a_quiet_commands_output(
+    caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A local cluster's scheduler and nannies run in this process: at mimic's default
+    level (warnings) their dozens of lines of progress are not said."""
+    import logging
+
+    monkeypatch.setattr(logging.getLogger(), "level", logging.WARNING)
+    got: dict[int, int] = {}
+    run_jobs(abs, [1, -2, 3], got.__setitem__, cluster="local:1")
+    assert got == {0: 1, 1: 2, 2: 3}
+    said = [r for r in caplog.records if r.name.startswith("distributed")]
+    assert all(r.levelno >= logging.WARNING for r in said), [r.getMessage() for r in said]

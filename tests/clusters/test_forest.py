@@ -97,3 +97,22 @@ def test_trees_built_on_a_two_worker_cluster_are_the_local_ones(
         assert a.root_frame == b.root_frame and a.truncated == b.truncated
         for name in ("parent", "cluster", "arrival"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+
+
+def test_a_forest_too_slow_to_build_whole_is_lazy_on_a_cluster_too(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A dense graph's forest would keep a few workers busy for hours where the avatar
+    needs a few hundred trees: it is lazy there as here, and the cluster is not asked."""
+    from control.clusters import _forest
+
+    rng = np.random.default_rng(5)
+    g = small_graph(rng, n_clips=6, length=12, n_edges=40)
+    labels = rng.integers(0, 4, g.n_frames)
+    monkeypatch.setattr(_forest, "_SAMPLE", 2)
+    monkeypatch.setattr(_forest, "LAZY_SECONDS", 0.0)
+    here = build_forest(g, labels, bound_seconds=9 / g.fps, lazy=False)
+    lazy = build_forest(g, labels, bound_seconds=9 / g.fps, cluster="tcp://192.0.2.1:8786")
+    assert lazy.report["lazy"] and lazy.n_trees == len(here.trees)
+    for t, tree in enumerate(here.trees):
+        assert np.array_equal(lazy.tree(tree.root_frame).parent, tree.parent), t
