@@ -119,7 +119,10 @@ def prepare(settings: RunSettings, source: Source) -> Prepared:
     _say_unreachable(graph, not match.landing.jumps)
     with step("higher layer (clusters and trees)"):
         fits = bar("higher layer: mixture fits", "fits")
-        layer, _, layer_built = cached_higher_layer(graph, clips, settings.layer, progress=fits)
+        trees = bar("higher layer: cluster trees", "trees")
+        layer, _, layer_built = cached_higher_layer(
+            graph, clips, settings.layer, progress=fits, trees=trees
+        )
     print(
         f"library: {len(graph.clip_names)} clips, {graph.n_frames} frames "
         f"({int(graph.in_scc.sum())} reachable); graph coords {graph.options.coords}; "

@@ -241,12 +241,13 @@ def cached_higher_layer(
     rebuild: bool = False,
     cluster: str | None = None,
     progress: Callable[[int, int], None] | None = None,
+    trees: Callable[[int, int], None] | None = None,
 ) -> tuple[HigherLayer, Path, bool]:
     """The higher layer of ``graph`` with ``settings`` from the cache (beside the
     graphs), built and stored when missing, stale or unreadable (with a warning naming
-    the file; its trees built on ``cluster`` where one is named; ``progress``: as
-    ``build_higher_layer`` calls it). Returns ``(layer, path, built)``. A build stopped
-    midway keeps its finished fits and trees beside the layer's file
+    the file; its trees built on ``cluster`` where one is named; ``progress`` and
+    ``trees``: as ``build_higher_layer`` calls them). Returns ``(layer, path, built)``.
+    A build stopped midway keeps its finished fits and trees beside the layer's file
     (``layer-<key>.parts/``) and resumes from them; they are removed once it is
     stored."""
     settings = settings or LayerSettings()
@@ -259,7 +260,7 @@ def cached_higher_layer(
     def make() -> HigherLayer:
         if rebuild:
             shutil.rmtree(work, ignore_errors=True)  # (rebuilt: nothing of before kept)
-        layer = build_higher_layer(graph, clips, settings, cluster, progress, work)
+        layer = build_higher_layer(graph, clips, settings, cluster, progress, work, trees)
         save_layer(layer, path, key)
         shutil.rmtree(work, ignore_errors=True)
         return layer

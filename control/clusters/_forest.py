@@ -28,6 +28,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
@@ -204,6 +205,7 @@ def _eager_trees(
     threads: int,
     sampled: dict[int, ClusterTree],
     store: JobStore | None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> list[ClusterTree]:
     """Every tree of the ``branching`` frames, in order, ``_TREES_PER_JOB`` a job: on the
     cluster at ``address``, else here by ``threads`` threads (the kernel lets go of the
@@ -215,11 +217,16 @@ def _eager_trees(
     if store is not None:
         done = {i: _trees_of(a) for i, a in store.done(len(jobs), _TREE_KEYS).items()}
     todo = [i for i in range(len(jobs)) if i not in done]
+    built = sum(len(t) for t in done.values())
 
     def finished(k: int, trees: list[ClusterTree]) -> None:
+        nonlocal built
         done[todo[k]] = trees
         if store is not None:
             store.save(todo[k], _tree_arrays(trees))
+        built += len(trees)
+        if progress is not None:
+            progress(built, len(roots))
 
     if address is not None:
         run_jobs(_trees_job, [jobs[i] for i in todo], finished, cluster=address, shared=shared)
@@ -276,6 +283,7 @@ def build_forest(
     cluster: str | None = None,
     lazy: bool | None = None,
     store: JobStore | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> ClusterForest:
     """Cluster trees for every branching frame of ``graph`` with frame clusters ``labels``:
     by threads here, or as jobs on a Dask cluster when ``cluster`` (or
@@ -284,7 +292,8 @@ def build_forest(
     trees, built here, projects the whole build past ``LAZY_SECONDS`` on this machine's
     threads, with or without a cluster). With ``store`` the trees of an eager build are
     kept there ``_TREES_PER_JOB`` at a time, and those kept by a build stopped before
-    are not built again (``_eager_trees``)."""
+    are not built again (``_eager_trees``); ``progress(done, total)`` counts an eager
+    build's trees as their jobs finish."""
     labels = np.asarray(labels, dtype=np.int64)
     if labels.shape != (graph.n_frames,):
         raise ValueError(f"labels must have one cluster per graph frame ({graph.n_frames})")
@@ -318,7 +327,7 @@ def build_forest(
         for f, tree in sampled.items():
             forest_of.built[int(np.searchsorted(branching, f))] = tree
     else:
-        trees = _eager_trees(branching, shared, address, threads, sampled, store)
+        trees = _eager_trees(branching, shared, address, threads, sampled, store, progress)
     tree_of = np.full(graph.n_frames, -1, dtype=np.int64)
     tree_of[branching] = np.arange(branching.size)
     # single-exit frames: the tree of the first branching frame they play into

@@ -169,6 +169,7 @@ def build_higher_layer(
     cluster: str | None = None,
     progress: Callable[[int, int], None] | None = None,
     work: str | Path | None = None,
+    trees: Callable[[int, int], None] | None = None,
 ) -> HigherLayer:
     """Cluster the graph's frames (``settings.k`` clusters, or chosen by effective BIC
     over ``settings.ks``) and build the cluster forest with its time bound (the BIC
@@ -176,7 +177,8 @@ def build_higher_layer(
     is named: ``select_by_bic``, ``build_forest``). ``progress(done, total)`` counts the
     mixture fits as they come in (the search's, and the full fit after a sample's). With
     ``work`` (a folder) the fits and the trees are kept there as they finish, so that a
-    build stopped midway resumes with them (``_Kept``)."""
+    build stopped midway resumes with them (``_Kept``); ``trees(done, total)`` counts an
+    eager forest's trees."""
     st = settings or LayerSettings()
     k, seeding, seed = st.k, st.seeding, st.seed
     chosen = graph.clips_of(clips)
@@ -204,6 +206,7 @@ def build_higher_layer(
         st.max_states,
         cluster,
         store=kept.trees(best.labels) if kept is not None else None,
+        progress=trees,
     )
     return HigherLayer(
         graph, x, q_hat, best, tuple(fits), curve, forest, transition_log_probs(graph)

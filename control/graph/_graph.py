@@ -348,9 +348,7 @@ def build_graph(
         "fps": fps,
         "frames": n,
         "possible": n * n,
-        "contact": counts["contact"],
-        "candidates": counts["candidates"],
-        "jobs": counts["jobs"],
+        **{k: counts[k] for k in ("contact", "candidates", "jobs")},
         "resumed_jobs": counts["resumed"],
         "likelihood": int(n_likely),
         "similarity": n_similar,
@@ -360,13 +358,7 @@ def build_graph(
         "components": n_comp,
         "sigma": sigma,
         "max_distance": dmax,
-        "seconds": {
-            "features": round(t_feat - t0, 3),
-            "search": round(t_search - t_feat, 3),
-            "prune": round(t_prune - t_search, 3),
-            "scc": round(t_end - t_prune, 3),
-            "total": round(t_end - t0, 3),
-        },
+        "seconds": _seconds(t0, t_feat, t_search, t_prune, t_end),
     }
     return MotionGraph(
         options=options,
@@ -382,6 +374,15 @@ def build_graph(
         library_digest=clips_digest(chosen),
         report=report,
     )
+
+
+def _seconds(*marks: float) -> dict[str, float]:
+    """The seconds of each part of a build between its ``marks`` (the start, then the
+    ends of the features, the search, the pruning and the component), and the total."""
+    parts = ("features", "search", "prune", "scc")
+    out = {k: round(b - a, 3) for k, a, b in zip(parts, marks[:-1], marks[1:], strict=True)}
+    out["total"] = round(marks[-1] - marks[0], 3)
+    return out
 
 
 def options_key(options: GraphOptions, digest: str) -> str:

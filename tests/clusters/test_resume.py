@@ -104,8 +104,13 @@ def test_a_layer_stopped_in_its_trees_resumes_with_the_trees_it_kept(
     assert kept > 3
     monkeypatch.setattr(_forest, "_build_tree", original)
     made = _counting(monkeypatch)
-    again = build_higher_layer(graph, walk_lib.clips, SETTINGS, work=work)
+    seen: list[tuple[int, int]] = []
+    again = build_higher_layer(
+        graph, walk_lib.clips, SETTINGS, work=work, trees=lambda d, t: seen.append((d, t))
+    )
     assert made["fits"] == 0  # every fit was kept
+    # the trees counted as their jobs finish, from those kept
+    assert seen[0][0] > 3 * kept and seen[-1] == (n_trees, n_trees)
     # the kept jobs' trees are read back; the rest built, and the one timed
     assert made["trees"] <= n_trees - 3 * kept + 1
     _same(whole, again)
