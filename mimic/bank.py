@@ -151,7 +151,7 @@ def _build(args: argparse.Namespace) -> int:
     options = {
         "shard_frames": args.shard_frames,
         "workers": args.workers,
-        "progress": bar("silhouette bank", "renders", quiet_s=0.0),
+        "progress": bar("silhouette bank", "silhouettes", quiet_s=0.0),
         "cluster": args.cluster,
     }
     if args.bank:  # a folder of the user's

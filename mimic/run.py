@@ -140,7 +140,7 @@ def prepare(settings: RunSettings, source: Source) -> Prepared:
             file=sys.stderr,
         )
         fallback, _, _ = cached_bank(
-            clips, BankSettings(), progress=bar("silhouette bank (fallback)", "renders")
+            clips, BankSettings(), progress=bar("silhouette bank (fallback)", "silhouettes")
         )
     _say_vote(clips, match)
     start = start_frame(graph, settings.start)
@@ -261,7 +261,8 @@ def _bank(settings: RunSettings, clips: list[Clip], source: Source) -> tuple[str
     if settings.variants and descriptor == "pose":
         print("--variants: body variants do not apply to the pose descriptor", file=sys.stderr)
     bank_settings = robust_settings(base) if settings.variants and descriptor != "pose" else base
-    bank, _, built = cached_bank(clips, bank_settings, progress=bar("silhouette bank", "renders"))
+    rendered = bar("silhouette bank", "silhouettes")
+    bank, _, built = cached_bank(clips, bank_settings, progress=rendered)
     return descriptor, bank, built
 
 

@@ -192,7 +192,10 @@ def build_bank(
     script that calls this must guard its entry point with ``if __name__ ==
     "__main__":``. With a ``cluster`` (or ``$MIMIC_CLUSTER``: ``control.jobs``)
     they are made on a Dask cluster instead; the bank is the same bit for bit.
-    ``progress(done, total)`` counts both.
+    ``progress(done, total)`` counts the silhouettes of both as their jobs finish (a
+    shard's frames times its views; a metric job's frames times its views, each with
+    and without a shadow), so that its rate and time left hold from the first shard to
+    the last metric job (tens of times smaller than a shard).
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -205,7 +208,7 @@ def build_bank(
     metric = []
     if settings.metric_dims:
         metric = metric_jobs(clips, settings.descriptor, settings.ring, settings.body)
-    samples = _render(todo, len(shards), workers, progress, metric, cluster)
+    samples = _render(todo, shards, settings.n_views, workers, progress, metric, cluster)
     manifest["blocks"] = _merge(settings, folder, manifest)
     arrays: dict[str, np.ndarray] = {
         "clip_start": np.asarray(manifest["clip_start"], dtype=np.int64),
@@ -305,18 +308,22 @@ def _run_job(
 
 def _render(
     todo: list[ShardJob],
-    n_shards: int,
+    shards: list[dict[str, Any]],
+    views: int,
     workers: int | None,
     progress: Callable[[int, int], None] | None,
     metric: Sequence[MetricJob] = (),
     cluster: str | None = None,
 ) -> list[NDArray[np.float32]]:
-    """Render the ``todo`` shards (each written as it comes back), then the ``metric``
-    jobs (their samples returned, in order), where ``run_jobs`` says;
-    ``progress(done, shards + metric jobs)``."""
+    """Render the ``todo`` shards of the manifest's ``shards`` (each written as it comes
+    back; ``views`` a frame), then the ``metric`` jobs (their samples returned, in
+    order), where ``run_jobs`` says; ``progress(silhouettes done, silhouettes in all)``."""
     jobs: list[ShardJob | MetricJob] = [*todo, *metric]
-    total = n_shards + len(metric)
-    done = n_shards - len(todo)
+    weight = [_silhouettes(job) for job in jobs]
+    frames = sum(int(s["stop"]) - int(s["start"]) for s in shards)
+    kept = frames * views - sum(weight[: len(todo)])  # (shards of a build stopped before)
+    total = kept + sum(weight)
+    done = kept
     if progress:
         progress(done, total)
     samples: dict[int, NDArray[np.float32]] = {}
@@ -327,12 +334,19 @@ def _render(
             _write_shard(todo[i][3], out[1])
         else:
             samples[i] = out
-        done += 1
+        done += weight[i]
         if progress:
             progress(done, total)
 
     run_jobs(_run_job, jobs, take, workers, cluster)
     return [samples[i] for i in sorted(samples)]
+
+
+def _silhouettes(job: ShardJob | MetricJob) -> int:
+    """The silhouettes a job renders: its weight in the build's progress."""
+    if isinstance(job, MetricJob):
+        return int(job.frames.size) * sum(r.n_views for r in job.rings) * 2
+    return sum(stop - first for _, first, stop in job[1]) * job[2].n_views
 
 
 def _merge(settings: BankSettings, folder: Path, manifest: dict[str, Any]) -> dict[str, Any]:

@@ -58,10 +58,13 @@ class _Interrupt(Exception):
 
 
 def _stop_at(n: int) -> Callable[[int, int], None]:
-    """A progress callback that stops a build once ``n`` shards are done."""
+    """A progress callback that stops a build once ``n`` shards are done (it is called
+    once before the first, then once a job)."""
+    calls = [0]
 
     def progress(done: int, total: int) -> None:
-        if done == n:
+        calls[0] += 1
+        if calls[0] == n + 1:
             raise _Interrupt
 
     return progress
@@ -83,7 +86,7 @@ def test_resume_only_redoes_missing_or_broken_shards(lib: Library, tmp_path: Pat
     )
     manifest = json.loads((folder / "manifest.json").read_text())
     assert manifest["complete"] and manifest["built"]["rendered_shards"] == 3
-    assert seen[0] == 1  # shard 0 was kept
+    assert seen[0] == 30 * SMALL.n_views  # shard 0 (30 frames) was kept
     assert not list(folder.glob("shard-*.npz"))  # merged, then removed
     fresh = build_bank(lib.clips, SMALL, tmp_path / "fresh", shard_frames=30, workers=1)
     np.testing.assert_array_equal(load_bank(folder).features, fresh.features)
