@@ -131,17 +131,17 @@ def _joined(parts: list[_Pairs]) -> _Pairs:
 _PART_KEYS = ("a", "b", "d", "align", "candidates")
 
 
-def _to_part(got: tuple[list[_Pairs], int], n_frames: int) -> dict[str, np.ndarray]:
-    """A job's result as the arrays a ``JobStore`` keeps (frame numbers at 32 bits where
-    they fit: read back, the same numbers)."""
-    a, b, d, align = _joined(list(got[0]))
+def _to_part(pairs: _Pairs, n_candidates: int, n_frames: int) -> dict[str, np.ndarray]:
+    """A job's pairs (joined) as the arrays a ``JobStore`` keeps (frame numbers at 32
+    bits where they fit: read back, the same numbers)."""
+    a, b, d, align = pairs
     index = np.int32 if n_frames < np.iinfo(np.int32).max else np.int64
     return {
         "a": a.astype(index),
         "b": b.astype(index),
         "d": d,
         "align": align,
-        "candidates": np.array(got[1], dtype=np.int64),
+        "candidates": np.array(n_candidates, dtype=np.int64),
     }
 
 
@@ -196,9 +196,9 @@ def likely_pairs(
 
     def finished(k: int, got: tuple[list[_Pairs], int]) -> None:
         if store is not None:
-            part = _to_part(got, feat.n)
-            store.save(todo[k], part)
-            got = _from_part(part)  # (one array a column: a resumed build's parts too)
+            pairs = _joined(list(got[0]))  # (one array a column, as a kept job's)
+            store.save(todo[k], _to_part(pairs, got[1], feat.n))
+            got = ([pairs], got[1])
         results[todo[k]] = got
         if progress:
             progress(len(results), len(jobs))
