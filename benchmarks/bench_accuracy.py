@@ -102,6 +102,8 @@ from vision import (
 )
 
 LAGS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0)
+#: delays (s) from a frame to the avatar on screen, as a live camera has them
+SHOWN_LATE = (0.1, 0.2)
 SETTINGS = ((1.0, 1.5), (1.0, 3.0), (2.0, 3.0), (2.0, 5.0))
 
 
@@ -286,6 +288,14 @@ def _run_figures(
                 "per_action": per_action,
             }
         )
+    # what a viewer of a live camera sees, the avatar shown a moment after the frame it
+    # answers: its pose against the performer's that much later
+    late = {}
+    for delay in SHOWN_LATE:
+        k = np.round((times + delay) * fps).astype(int)
+        ok = (k >= 0) & (k < truth_q.shape[0])
+        err = _pose_dist(lib_q[frames[ok]], truth_q[k[ok]]).mean()
+        late[f"{delay:g}"] = round(_score(err, random_err, nearest), 3)
     # coherence: action switches a minute, the avatar's against the performer's
     k = np.clip(np.round(times * fps).astype(int), 0, len(perf_labels) - 1)
     seconds = float(times[-1] - times[0]) if times.size > 1 else 0.0
@@ -318,6 +328,7 @@ def _run_figures(
         "decisions_made": len(made),
         "direct_jumps": sum("jump" in d for d in made),
         "curve": curve,
+        "pose_score_shown_late": late,
         # the performer's action and the avatar's at each decision point (for a plot a
         # person would look at: benchmarks/plot_timelines.py)
         "timeline": {

@@ -90,7 +90,7 @@ def run_settings(args: argparse.Namespace) -> RunSettings:
         window=args.window,
         recency=args.recency,
         paths=PathSettings(lookahead=args.lookahead),
-        landing=LandingSettings(jumps=not args.no_jumps, min_play=args.hold),
+        landing=LandingSettings(jumps=not args.no_jumps, min_play=args.hold, lead=args.lead),
         action=ActionSettings(
             vote=args.vote,
             margin=args.vote_margin,
@@ -279,6 +279,15 @@ def _add_jump_args(p: argparse.ArgumentParser) -> None:
         default=MatchSettings.recency,
         help="the matcher's DTW weighs the performer's last frame 1 + R times the first of "
         "the window, linearly between (default %(default)s; 0: every frame alike)",
+    )
+    p.add_argument(
+        "--lead",
+        type=number(float, 0, 0.5),
+        default=LandingSettings.lead,
+        metavar="SECONDS",
+        help="land the avatar this far ahead of the performer's last frame, where a live "
+        "performer will be when the avatar is shown (default %(default)s: on bench_accuracy's "
+        "runs it helps only where the avatar is shown 0.2 s or more after its frame)",
     )
     p.add_argument(
         "--hold",

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,3 +42,29 @@ class Decision:
     #: cluster path or a direct jump (``jump``)
     how: str = ""
     jump: Jump | None = None
+
+    def logged(self, view: int) -> dict[str, Any]:
+        """The decision's part of its log entry (``view``: the one the avatar is shown
+        from, the last decision's where this one has none); costs ``None`` where infinite."""
+
+        def num(x: float, digits: int) -> float | None:
+            return round(x, digits) if math.isfinite(x) else None
+
+        out: dict[str, Any] = {self.how: True} if self.how in ("plays_on", "held") else {}
+        if self.jump is not None:
+            if self.jump.leaves:  # (for the action voted for, whatever it costs)
+                out["leaves"] = True
+            out.update(
+                jump=self.jump.target,
+                own_cost=num(self.jump.own_cost, 4),
+                blend=round(self.jump.blend, 4),
+            )
+        out.update(
+            decision=[int(c) for c in self.cluster_path],
+            cost=num(self.cost, 4),
+            runner_up=num(self.runner_up, 4),
+            view=view,
+            candidates=self.candidates,
+            latency_ms=round(self.latency_ms, 3),
+        )
+        return out

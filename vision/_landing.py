@@ -2,7 +2,12 @@
 the frame after one of the search's best windows, placed by the performer's last frames
 (``phased_targets``), unless the avatar is there already, weighed by the action vote
 (``gated``); or, for a performer standing still, the avatar holds its frame (``held``).
-What a jump must beat is the avatar's own cost (``own_cost`` of ``own_frames``)."""
+What a jump must beat is the avatar's own cost (``own_cost`` of ``own_frames``).
+
+A live avatar is seen a moment after the frame it answers (the pose model, the page's
+round trip): with a lead (``LandingSettings.lead``) it lands that far ahead of the
+performer's last frame, where the performer will be when it is shown, and its own cost
+is read that far behind its frame."""
 
 from __future__ import annotations
 
@@ -48,6 +53,29 @@ class Lander:
         self.windows, self.settings, self.vote = windows, settings, vote
         self.graph, self.plays = windows.graph, windows.plays
         self.n, self.recent_frames = n, recent_frames
+        #: library frames ahead of the performer's last frame a jump lands
+        self.lead = round(settings.landing.lead * self.graph.fps)
+
+    def ahead(self, frames: IntArray, k: int | None = None) -> IntArray:
+        """Each of ``frames`` played on by ``k`` frames (default: the lead) as far as
+        its clip plays on."""
+        out = np.asarray(frames, dtype=np.int64).copy()
+        n = self.graph.n_frames
+        for _ in range(self.lead if k is None else k):
+            inside = out < n - 1
+            go = inside & self.plays[np.clip(out, 0, n - 1)]
+            out = np.where(go, out + 1, out)
+        return out
+
+    def behind(self, frame: int) -> int:
+        """The frame the lead's frames play into ``frame`` from (as far back as its clip
+        goes): where the performer's last frame was, the avatar being ahead."""
+        f = frame
+        for _ in range(self.lead):
+            if f <= 0 or not self.plays[f - 1]:
+                break
+            f -= 1
+        return f
 
     def held(
         self, frame: int, queries: list[FloatArray], rival: Decision | None, own: float
@@ -118,11 +146,14 @@ class Lander:
     def own_frames(self, frame: int, recent: IntArray) -> IntArray:
         """The frames whose cost is the avatar's own (``jump``): with
         ``settings.landing.own_from_library`` the library window that plays into ``frame`` (when
-        its clip has one), else the avatar's ``recent`` frames shown."""
+        its clip has one), else the avatar's ``recent`` frames shown; either, with a lead,
+        as far behind as the lead (the avatar is ahead of the performer by it)."""
         if self.settings.landing.own_from_library:
-            lib = self.lead_in(np.array([frame], dtype=np.int64))
+            lib = self.lead_in(np.array([self.behind(frame)], dtype=np.int64))
             if lib.size >= self.n:
                 return lib
+        if self.lead and recent.size > self.lead:
+            return recent[: -self.lead]
         return recent
 
     def lead_in(self, recent: IntArray) -> IntArray:
@@ -226,15 +257,18 @@ class Lander:
         queries: list[FloatArray],
     ) -> Gate:
         """The frames after windows ``got`` (placed by the performer's last frames,
-        ``phased_targets``), which a jump from ``frame`` may land on, and which the avatar
-        is at anyway, within 2 frames in its run (not a window ahead: a jump a few frames
-        on keeps the avatar in step)."""
+        ``phased_targets``, then played on by the lead), which a jump from ``frame`` may
+        land on, and which the avatar is at anyway, within 2 frames in its run (not a
+        window ahead: a jump a few frames on keeps the avatar in step)."""
         target = np.array([g[0] for g in got], dtype=np.int64) + self.n
         views = np.array([g[1] for g in got], dtype=np.int64)
         shape = self.windows.tables()[0]
         target = phased_targets(
             target, views, queries, shape, self.windows.runs, self.settings.landing.phase_frames
         )
+        if self.lead:
+            inside = target < self.graph.n_frames
+            target[inside] = self.ahead(target[inside])
         ok = target < self.graph.n_frames
         ok[ok] &= costs.landing[target[ok]] & self.plays[target[ok] - 1]
         there = (np.abs(target - frame) <= 2) & self.windows.same_run(frame, target)

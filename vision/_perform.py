@@ -284,14 +284,14 @@ class Performance:
         start the avatar where the library looks most like the performer (its motion so
         far is dropped), at the frame that matches the performer's latest."""
         matcher = self.matcher
-        window = self.window()
-        got = matcher.find_window(window)
+        got = matcher.find_window(window := self.window())
         if got is None:
             return
         self.located = True
         self.last_relocate = t  # that was this second's global search
-        # with jumps, where the performer is now: the window's last frame
-        at = got[0] + len(window) - 1 if self.jumps else got[0]
+        # with jumps, where the performer is now (the window's last frame), and the lead
+        end = np.array([got[0] + len(window) - 1])
+        at = int(matcher.lander.ahead(end)[0]) if self.jumps else got[0]
         self.avatar = self.new_avatar(at)
         self.views, self.view = [got[1]], got[1]
         self.t_start = t
@@ -420,25 +420,7 @@ class Performance:
             return entry
         avatar.take(d.frames, d.edges)
         self.view = d.view if d.view >= 0 else self.view
-        if d.how in ("plays_on", "held"):
-            entry[d.how] = True
-        if d.jump is not None:
-            if d.jump.leaves:  # (for the action voted for, whatever it costs)
-                entry["leaves"] = True
-            own = d.jump.own_cost
-            entry.update(
-                jump=d.jump.target,
-                own_cost=round(own, 4) if np.isfinite(own) else None,
-                blend=round(d.jump.blend, 4),
-            )
-        entry.update(
-            decision=[int(c) for c in d.cluster_path],
-            cost=round(d.cost, 4) if np.isfinite(d.cost) else None,
-            runner_up=round(d.runner_up, 4) if np.isfinite(d.runner_up) else None,
-            view=self.view,
-            candidates=d.candidates,
-            latency_ms=round(d.latency_ms, 3),
-        )
+        entry.update(d.logged(self.view))
         if 0 <= matcher.vote.voted < len(matcher.vote.names):  # the action voted for
             entry["voted"] = matcher.vote.names[matcher.vote.voted]
         if self.matcher.windows.facing is not None:  # which way the performer is taken to face

@@ -111,6 +111,12 @@ class LandingSettings:
     hold_still : bool
         The avatar may hold its frame still when that matches a performer standing still
         better than any jump or playing on.
+    lead : float
+        Seconds ahead of the performer's last frame a jump lands (at most 0.5), where
+        the performer will be when a live avatar is shown (the pose model, the page's
+        round trip). It plays the matched clip on, which foresees the performer's
+        tempo no better than the present does: measured, it helps only a viewer who
+        sees the avatar 0.2 s or more after the frame it answers.
     """
 
     jumps: bool = True
@@ -121,8 +127,11 @@ class LandingSettings:
     min_play: float = 0.1
     phase_frames: int = 6
     hold_still: bool = True
+    lead: float = 0.0
 
     def __post_init__(self) -> None:
+        if not 0 <= self.lead <= 0.5:  # (further ahead is a guess, not a phase)
+            raise ValueError(f"lead must be from 0 to 0.5 seconds, got {self.lead}")
         if not (math.isfinite(self.min_play) and self.min_play >= 0):
             raise ValueError(
                 f"min_play must be a finite number of seconds >= 0, got {self.min_play}"
