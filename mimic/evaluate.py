@@ -9,6 +9,7 @@ import json
 from pathlib import Path
 
 from control.artifacts import atomic_write
+from control.progress import bar
 from vision import (
     evaluation,
     open_source,
@@ -85,6 +86,7 @@ def _evaluate(args: argparse.Namespace) -> int:
             start=ready.start,
             seed=args.seed,
             fallback=ready.fallback,
+            bars=bar,
         )
     finally:
         source.close()

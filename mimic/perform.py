@@ -18,6 +18,7 @@ import numpy as np
 
 from control.artifacts import atomic_write
 from control.motion import Clip, write_bvh
+from control.progress import bar
 from vision import (
     METHODS,
     MaskTape,
@@ -286,6 +287,7 @@ def _run(
                 start=ready.start,
                 seed=args.seed,
                 fallback=ready.fallback,
+                bars=bar,
                 log=log,
                 tape=tape,
                 on_frame=painter.on_frame if painter else None,

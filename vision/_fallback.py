@@ -34,6 +34,7 @@ from silhouette_bank import Bank, silhouette_features
 
 from ._decision import Decision
 from ._matcher import Matcher
+from ._search import Bars
 
 __all__ = ["FALLBACK_REASONS", "SilhouetteFallback"]
 
@@ -49,7 +50,8 @@ class SilhouetteFallback:
     its settings, for the ``avatar`` (``costs``: its jump costs) of a loop deciding every
     ``period`` seconds. ``bank``: a silhouette bank of the graph's ``clips``. Made
     before the first frame, as ``main`` is (its search index, classifier and kernels
-    warmed up), so that the first frame without landmarks does not stall the loop."""
+    warmed up), so that the first frame without landmarks does not stall the loop;
+    ``bars``: progress bars for its search's tables and index (``WindowSearch.open``)."""
 
     def __init__(
         self,
@@ -60,6 +62,7 @@ class SilhouetteFallback:
         avatar: Avatar,
         costs: JumpCosts,
         period: float,
+        bars: Bars | None = None,
     ) -> None:
         if bank.settings.features.kind != "silhouette":
             raise ValueError(
@@ -70,7 +73,7 @@ class SilhouetteFallback:
         # one vote, whoever decides
         self.matcher = matcher = Matcher(layer, bank, settings, vote=main.vote)
         if settings.landing.jumps:
-            matcher.windows.index()
+            matcher.windows.open(bars, "search (fallback)")
             matcher.warm_up(avatar.frame, avatar.recent(matcher.recent_frames), costs)
         matcher.ready(clips, period)
         self.blank = np.full(matcher.n_features, np.nan)

@@ -38,6 +38,7 @@ from ._fallback import FALLBACK_REASONS, SilhouetteFallback
 from ._landmarks import PoseReader
 from ._matcher import Matcher
 from ._person import make_segmenter, resolve_segmentation
+from ._search import Bars
 from ._segment import clean_mask_others
 from ._settings import PerformSettings
 from ._sources import Frame, Source
@@ -89,6 +90,7 @@ def perform(
     on_decision: Callable[[dict[str, Any]], None] | None = None,
     stop: Callable[[], str] | None = None,
     fallback: Bank | None = None,
+    bars: Bars | None = None,
 ) -> PerformResult:
     """Run the loop until the source ends (or ``settings.seconds`` of media time).
 
@@ -100,8 +102,10 @@ def perform(
     every frame: a non-empty answer (why) ends the run there, and what was performed is
     returned as usual.
     ``fallback``: with a pose ``bank``, a silhouette bank of the same clips, whose
-    matcher decides when the landmarks cannot (``vision._fallback``)."""
-    run = Performance(source, layer, bank, clips, settings, start, seed, fallback)
+    matcher decides when the landmarks cannot (``vision._fallback``). ``bars(label,
+    unit)``: progress bars (``control.progress.bar``) for the search's tables and index
+    where they are made before the run (a large library's take minutes)."""
+    run = Performance(source, layer, bank, clips, settings, start, seed, fallback, bars)
     return run.run(log=log, tape=tape, on_frame=on_frame, on_decision=on_decision, stop=stop)
 
 
@@ -121,6 +125,7 @@ class Performance:
         start: int | None = None,
         seed: int = 0,
         fallback: Bank | None = None,
+        bars: Bars | None = None,
     ) -> None:
         # the graph's clips, in its order (one of another skeleton would misalign the vote)
         self.graph, clips = layer.graph, layer.graph.clips_of(clips)
@@ -136,7 +141,7 @@ class Performance:
             # while this one opens the search's index (mostly reading: 0.9 s there)
             with ThreadPoolExecutor(1) as pool:
                 computing = pool.submit(lambda: self.costs.features)
-                matcher.windows.index()
+                matcher.windows.open(bars)
                 computing.result()
         self.avatar = self.new_avatar(start)
         if jumps:
@@ -149,7 +154,9 @@ class Performance:
         self.reader = PoseReader() if self.landmarks else None
         #: the silhouette's matcher, where the landmarks fail (landmarks only)
         self.fallback = (
-            SilhouetteFallback(layer, fallback, clips, matcher, self.avatar, self.costs, period)
+            SilhouetteFallback(
+                layer, fallback, clips, matcher, self.avatar, self.costs, period, bars
+            )
             if fallback is not None and self.landmarks
             else None
         )

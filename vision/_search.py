@@ -30,6 +30,9 @@ from ._windows import bank_sequences, best_window, performer_queries
 
 __all__ = ["EARLY_WINDOWS", "WindowSearch"]
 
+#: a maker of progress callbacks by label and unit (``control.progress.bar``)
+Bars = Callable[[str, str], Callable[[int, int], None]]
+
 #: the most windows times views a half window is searched over by brute force to place
 #: the avatar before its first whole window (``WindowSearch.early``: 25 ms for the
 #: 54,000 of the default library on the development machine, about 70 ms at the limit)
@@ -94,10 +97,13 @@ class WindowSearch:
         self._key = ""
         self._index: WindowIndex | None = None
 
-    def tables(self) -> tuple[ShapeTable, FloatArray, IntArray]:
+    def tables(
+        self, progress: Callable[[int, int], None] | None = None
+    ) -> tuple[ShapeTable, FloatArray, IntArray]:
         """Every graph frame's standardised shape numbers and accumulated centre (times
         the centre weight) in every view, and the frames a window may start at (with
-        ``n`` frames of playback ahead)."""
+        ``n`` frames of playback ahead). ``progress(done, total)`` counts the frames of
+        tables made (none when they are read)."""
         if self._tables is None:
             shape, centre, self._key = cached_window_tables(
                 self.bank,
@@ -106,6 +112,7 @@ class WindowSearch:
                 self.mean,
                 self.proj,
                 self.settings.centre_weight,
+                progress,
             )
             n = self.graph.n_frames
             ok = np.ones(n, dtype=bool) if self.anywhere else self.graph.in_scc.copy()
@@ -129,14 +136,24 @@ class WindowSearch:
         shape, _, starts = self.tables()
         return starts.size * shape.shape[1] <= EARLY_WINDOWS
 
-    def index(self) -> WindowIndex:
+    def index(self, progress: Callable[[int, int], None] | None = None) -> WindowIndex:
         """The fast whole-library window search (made on first use; stored in the bank's
-        folder, and loaded from there when the tables are the same)."""
+        folder, and loaded from there when the tables are the same). ``progress(done,
+        total)`` counts the windows as one is made (``WindowIndex``)."""
         if self._index is None:
             shape, centre, starts = self.tables()
             folder = self.bank.path or None
-            self._index = cached_window_index(shape, centre, starts, self.n, folder, key=self.key)
+            self._index = cached_window_index(
+                shape, centre, starts, self.n, folder, key=self.key, progress=progress
+            )
         return self._index
+
+    def open(self, bars: Bars | None = None, label: str = "search") -> WindowIndex:
+        """The tables and the index, now (a camera would stall at its first decision),
+        each with a progress bar ``bars(label, unit)`` (``control.progress.bar``) while
+        it is made."""
+        self.tables(bars(f"{label}: window tables", "frames") if bars else None)
+        return self.index(bars(f"{label}: window index", "windows") if bars else None)
 
     def queries(self, performer: FloatArray) -> list[FloatArray] | None:
         """The DTW queries ``(m, F)`` of the performer's last features ``(n, F)``: NaN rows

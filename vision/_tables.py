@@ -30,6 +30,7 @@ import logging
 import os
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -139,15 +140,18 @@ def cached_window_tables(
     mean: FloatArray,
     proj: FloatArray,
     centre_weight: float,
+    progress: Callable[[int, int], None] | None = None,
 ) -> tuple[ShapeTable, FloatArray, str]:
     """``(*window_tables(...), key)``: stored in (and mapped from) the bank's folder
     when the bank was read from one; ``key`` (a hash of the bank's checksum and the other
-    arguments) names them, ``""`` when they are made in memory."""
+    arguments) names them, ``""`` when they are made in memory. ``progress(done,
+    total)`` counts the frames of tables made (none when they are read)."""
     frames = np.asarray(frames, dtype=np.int64)
     clip_start = np.asarray(clip_start, dtype=np.int64)
     folder = _stored(bank)
     if folder is None:
-        return (*window_tables(bank, frames, clip_start, mean, proj, centre_weight), "")
+        made = window_tables(bank, frames, clip_start, mean, proj, centre_weight, None, progress)
+        return (*made, "")
     key = _key(bank, frames, clip_start, mean, proj, centre_weight)
     stem = folder / f"windows-{key[:24]}"
     shapes: dict[str, tuple[int, ...]] = {
@@ -164,10 +168,13 @@ def cached_window_tables(
         except WindowTablesError as exc:
             log.warning("making the window tables again: %s", exc)
     try:
-        shape, centre = _write(bank, frames, clip_start, mean, proj, centre_weight, stem, key)
+        shape, centre = _write(
+            bank, frames, clip_start, mean, proj, centre_weight, stem, key, progress
+        )
     except OSError as exc:  # a bank folder that is only ours to read
         log.info("the window tables are not stored: %s", exc)
-        return (*window_tables(bank, frames, clip_start, mean, proj, centre_weight), key)
+        made = window_tables(bank, frames, clip_start, mean, proj, centre_weight, None, progress)
+        return (*made, key)
     _prune(folder)
     _check_later(manifest, stem, key, shapes)
     return shape, centre, key
@@ -240,6 +247,7 @@ def _write(
     centre_weight: float,
     stem: Path,
     key: str,
+    progress: Callable[[int, int], None] | None,
 ) -> tuple[ShapeTable, FloatArray]:
     n, v = frames.size, bank.features.shape[1]
     blocks: dict[str, Any] = {}
@@ -247,7 +255,9 @@ def _write(
         npy_file(Path(f"{stem}-shape.npy"), _DTYPES["shape"], (n, v, proj.shape[1])) as shape,
         npy_file(Path(f"{stem}-centre.npy"), _DTYPES["centre"], (n, v, 2)) as centre,
     ):
-        window_tables(bank, frames, clip_start, mean, proj, centre_weight, out=(shape, centre))
+        window_tables(
+            bank, frames, clip_start, mean, proj, centre_weight, (shape, centre), progress
+        )
         blocks["shape"] = block_hashes(shape, _ROWS)
         blocks["centre"] = block_hashes(centre, _ROWS)
     m: dict[str, Any] = {

@@ -6,7 +6,7 @@ cost and the best window by exact DTW."""
 from __future__ import annotations
 
 import itertools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -114,12 +114,14 @@ def window_tables(
     proj: FloatArray,
     centre_weight: float,
     out: tuple[ShapeTable, FloatArray] | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> tuple[ShapeTable, FloatArray]:
     """What the whole-library window search compares: for rows ``frames`` (bank frames;
     ``clip_start`` splits them into clips), the mapped shape numbers ``(N, V, d)``
     and the centre accumulated along each clip ``(N, V, 2)``, times ``centre_weight``
     (a window's centre is taken relative to its first frame by the DTW kernel); written
-    into ``out`` (float32 and float64 arrays of those shapes: memory maps) when given."""
+    into ``out`` (float32 and float64 arrays of those shapes: memory maps) when given.
+    ``progress(done, total)`` counts the frames done."""
     desc = bank.settings.features
     n, v = frames.size, bank.features.shape[1]
     if out is None:
@@ -130,11 +132,15 @@ def window_tables(
         b = a + f.shape[0]
         shape[a:b] = np.nan_to_num((desc.shape(f) - mean) @ proj, nan=0.0)
         centre[a:b] = desc.centre(f)
+        if progress is not None and b < n:
+            progress(b, n)
     move = bank.root_motion[frames].astype(np.float64)
     for a, b in itertools.pairwise(clip_start):
         centre[a:b] += np.cumsum(move[a:b], axis=0) - move[a]
     centre *= centre_weight
     np.nan_to_num(centre, copy=False, nan=0.0)
+    if progress is not None:
+        progress(n, n)
     return shape, centre
 
 

@@ -337,3 +337,68 @@ def test_an_index_filled_in_small_chunks_is_the_one_filled_at_once(
         x = chunked.summary(q)
         for k in (1, 10, 96):
             np.testing.assert_array_equal(at_once.search(x, k)[1], chunked.index.search(x, k)[1])
+
+
+@pytest.mark.parametrize("flat_below", [100_000, 0])  # a flat scan; an inverted file
+def test_an_index_being_made_says_how_far_it_is(setup, tmp_path, monkeypatch, flat_below) -> None:
+    """``progress(done, total)`` counts windows: the flat index's as each chunk is
+    added, the inverted file's half a window as each is summarised and half as it is
+    added; nothing when the index is read. The index is the one made without."""
+    from vision import _index
+
+    _, layer, bank = setup
+    m = Matcher(layer, bank)
+    shape, centre, starts = m.windows.tables()
+    monkeypatch.setattr(_index, "_CHUNK", 50)
+    calls: list[tuple[int, int]] = []
+    made = cached_window_index(
+        shape,
+        centre,
+        starts,
+        m.n,
+        tmp_path,
+        progress=lambda *c: calls.append(c),
+        flat_below=flat_below,
+    )
+    rows = made.size
+    chunks = -(-starts.size // 50)
+    assert len(calls) == chunks * (1 if flat_below else 2)
+    assert calls[-1] == (rows, rows) and {t for _, t in calls} == {rows}
+    assert [d for d, _ in calls] == sorted(d for d, _ in calls)
+    if not flat_below:  # every summary taken: half way
+        assert calls[chunks - 1][0] == rows // 2
+    plain = WindowIndex(shape, centre, starts, m.n, flat_below=flat_below)
+    for s in np.random.default_rng(3).choice(starts, 10, replace=False):
+        q = np.concatenate((shape[s : s + m.n, 2], centre[s : s + m.n, 2]), axis=1)
+        assert made.search([q], 4, top=5) == plain.search([q], 4, top=5)
+    calls.clear()
+    cached_window_index(
+        shape,
+        centre,
+        starts,
+        m.n,
+        tmp_path,
+        progress=lambda *c: calls.append(c),
+        flat_below=flat_below,
+    )
+    assert calls == []
+
+
+def test_a_search_opened_with_bars_shows_its_tables_and_index_being_made(setup) -> None:
+    """``WindowSearch.open(bars)``: a bar for the tables (frames) and one for the index
+    (windows) where they are made (a bank in memory: nothing stored to read)."""
+    import dataclasses
+
+    _, layer, bank = setup
+    in_memory = dataclasses.replace(bank, path="")
+    m = Matcher(layer, in_memory)
+    seen: dict[str, list[tuple[int, int]]] = {}
+
+    def bars(label: str, unit: str):
+        return lambda done, total: seen.setdefault(f"{label} ({unit})", []).append((done, total))
+
+    index = m.windows.open(bars, "search")
+    n = layer.graph.n_frames
+    assert seen["search: window tables (frames)"][-1] == (n, n)
+    assert seen["search: window index (windows)"][-1] == (index.size, index.size)
+    assert m.windows.index() is index  # (opened once)
