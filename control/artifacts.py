@@ -59,6 +59,7 @@ __all__ = [
     "cache_limit",
     "cache_root",
     "cached_entry",
+    "cached_in_parts",
     "checksum",
     "clear_cache",
     "current_umask",
@@ -384,6 +385,30 @@ def cached_entry(
             if got is not None:
                 return got, False
         return make(), True
+
+
+def cached_in_parts(
+    path: Path,
+    load: Callable[[], T | None],
+    build: Callable[[Path], T],
+    save: Callable[[T], object],
+    rebuild: bool = False,
+) -> tuple[T, bool]:
+    """``cached_entry`` of an entry whose ``build(parts)`` keeps its finished jobs in the
+    folder ``parts`` (``path`` with the suffix ``.parts``: ``control.jobs.JobStore``),
+    so that a stopped build resumes from them: cleared first on ``rebuild`` (nothing of
+    before kept), removed once ``save(entry)`` has stored the entry."""
+    parts = path.with_suffix(".parts")
+
+    def make() -> T:
+        if rebuild:
+            shutil.rmtree(parts, ignore_errors=True)
+        entry = build(parts)
+        save(entry)
+        shutil.rmtree(parts, ignore_errors=True)
+        return entry
+
+    return cached_entry(path, load, make, rebuild)
 
 
 def is_locked(folder: str | Path) -> bool:

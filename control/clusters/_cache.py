@@ -13,7 +13,6 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-import shutil
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -23,7 +22,7 @@ import numpy as np
 from ..artifacts import (
     atomic_write,
     bound_cache,
-    cached_entry,
+    cached_in_parts,
     checksum,
     read_npz,
     touch,
@@ -255,17 +254,13 @@ def cached_higher_layer(
     folder = Path(cache_dir) if cache_dir is not None else graph_cache_dir()
     path = folder / f"layer-{key}.npz"
 
-    work = path.with_suffix(".parts")
-
-    def make() -> HigherLayer:
-        if rebuild:
-            shutil.rmtree(work, ignore_errors=True)  # (rebuilt: nothing of before kept)
-        layer = build_higher_layer(graph, clips, settings, cluster, progress, work, trees)
-        save_layer(layer, path, key)
-        shutil.rmtree(work, ignore_errors=True)
-        return layer
-
-    layer, built = cached_entry(path, lambda: _load_cached(path, graph), make, rebuild)
+    layer, built = cached_in_parts(
+        path,
+        lambda: _load_cached(path, graph),
+        lambda parts: build_higher_layer(graph, clips, settings, cluster, progress, parts, trees),
+        lambda layer: save_layer(layer, path, key),
+        rebuild,
+    )
     if built and cache_dir is None:
         bound_cache(keep=[path])
     return layer, path, built

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import logging
-import shutil
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -19,7 +18,7 @@ from ..artifacts import (
     atomic_write,
     bound_cache,
     cache_root,
-    cached_entry,
+    cached_in_parts,
     checksum,
     read_npz,
     touch,
@@ -178,17 +177,13 @@ def cached_graph(
     folder = Path(cache_dir) if cache_dir is not None else graph_cache_dir()
     path = folder / f"graph-{_key(options, digest)}.npz"
 
-    work = path.with_suffix(".parts")
-
-    def make() -> MotionGraph:
-        if rebuild:
-            shutil.rmtree(work, ignore_errors=True)  # (rebuilt: nothing of before kept)
-        graph = build_graph(clips, options, cluster=cluster, work=work, jobs=progress)
-        save_graph(graph, path)
-        shutil.rmtree(work, ignore_errors=True)
-        return graph
-
-    graph, built = cached_entry(path, lambda: _load_cached(path, digest), make, rebuild)
+    graph, built = cached_in_parts(
+        path,
+        lambda: _load_cached(path, digest),
+        lambda parts: build_graph(clips, options, cluster=cluster, work=parts, jobs=progress),
+        lambda graph: save_graph(graph, path),
+        rebuild,
+    )
     if built and cache_dir is None:
         bound_cache(keep=[path])
     return graph, path, built
