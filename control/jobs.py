@@ -156,17 +156,22 @@ class JobStore:
     def done(self, n_jobs: int, keys: Sequence[str]) -> dict[int, dict[str, np.ndarray]]:
         """The arrays ``keys`` of every job of the ``n_jobs`` finished before; a part
         that cannot be read back (damaged, cut short) is said, removed and run again."""
-        got: dict[int, dict[str, np.ndarray]] = {}
-        for i in range(n_jobs):
-            path = self._path(i)
-            if not path.is_file():
-                continue
-            try:
-                got[i] = read_checked_npz(path, keys, _PartError, "a finished job's part")
-            except _PartError as exc:
-                log.warning("running a job again: %s", exc)
-                path.unlink(missing_ok=True)
-        return got
+        got = {i: self.read(i, keys) for i in range(n_jobs) if self._path(i).is_file()}
+        return {i: a for i, a in got.items() if a is not None}
+
+    def read(self, i: int, keys: Sequence[str]) -> dict[str, np.ndarray] | None:
+        """Job ``i``'s arrays ``keys``, or ``None`` where it has none that can be read
+        back (a damaged part is said and removed: the job is to run again). One part at
+        a time, for results too large to hold all at once."""
+        path = self._path(i)
+        if not path.is_file():
+            return None
+        try:
+            return read_checked_npz(path, keys, _PartError, "a finished job's part")
+        except _PartError as exc:
+            log.warning("running a job again: %s", exc)
+            path.unlink(missing_ok=True)
+            return None
 
     def save(self, i: int, arrays: dict[str, np.ndarray]) -> None:
         """Job ``i``'s result, kept (its folder made again if it was removed meanwhile)."""
@@ -263,16 +268,24 @@ def _on_cluster(
 
     with _client(address) as client:
         first = () if shared is None else (client.scatter(shared, broadcast=True),)
-        futures = [
-            client.submit(
-                fn, *first, job, key=f"mimic-job-{i}-{os.getpid()}", retries=RETRIES, pure=False
-            )
-            for i, job in enumerate(jobs)
-        ]
+
+        def submit(i: int) -> Any:
+            key = f"mimic-job-{i}-{os.getpid()}"
+            return client.submit(fn, *first, jobs[i], key=key, retries=RETRIES, pure=False)
+
+        # handed over a few at a time (twice the workers), so that jobs that carry their
+        # data (a window index's slices of its tables) are not all held at once
+        ahead = max(4, 2 * len(client.scheduler_info().get("workers", {})))
+        futures = [submit(i) for i in range(min(ahead, len(jobs)))]
         where = {f.key: i for i, f in enumerate(futures)}
         try:
-            for future, out in as_completed(futures, with_results=True):
+            coming = as_completed(futures, with_results=True)
+            for future, out in coming:
                 on_result(where[future.key], out)
+                if len(futures) < len(jobs):
+                    futures.append(nxt := submit(len(futures)))
+                    where[nxt.key] = len(futures) - 1
+                    coming.add(nxt)
         except Exception as exc:  # a job that failed on every try, or a lost scheduler
             raise ClusterError(
                 f"the build on the cluster {address!r} failed ({type(exc).__name__}: {exc}); "

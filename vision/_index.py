@@ -18,7 +18,7 @@ import hashlib
 import itertools
 import logging
 import math
-import tempfile
+import shutil
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -29,6 +29,8 @@ from numpy.typing import NDArray
 from control.artifacts import array_digest, read_checked_npz, write_checked_npz
 from control.dtw import SHAPE_DTYPE, ShapeTable, dtw_windows
 
+from ._summaries import _bounds, _run_summaries, _summaries, fill_lists, projected
+
 log = logging.getLogger(__name__)
 
 __all__ = ["INDEX_VERSION", "IndexFileError", "WindowIndex", "best_of", "cached_window_index"]
@@ -37,60 +39,6 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 #: ``progress(done, total)``, as a build goes
 Progress = Callable[[int, int], None]
-
-
-def _bounds(length: int, segments: int) -> IntArray:
-    p = max(1, min(segments, length))
-    return np.round(np.linspace(0, length, p + 1)).astype(np.int64)
-
-
-def _summaries(
-    shape: ShapeTable,
-    centre: FloatArray,
-    starts: IntArray,
-    length: int,
-    bounds: IntArray,
-    views: IntArray | None = None,
-) -> NDArray[np.float32]:
-    """PAA summaries ``(len(starts), V, P * D)`` of the windows at ``starts`` (with
-    ``views``, ``(len(starts), P * D)``: each start's window in its view only)."""
-    parts = []
-    for a, b in itertools.pairwise(bounds):
-        frames = [  # a segment's frames, summed
-            np.concatenate((shape[f], centre[f]), axis=-1)
-            if views is None
-            else np.concatenate((shape[f, views], centre[f, views]), axis=-1)
-            for f in (starts + k for k in range(int(a), int(b)))
-        ]
-        mean = np.sum(frames, axis=0) / float(b - a)
-        base = centre[starts] if views is None else centre[starts, views]
-        mean[..., shape.shape[2] :] -= base  # the centre relative to the window's start
-        parts.append(mean)
-    return np.concatenate(parts, axis=-1).astype(np.float32)
-
-
-def _run_summaries(
-    shape: ShapeTable, centre: FloatArray, starts: IntArray, length: int, bounds: IntArray
-) -> NDArray[np.float32]:
-    """``_summaries`` of the windows at ``starts`` in every view, each run of
-    consecutive starts from prefix sums over its frames (a slice of the tables, not a
-    gather a frame: about four times faster, the same numbers)."""
-    d = shape.shape[2]
-    out = np.empty((starts.size, shape.shape[1], (bounds.size - 1) * (d + 2)), np.float32)
-    for run in np.split(np.arange(starts.size), np.flatnonzero(np.diff(starts) != 1) + 1):
-        if not run.size:
-            continue
-        a, b = int(starts[run[0]]), int(starts[run[-1]]) + length
-        x = np.concatenate((shape[a:b], centre[a:b]), axis=-1, dtype=np.float64)
-        c = np.concatenate((np.zeros((1, *x.shape[1:])), np.cumsum(x, axis=0)))
-        rel = starts[run] - a
-        parts = []
-        for lo, hi in itertools.pairwise(bounds):
-            mean = (c[rel + hi] - c[rel + lo]) / float(hi - lo)
-            mean[..., d:] -= x[rel, :, d:]  # the centre relative to the window's start
-            parts.append(mean)
-        out[run] = np.concatenate(parts, axis=-1)
-    return out
 
 
 #: a search among flagged windows (``WindowIndex.search``'s ``only``: the voted action's)
@@ -146,6 +94,9 @@ class WindowIndex:
     progress : ``progress(done, total)`` as the index is made, in windows: those put in
         a flat index; for the lists, half a window each as its summary is taken and as
         it is added (the lists are trained between, uncounted).
+    work, cluster : for the lists, where their jobs keep their parts (a folder of these
+        tables: a stopped build resumes from it; ``None``: a temporary one), and where
+        they run (``vision._summaries.fill_lists``).
     """
 
     def __init__(
@@ -161,6 +112,8 @@ class WindowIndex:
         flat_below: int = 20_000,
         built: tuple[NDArray[np.float32], NDArray[np.float32], Any, int] | None = None,
         progress: Progress | None = None,
+        work: Path | None = None,
+        cluster: str | None = None,
     ) -> None:
         import faiss
 
@@ -213,17 +166,15 @@ class WindowIndex:
                 self.index.add(z)
                 count(z.shape[0], 1)
         else:
-            self._fill_lists(rows, k, rng, seed, count)
+            self._lists(rows, k, seed)
+            train = rng.choice(rows, min(rows, 64 * int(self.index.nlist)), replace=False)
+            fill_lists(self, train, count, work, cluster, _CHUNK)
 
-    def _fill_lists(
-        self, rows: int, k: int, rng: np.random.Generator, seed: int, count: Progress
-    ) -> None:
-        """The inverted-file index of ``rows`` summaries of ``k`` numbers, trained on a
-        sample of them drawn by ``rng`` (k-means seeded by ``seed``), then filled
-        (``count(rows, 2)`` as rows are summarised, and again as they are added)."""
+    def _lists(self, rows: int, k: int, seed: int) -> None:
+        """An empty inverted-file index for ``rows`` summaries of ``k`` numbers (its
+        k-means seeded by ``seed``)."""
         import faiss
 
-        v = self.n_views
         nlist = int(min(4096, max(16, 2 * math.sqrt(rows))))
         quantizer = faiss.IndexFlatL2(k)
         # each summary stored as 8-bit numbers: a quarter of the float32 lists to scan
@@ -235,40 +186,20 @@ class WindowIndex:
         self.nprobe = max(32, nlist // 32)  # 1/32 of the lists (and at least 32) are scanned
         self.index.nprobe = self.nprobe
         self.index.cp.seed = seed
-        train = rng.choice(rows, min(rows, 64 * nlist), replace=False)
-        # The lists are trained before they are filled, and every window's summary is
-        # never held at once (500k frames: 8.6 million windows, 1.1 GB as float32): one
-        # pass over the windows a chunk at a time keeps the training rows (in faiss's
-        # order: its seeding) and spools the rest to a temporary file, read back to fill.
-        order = np.argsort(train)
-        first = train[order]
-        picked = np.empty((train.size, k), dtype=np.float32)
-        with tempfile.TemporaryFile() as spool:
-            sizes = []
-            for a, z in enumerate(self._projected_chunks()):
-                lo, hi = np.searchsorted(
-                    first, [a * _CHUNK * v, (a * _CHUNK + z.shape[0] // v) * v]
-                )
-                picked[order[lo:hi]] = z[first[lo:hi] - a * _CHUNK * v]
-                spool.write(z.tobytes())
-                sizes.append(z.shape[0])
-                count(z.shape[0], 2)
-            self.index.train(picked)
-            del picked
-            spool.seek(0)
-            for m in sizes:
-                self.index.add(np.frombuffer(spool.read(m * k * 4), np.float32).reshape(m, k))
-                count(m, 2)
 
     def _projected_chunks(self) -> Iterator[NDArray[np.float32]]:
         """The PCA'd summaries of every index row (start ``r // V``, view ``r % V``), a
         chunk of ``_CHUNK`` starts at a time."""
-        for a in range(0, self.starts.size, _CHUNK):
-            x = _summaries(
-                self.shape, self.centre, self.starts[a : a + _CHUNK], self.length, self.bounds
-            )
-            z = (x.reshape(-1, x.shape[2]) - self.mean) @ self.basis
-            yield np.ascontiguousarray(z, dtype=np.float32)
+        yield from projected(
+            self.shape,
+            self.centre,
+            self.starts,
+            self.length,
+            self.bounds,
+            self.mean,
+            self.basis,
+            _CHUNK,
+        )
 
     @property
     def size(self) -> int:
@@ -446,6 +377,7 @@ def cached_window_index(
     folder: str | Path | None,
     key: str = "",
     progress: Progress | None = None,
+    cluster: str | None = None,
     **options: Any,
 ) -> WindowIndex:
     """``WindowIndex(shape, centre, starts, length, **options)``, stored in ``folder`` (a bank's
@@ -453,12 +385,16 @@ def cached_window_index(
     there next time, checked (``control.artifacts``). The hash is of the tables' ``key``
     (``cached_window_tables``: what names their content) and ``starts``, or without a key
     of the tables themselves (read in full). A damaged file is built again with a
-    warning naming it; a folder that cannot be written is only read. ``progress``:
-    ``WindowIndex``'s, as one is made (not when it is read)."""
+    warning naming it; a folder that cannot be written is only read. ``progress`` and
+    ``cluster``: ``WindowIndex``'s, as one is made (not when it is read). A build stopped
+    midway keeps its finished jobs beside the file (``index-<hash>.parts/``) and
+    resumes from them; they are removed once the index is stored."""
     import faiss
 
     if folder is None:
-        return WindowIndex(shape, centre, starts, length, progress=progress, **options)
+        return WindowIndex(
+            shape, centre, starts, length, progress=progress, cluster=cluster, **options
+        )
     text = f"{INDEX_VERSION}|{length}|{sorted(options.items())}|{key}"
     digest = array_digest(text, (starts,) if key else (shape, centre, starts))
     path = Path(folder) / f"index-{digest[:24]}.npz"
@@ -475,7 +411,14 @@ def cached_window_index(
             log.warning("building the window index again: %s", exc)
         except RuntimeError as exc:  # faiss could not read the index it wrote
             log.warning("building the window index again: %s: %s", path, exc)
-    out = WindowIndex(shape, centre, starts, length, progress=progress, **options)
+    work: Path | None = path.with_suffix(".parts")
+    try:
+        path.with_suffix(".parts").mkdir(exist_ok=True)
+    except OSError:  # a bank folder that is only ours to read: the parts go elsewhere
+        work = None
+    out = WindowIndex(
+        shape, centre, starts, length, progress=progress, work=work, cluster=cluster, **options
+    )
     arrays: dict[str, np.ndarray] = {
         "mean": np.asarray(out.mean, dtype=np.float32),
         "basis": out.basis,
@@ -486,6 +429,8 @@ def cached_window_index(
         write_checked_npz(path, arrays)
     except OSError as exc:  # a bank folder that is only ours to read
         log.info("the window index is not stored: %s", exc)
+    if work is not None:
+        shutil.rmtree(work, ignore_errors=True)
     return out
 
 

@@ -23,7 +23,8 @@ from vision import (
     cached_window_index,
 )
 from vision import _index as index_module
-from vision._index import _bounds, _run_summaries, _summaries, best_of
+from vision._index import best_of
+from vision._summaries import _bounds, _run_summaries, _summaries
 
 
 def _performer(bank) -> np.ndarray:
@@ -342,14 +343,16 @@ def test_an_index_filled_in_small_chunks_is_the_one_filled_at_once(
 @pytest.mark.parametrize("flat_below", [100_000, 0])  # a flat scan; an inverted file
 def test_an_index_being_made_says_how_far_it_is(setup, tmp_path, monkeypatch, flat_below) -> None:
     """``progress(done, total)`` counts windows: the flat index's as each chunk is
-    added, the inverted file's half a window as each is summarised and half as it is
-    added; nothing when the index is read. The index is the one made without."""
+    added, the inverted file's half a window as each job's are summarised and half as
+    they are added; nothing when the index is read. The index is the one made without."""
     from vision import _index
+    from vision import _summaries as summaries_module
 
     _, layer, bank = setup
     m = Matcher(layer, bank)
     shape, centre, starts = m.windows.tables()
     monkeypatch.setattr(_index, "_CHUNK", 50)
+    monkeypatch.setattr(summaries_module, "JOB_STARTS", 50)
     calls: list[tuple[int, int]] = []
     made = cached_window_index(
         shape,
@@ -402,3 +405,64 @@ def test_a_search_opened_with_bars_shows_its_tables_and_index_being_made(setup) 
     assert seen["search: window tables (frames)"][-1] == (n, n)
     assert seen["search: window index (windows)"][-1] == (index.size, index.size)
     assert m.windows.index() is index  # (opened once)
+
+
+def test_a_stopped_index_build_resumes_from_the_jobs_it_finished(
+    setup, tmp_path, monkeypatch, caplog
+) -> None:
+    """The inverted file's summaries are taken in jobs, each kept as a part beside the
+    index's file: a build stopped after 2 of its jobs runs only the others when it runs
+    again (a damaged part is said and run again), and gives the index of one build,
+    list for list; the parts are gone once the index is stored."""
+    import faiss
+
+    from vision import _summaries as summaries_module
+
+    _, layer, bank = setup
+    m = Matcher(layer, bank)
+    shape, centre, starts = m.windows.tables()
+    monkeypatch.setattr(summaries_module, "JOB_STARTS", 40)
+    n_jobs = -(-starts.size // 40)
+    assert n_jobs >= 4
+    whole = WindowIndex(shape, centre, starts, m.n, flat_below=0)
+    real, ran, stop_after = summaries_module._summary_job, [], [2]
+
+    def job(shared, j):
+        if len(ran) == stop_after[0]:
+            raise KeyboardInterrupt
+        ran.append(int(j[2][0]))
+        return real(shared, j)
+
+    monkeypatch.setattr(summaries_module, "_summary_job", job)
+    with pytest.raises(KeyboardInterrupt):
+        cached_window_index(shape, centre, starts, m.n, tmp_path, flat_below=0)
+    (parts,) = tmp_path.glob("index-*.parts")
+    kept = sorted(parts.glob("part-*.npz"))
+    assert len(kept) == 2 and not list(tmp_path.glob("index-*.npz"))
+    data = bytearray(kept[0].read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    kept[0].write_bytes(bytes(data))
+    ran.clear()
+    stop_after[0] = -1
+    with caplog.at_level(logging.WARNING):
+        resumed = cached_window_index(shape, centre, starts, m.n, tmp_path, flat_below=0)
+    assert len(ran) == n_jobs - 1 and str(kept[0]) in caplog.text
+    assert np.array_equal(faiss.serialize_index(resumed.index), faiss.serialize_index(whole.index))
+    assert not list(tmp_path.glob("index-*.parts")) and list(tmp_path.glob("index-*.npz"))
+
+
+@pytest.mark.slow  # (a local cluster starts in a few seconds)
+def test_an_index_built_on_a_two_worker_cluster_is_the_local_build(setup, monkeypatch) -> None:
+    """Each job carries its slice of the tables to a worker and brings its summaries
+    back: the index is the local build's, list for list."""
+    import faiss
+
+    from vision import _summaries as summaries_module
+
+    _, layer, bank = setup
+    m = Matcher(layer, bank)
+    shape, centre, starts = m.windows.tables()
+    monkeypatch.setattr(summaries_module, "JOB_STARTS", 60)
+    here = WindowIndex(shape, centre, starts, m.n, flat_below=0)
+    there = WindowIndex(shape, centre, starts, m.n, flat_below=0, cluster="local:2")
+    assert np.array_equal(faiss.serialize_index(here.index), faiss.serialize_index(there.index))
