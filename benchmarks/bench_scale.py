@@ -277,6 +277,7 @@ def _search(root: Path, n: int) -> dict[str, Any]:
         "windows": index.size,
         "index": "IVF-SQ8" if index.nprobe else "flat",
         "build_seconds": round(build, 1),
+        "index_seconds": {k: round(v, 2) for k, v in index.seconds.items()},
         "query_ms_p50": round(float(np.median(times[1:])), 2),
         "query_ms_p99": round(float(np.percentile(times[1:], 99)), 2),
         "peak_rss_mb": round(_peak_mb(), 1),
@@ -284,6 +285,7 @@ def _search(root: Path, n: int) -> dict[str, Any]:
         # is what the process held before: ``rss_before_build_mb``)
         "rss_before_build_mb": None if rss_before is None else round(rss_before, 1),
         "build_peak_rss_mb": None if build_peak is None else round(build_peak, 1),
+        **_spread(build, index.seconds.get("jobs", 0.0)),  # (its summaries' jobs)
     }
 
 
@@ -356,9 +358,9 @@ def main() -> None:
     )
     ap.add_argument(
         "--cluster",
-        help="run the graph's and the layer's jobs on this Dask cluster (local:2: two "
-        "worker processes here); each result says it, and its time extrapolated to 8 "
-        "workers from its jobs' time",
+        help="run the graph's, the layer's and the window index's jobs on this Dask "
+        "cluster (local:2: two worker processes here); each result says it, and its time "
+        "extrapolated to 8 workers from its jobs' time",
     )
     ap.add_argument("--one", help=argparse.SUPPRESS)
     args = ap.parse_args()

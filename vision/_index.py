@@ -136,6 +136,8 @@ class WindowIndex:
         self._flat: dict[bytes, tuple[Any, IntArray]] = {}  # (``_among``)
         self._flat_rows = 0
         self.index: Any
+        #: how long an inverted file's passes took as it was made (``fill_lists``)
+        self.seconds: dict[str, float] = {}
         if built is not None:  # (mean, basis, faiss index, nprobe) of the same build
             self.mean, self.basis, self.index, self.nprobe = built
             return

@@ -19,6 +19,7 @@ import contextlib
 import hashlib
 import itertools
 import tempfile
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -136,7 +137,9 @@ def fill_lists(
     every window's summary (the module says how), ``chunk`` starts at a time within a
     job. ``work``: the folder of the jobs' parts, kept until it is removed (``None``: a
     temporary one); ``cluster``: where the jobs run (``control.jobs.run_jobs``);
-    ``count(rows, 2)`` as rows are summarised, and again as they are added."""
+    ``count(rows, 2)`` as rows are summarised, and again as they are added. The
+    seconds of each pass go into ``win.seconds`` (``jobs``, ``train``, ``fill``), with
+    the jobs ``resumed`` from parts."""
     starts, v = win.starts, win.n_views
     spans = [(a, min(a + JOB_STARTS, starts.size)) for a in range(0, starts.size, JOB_STARTS)]
     order = np.argsort(train)
@@ -165,14 +168,23 @@ def fill_lists(
 
         jobs = [_slice(win, *spans[i]) for i in todo]
         shared = (win.length, win.bounds, win.mean, win.basis, chunk)
+        t0 = time.perf_counter()
         run_jobs(_summary_job, jobs, finished, 1, cluster, shared)
+        t1 = time.perf_counter()
         win.index.train(picked)
+        t2 = time.perf_counter()
         for i in range(len(spans)):
             got = store.read(i, ("z",))
             if got is None:  # (removed or damaged since it was written)
                 raise RuntimeError(f"{folder}: the part of job {i} is gone; build again")
             win.index.add(got["z"])
             count(got["z"].shape[0], 2)
+        win.seconds.update(
+            jobs=t1 - t0,
+            train=t2 - t1,
+            fill=time.perf_counter() - t2,
+            resumed=len(spans) - len(todo),
+        )
 
 
 def _slice(win: WindowIndex, a: int, b: int) -> tuple[Any, Any, IntArray]:

@@ -447,6 +447,7 @@ def test_a_stopped_index_build_resumes_from_the_jobs_it_finished(
     with caplog.at_level(logging.WARNING):
         resumed = cached_window_index(shape, centre, starts, m.n, tmp_path, flat_below=0)
     assert len(ran) == n_jobs - 1 and str(kept[0]) in caplog.text
+    assert resumed.seconds["resumed"] == 1 and whole.seconds["resumed"] == 0
     assert np.array_equal(faiss.serialize_index(resumed.index), faiss.serialize_index(whole.index))
     assert not list(tmp_path.glob("index-*.parts")) and list(tmp_path.glob("index-*.npz"))
 
