@@ -215,8 +215,9 @@ def _graph_clips(graph: MotionGraph, clips: list[Clip]) -> list[Clip]:
     return list(graph.clips_of(clips))
 
 
-def _say_unreachable(graph: MotionGraph, no_jumps: bool) -> None:
-    """Warn about clips mostly outside the graph's connected component."""
+def _say_unreachable(graph: MotionGraph, no_jumps: bool, most: int = 8) -> None:
+    """Warn about clips mostly outside the graph's connected component (``most`` of them
+    named: a large library's would fill the screen)."""
     unreachable = [
         f"{name} ({graph.in_scc[a:b].mean():.0%} reachable)"
         for name, a, b in zip(
@@ -224,16 +225,22 @@ def _say_unreachable(graph: MotionGraph, no_jumps: bool) -> None:
         )
         if graph.in_scc[a:b].mean() < 0.5
     ]
-    if unreachable and no_jumps:
+    if not unreachable:
+        return
+    named = ", ".join(unreachable[:most])
+    if len(unreachable) > most:
+        named += f" ... and {len(unreachable) - most} more"
+    some = f"{len(unreachable)} of {len(graph.clip_names)} clips are"
+    if no_jumps:
         print(
-            "warning: these clips are mostly outside the graph's connected component, and "
-            f"without jumps the avatar cannot reach them: {', '.join(unreachable)}",
+            f"warning: {some} mostly outside the graph's connected component, and without "
+            f"jumps the avatar cannot reach them: {named}",
             file=sys.stderr,
         )
-    elif unreachable:
+    else:
         print(
-            "note: these clips are mostly outside the graph's connected component; the "
-            f"avatar reaches them by direct jumps only: {', '.join(unreachable)}",
+            f"note: {some} mostly outside the graph's connected component; the avatar "
+            f"reaches them by direct jumps only: {named}",
             file=sys.stderr,
         )
 

@@ -724,3 +724,26 @@ def test_perform_uses_a_bank_built_with_other_settings(mocap: Path, tmp_path: Pa
     assert main([*run, "--clips", "13_29", "--bank", str(folder)]) == 2
     err = capsys.readouterr().err
     assert str(folder) in err and "built from another motion library" in err
+
+
+def test_a_large_librarys_unreachable_clips_are_counted_not_all_named(capsys) -> None:
+    """A library of a thousand clips, 300 of them mostly outside the graph's component:
+    the note names 8 and counts the rest (it listed every one, screens of names)."""
+    from types import SimpleNamespace
+
+    from mimic.run import _say_unreachable
+
+    starts = np.arange(0, 1001 * 10, 10)
+    in_scc = np.ones(starts[-1], dtype=bool)
+    for i in range(0, 900, 3):  # every third clip of the first 900: 300 clips
+        in_scc[starts[i] : starts[i] + 8] = False
+    graph = SimpleNamespace(
+        clip_names=[f"clip{i}" for i in range(1000)], clip_start=starts, in_scc=in_scc
+    )
+    _say_unreachable(graph, no_jumps=False)  # type: ignore[arg-type]
+    err = capsys.readouterr().err
+    assert err.startswith("note: 300 of 1000 clips are mostly outside")
+    assert "clip0 (20% reachable), clip3 (20% reachable)" in err
+    assert err.count("reachable)") == 8 and "... and 292 more" in err
+    _say_unreachable(graph, no_jumps=True)  # type: ignore[arg-type]
+    assert capsys.readouterr().err.startswith("warning: 300 of 1000 clips")
