@@ -12,8 +12,9 @@ velocities), each also mirrored left for right, joined in that order until ``N``
 (the last clip cut). Each step runs in a fresh process (its time, and its peak resident
 memory, which includes the library's):
 
-- ``graph``: ``build_graph`` with the default options, each job's pairs kept in a folder
-  as the cache's build keeps them (so that a stopped build resumes);
+- ``graph``: ``build_graph`` with the options ``mimic perform`` builds it with (the
+  default options in relative root coordinates), each job's pairs kept in a folder as
+  the cache's build keeps them (so that a stopped build resumes);
 - ``layer``: the higher layer as ``mimic perform`` builds it (2 s trees), on that graph;
 - ``bank``: the default 18-view bank of the library's first 1,000 frames rendered by one
   worker, scaled to ``N`` frames per worker (the shards are independent), and the bank's
@@ -52,6 +53,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks._report import machine, save
+from control.graph import GraphOptions
 from control.jobs import CLUSTER_ENV, cluster_address
 from control.motion import (
     EMBEDDED_LIBRARY,
@@ -63,6 +65,9 @@ from control.motion import (
 )
 
 HERE = Path(__file__).resolve().parent
+#: the graph ``mimic perform`` builds: the default options in relative root coordinates
+#: (``vision.VISION_COORDS``; ``mimic/run_args.py``)
+PERFORM_GRAPH = GraphOptions(coords="relative")
 RECORDING = HERE.parent / "recordings" / "13_29_first12s_160x120.mkv"
 
 
@@ -123,18 +128,19 @@ def _reset_peak() -> bool:
 
 
 def _graph(root: Path, n: int) -> dict[str, Any]:
-    from control.graph import GraphOptions, build_graph
+    from control.graph import build_graph
 
     clips = synthetic_clips(root, n)
-    build_graph(clips[:2], GraphOptions())  # the kernels compiled outside the timing
+    build_graph(clips[:2], PERFORM_GRAPH)  # the kernels compiled outside the timing
     before = _peak_mb()
     with tempfile.TemporaryDirectory() as tmp:  # (each job kept, as the cache builds it)
         t = time.perf_counter()
-        g = build_graph(clips, GraphOptions(), work=Path(tmp) / "parts")
+        g = build_graph(clips, PERFORM_GRAPH, work=Path(tmp) / "parts")
         took = time.perf_counter() - t
     search = g.report["seconds"]["search"]
     return {
         "frames": g.n_frames,
+        "coords": g.options.coords,
         "seconds": round(took, 2),
         "peak_rss_mb": round(_peak_mb(), 1),
         "rss_before_mb": round(before, 1),
@@ -163,10 +169,10 @@ def _spread(took: float, jobs_s: float) -> dict[str, Any]:
 
 def _layer(root: Path, n: int) -> dict[str, Any]:
     from control.clusters import LayerSettings, build_higher_layer
-    from control.graph import GraphOptions, build_graph
+    from control.graph import build_graph
 
     clips = synthetic_clips(root, n)
-    g = build_graph(clips, GraphOptions())
+    g = build_graph(clips, PERFORM_GRAPH)
     before = _peak_mb()
     t = time.perf_counter()
     layer = build_higher_layer(g, clips, LayerSettings(bound_seconds=2.0))
@@ -174,6 +180,7 @@ def _layer(root: Path, n: int) -> dict[str, Any]:
     forest_s = float(layer.forest.report["seconds"])
     return {
         "frames": g.n_frames,
+        "coords": g.options.coords,
         "seconds": round(took, 2),
         "peak_rss_mb": round(_peak_mb(), 1),
         "rss_before_mb": round(before, 1),
