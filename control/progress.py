@@ -26,18 +26,24 @@ def bar(
     clock: Callable[[], float] = time.perf_counter,
 ) -> Callable[[int, int], None]:
     """A callback ``(done, total)`` drawing ``label [#####.....] done/total unit``, with
-    the rate since the start and the time left at that rate (``ETA``); a line in a log
-    at most every ``every_s`` seconds, so that a long build can be watched there too.
-    ``done`` counts work finished anywhere (a cluster's workers too), so the rate is
-    theirs together."""
+    the rate and the time left at that rate (``ETA``); a line in a log at most every
+    ``every_s`` seconds, so that a long build can be watched there too. ``done`` counts
+    work finished anywhere (a cluster's workers too), so the rate is theirs together.
+    The rate is taken from the first work done on, not from the start: what comes
+    before it (a cluster started, a graph's features sent to its workers: half a
+    minute at 500,000 frames) made a first ETA of hours for a build of minutes. The
+    finished line gives the whole time and the rate over it."""
     out = stream or sys.stderr
     t0 = clock()
     tty = bool(getattr(out, "isatty", lambda: False)())
     state = {"drawn": False, "said": t0}
+    first: list[tuple[float, int]] = []  # (when, done) at the first work done
 
     def update(done: int, total: int) -> None:
         now = clock()
         took = now - t0
+        if not first and done > 0:
+            first.append((now, done))
         finished = done >= total
         if not finished and took < quiet_s:
             return
@@ -49,7 +55,12 @@ def bar(
         fill = round(width * done / max(total, 1))
         text = f"{label} [{'#' * fill}{'.' * (width - fill)}] {done}/{total}"
         text += f" {unit}" if unit else ""
-        rate = done / took if took > 0 else 0.0
+        if finished:
+            rate = done / took if took > 0 else 0.0
+        elif first and done > first[0][1] and now > first[0][0]:
+            rate = (done - first[0][1]) / (now - first[0][0])
+        else:
+            rate = 0.0  # (no rate yet: nothing done since the first work)
         if rate > 0:
             text += f", {_rate(rate)}{f' {unit}' if unit else ''}/s"
         if finished:

@@ -55,5 +55,24 @@ def test_a_long_build_is_said_with_its_rate_and_time_left() -> None:
     tty, now[0] = _Tty(), 0.0
     update = bar("layer", stream=tty, quiet_s=0.0, clock=lambda: now[0])
     now[0] = 4000.0
-    update(1, 3)  # 4,000 s for one of three: 8,000 s left
-    assert tty.getvalue().endswith("1/3, 0.00025/s, ETA 2:13:20")
+    update(1, 3)  # the first work: no rate yet
+    assert tty.getvalue().endswith("1/3")
+    now[0] = 8000.0
+    update(2, 3)  # one more in 4,000 s: 4,000 s left
+    assert tty.getvalue().endswith("2/3, 0.00025/s, ETA 1:06:40")
+
+
+def test_the_time_before_the_first_work_is_not_the_works_rate() -> None:
+    """A cluster's start and the features sent to its workers took 30 s before the
+    first of 455 jobs; the jobs then came at 1 a second. The first line says no rate
+    (it said "ETA 3:48:53"), the next the jobs' own; the finished line the whole."""
+    now = [0.0]
+    log = io.StringIO()
+    update = bar("graph", "jobs", stream=log, quiet_s=1.0, every_s=30.0, clock=lambda: now[0])
+    for t, done in ((30.0, 1), (60.0, 31), (485.0, 455)):
+        now[0] = t
+        update(done, 455)
+    lines = log.getvalue().splitlines()
+    assert lines[0].endswith("1/455 jobs")
+    assert lines[1].endswith("31/455 jobs, 1 jobs/s, ETA 7:04")
+    assert lines[2].endswith("455/455 jobs, 0.938 jobs/s, 485.0 s")
