@@ -21,11 +21,12 @@ __all__ = [
     "step_seconds",
 ]
 
-#: seconds of each step at 50,000 / 200,000 / 500,000 frames on the development machine
+#: seconds of each step at 10,000 / 50,000 / 200,000 / 500,000 frames on the development
+#: machine (the graph ``mimic perform`` builds: relative root coordinates)
 REFERENCE_STEPS: dict[str, tuple[tuple[int, float], ...]] = {
-    "graph": ((50_000, 3.5), (200_000, 34.36), (500_000, 149.09)),
-    "higher layer": ((50_000, 25.0), (200_000, 63.82), (500_000, 91.73)),
-    "search index": ((50_000, 17.7), (200_000, 73.3), (500_000, 96.8)),
+    "graph": ((10_000, 0.56), (50_000, 6.51), (200_000, 62.02), (500_000, 322.09)),
+    "higher layer": ((10_000, 12.78), (50_000, 36.46), (200_000, 70.46), (500_000, 74.72)),
+    "search index": ((10_000, 2.0), (50_000, 12.4), (200_000, 42.6), (500_000, 108.2)),
 }
 #: silhouettes a second ``silhouette_bank.render_rate`` measures there (on the shared
 #: library's longest clip; the runs are in ``benchmarks/HISTORY.md``)
