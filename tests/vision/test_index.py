@@ -354,15 +354,19 @@ def test_an_index_being_made_says_how_far_it_is(setup, tmp_path, monkeypatch, fl
     monkeypatch.setattr(_index, "_CHUNK", 50)
     monkeypatch.setattr(summaries_module, "JOB_STARTS", 50)
     calls: list[tuple[int, int]] = []
-    made = cached_window_index(
-        shape,
-        centre,
-        starts,
-        m.n,
-        tmp_path,
-        progress=lambda *c: calls.append(c),
-        flat_below=flat_below,
-    )
+
+    def cached() -> WindowIndex:
+        return cached_window_index(
+            shape,
+            centre,
+            starts,
+            m.n,
+            tmp_path,
+            progress=lambda *c: calls.append(c),
+            flat_below=flat_below,
+        )
+
+    made = cached()
     rows = made.size
     chunks = -(-starts.size // 50)
     assert len(calls) == chunks * (1 if flat_below else 2)
@@ -375,15 +379,7 @@ def test_an_index_being_made_says_how_far_it_is(setup, tmp_path, monkeypatch, fl
         q = np.concatenate((shape[s : s + m.n, 2], centre[s : s + m.n, 2]), axis=1)
         assert made.search([q], 4, top=5) == plain.search([q], 4, top=5)
     calls.clear()
-    cached_window_index(
-        shape,
-        centre,
-        starts,
-        m.n,
-        tmp_path,
-        progress=lambda *c: calls.append(c),
-        flat_below=flat_below,
-    )
+    cached()  # (read: nothing made)
     assert calls == []
 
 
