@@ -413,9 +413,10 @@ def cached_window_index(
             log.warning("building the window index again: %s", exc)
         except RuntimeError as exc:  # faiss could not read the index it wrote
             log.warning("building the window index again: %s: %s", path, exc)
-    work: Path | None = path.with_suffix(".parts")
+    parts = path.with_suffix(".parts")
     try:
-        path.with_suffix(".parts").mkdir(exist_ok=True)
+        parts.mkdir(exist_ok=True)
+        work: Path | None = parts
     except OSError:  # a bank folder that is only ours to read: the parts go elsewhere
         work = None
     out = WindowIndex(
