@@ -14,10 +14,12 @@ the best window found is the brute-force best in >= 99% of queries.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import itertools
 import logging
 import math
+import os
 import shutil
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -369,6 +371,8 @@ def best_of(
 
 #: the stored index's format (``cached_window_index``)
 INDEX_VERSION = 3  # 3: inverted files from 20,000 windows (100,000 before)
+#: index files kept per set of window tables (``prune_indexes``)
+KEEP_INDEXES = 3
 
 
 def cached_window_index(
@@ -399,11 +403,13 @@ def cached_window_index(
         )
     text = f"{INDEX_VERSION}|{length}|{sorted(options.items())}|{key}"
     digest = array_digest(text, (starts,) if key else (shape, centre, starts))
-    path = Path(folder) / f"index-{digest[:24]}.npz"
+    path = Path(folder) / f"index-{f'{key[:24]}-' if key else ''}{digest[:24]}.npz"
     if path.is_file():
         try:
             keys = ("mean", "basis", "index", "nprobe")
             d = read_checked_npz(path, keys, IndexFileError, "window index")
+            with contextlib.suppress(OSError):
+                os.utime(path)  # (used: the last of its tables' to be pruned)
             index: Any = faiss.deserialize_index(np.ascontiguousarray(d["index"], dtype=np.uint8))
             if int(d["nprobe"]):  # (an inverted-file index: its lists searched)
                 index.nprobe = int(d["nprobe"])
@@ -434,7 +440,39 @@ def cached_window_index(
         log.info("the window index is not stored: %s", exc)
     if work is not None:
         shutil.rmtree(work, ignore_errors=True)
+    prune_indexes(Path(folder))
     return out
+
+
+def prune_indexes(folder: Path) -> None:
+    """Remove from a bank's ``folder`` the window indexes (and the parts of stopped index
+    builds) of window tables no longer there (``cached_window_tables`` keeps the few last
+    used), and all but the ``KEEP_INDEXES`` most recently used of each set of tables that
+    is: other performers' leave-outs and options each make an index of their own. An index
+    of unnamed tables in a folder of named ones is an older version's, never read again."""
+    tables = {m.name[len("windows-") : -len(".json")] for m in folder.glob("windows-*.json")}
+    groups: dict[str, list[tuple[int, Path]]] = {}
+    for f in folder.glob("index-*"):
+        name = f.name.split(".")[0][len("index-") :]
+        key = name.split("-")[0] if "-" in name else ""  # ("": an index of unnamed tables)
+        if key not in tables and (key or tables):
+            _remove(f)
+        elif f.suffix == ".npz":
+            with contextlib.suppress(OSError):
+                groups.setdefault(key, []).append((f.stat().st_mtime_ns, f))
+    for files in groups.values():
+        for _, f in sorted(files, reverse=True)[KEEP_INDEXES:]:
+            _remove(f)
+            _remove(f.with_suffix(".parts"))
+
+
+def _remove(path: Path) -> None:
+    """Remove a file or a folder, or leave it where the folder is only ours to read."""
+    if path.is_dir():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        with contextlib.suppress(OSError):
+            path.unlink(missing_ok=True)
 
 
 class IndexFileError(ValueError):

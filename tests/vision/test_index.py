@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -169,6 +170,45 @@ def test_a_stored_index_is_the_built_one(setup, tmp_path, caplog, flat_below) ->
     blocked = tmp_path / "a-file"
     blocked.write_text("")
     assert cached_window_index(shape, centre, starts, m.n, blocked).size == built.size
+
+
+def test_indexes_go_with_their_tables_and_the_least_used_first(setup, tmp_path) -> None:
+    import os
+
+    _, layer, bank = setup
+    m = Matcher(layer, bank, MatchSettings())
+    shape, centre, starts = m.windows.tables()
+    old, new = "a" * 40, "b" * 40  # two sets of window tables' keys
+    (tmp_path / f"windows-{old[:24]}.json").write_text("{}")
+    keep = index_module.KEEP_INDEXES
+
+    def stored(key: str) -> set[Path]:
+        return set(tmp_path.glob(f"index-{key[:24]}-*.npz"))
+
+    def build(key: str, i: int) -> Path:
+        """The file of the index of ``key``'s tables less their first ``i`` windows."""
+        before = stored(key)
+        cached_window_index(shape, centre, starts[i:], m.n, tmp_path, key=key)
+        return (stored(key) - before).pop() if stored(key) - before else Path()
+
+    files = [build(old, i) for i in range(keep)]
+    for n, f in enumerate(files):  # used in this order (a clock tick may hold them all)
+        os.utime(f, ns=(n * 10**9, n * 10**9))
+    assert build(old, 0) == Path()  # read, not built: now the most recently used
+    kept = build(old, keep)  # one more than kept: the least recently used goes
+    assert stored(old) == {files[0], *files[2:], kept}
+    # the tables go: their indexes and a stopped build's parts go with them at the next
+    # index stored, and so does an older version's index (no tables' key in its name)
+    parts = tmp_path / f"index-{old[:24]}-{'c' * 24}.parts"
+    parts.mkdir()
+    (parts / "job-0.npz").write_bytes(b"x")
+    legacy = tmp_path / f"index-{'d' * 24}.npz"
+    legacy.write_bytes(b"x")
+    (tmp_path / f"windows-{old[:24]}.json").unlink()
+    (tmp_path / f"windows-{new[:24]}.json").write_text("{}")
+    build(new, 0)
+    assert stored(old) == set() and not parts.exists() and not legacy.exists()
+    assert len(stored(new)) == 1
 
 
 def test_the_principal_axes_are_the_svds(rng) -> None:
