@@ -95,11 +95,15 @@ class Chromium:
             cmd.append("--use-fake-ui-for-media-stream")
         else:
             cmd.append("--deny-permission-prompts")
+        # Chromium keeps its single-instance socket in a folder of $TMPDIR, removed only
+        # at a clean exit: a browser ended by a signal left one in /tmp each time
+        env = {**os.environ, "TMPDIR": str(profile)}
         self._proc = subprocess.Popen(  # its own process group: close() ends its helpers too
             [*cmd, url],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
             start_new_session=True,
+            env=env,
         )
         self._id = 0
         self._stack = contextlib.ExitStack()

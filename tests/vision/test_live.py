@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -143,6 +144,7 @@ def test_a_page_without_a_camera_says_why_here_and_there(
     allow: bool, fake: bool, error: str
 ) -> None:
     said: list[str] = []
+    left = set(Path(tempfile.gettempdir()).glob("org.chromium.*"))
     with Stage(port=0, camera=True, say=said.append) as stage:
         assert stage.camera is not None
         stage.camera.read()
@@ -157,6 +159,8 @@ def test_a_page_without_a_camera_says_why_here_and_there(
                 time.sleep(0.1)
     assert error in notes
     assert any(f"could not open a camera: {error}" in s for s in said), said
+    # the browser, ended by a signal, leaves nothing in the temporary folder
+    assert set(Path(tempfile.gettempdir()).glob("org.chromium.*")) == left
 
 
 @pytest.mark.slow
