@@ -1,20 +1,22 @@
 """The silhouette when the landmarks fail (issue 59): one pass of the pose model gives
 both a person mask and landmarks, and the landmarks can fail while the mask is good (the
-torso hidden or cut by the frame's edge, too dark to read). A performer the camera sees
-is then matched by their silhouette rather than left unfollowed.
+torso hidden or cut by the frame's edge, too dark to read, the limbs misplaced). A
+performer the camera sees is then matched by their silhouette rather than left
+unfollowed.
 
 ``SilhouetteFallback`` keeps the performer's silhouette features at the library's rate
 beside the landmark features, and a second matcher on a silhouette bank of the same
 clips. The landmark matcher decides whenever it can; when it cannot for want of a pose
-(fewer than half the window's frames with a usable one), the silhouette matcher decides
-from the same avatar frame, with its own reject threshold: a silhouette that matches
-nothing real is still refused. Landmarks that were read but match nothing (``no
-match``) are not overruled: they say the pose is none the library has, and a
-silhouette, which cannot tell up from down nor front from back, matched upside-down
-jumping jacks at half the decision points where the landmarks refused them
-(``tests/vision/test_views.py``). Both matchers cast their votes into one
-``ActionVote``, so that the avatar's action does not restart when the evidence changes
-hands. The decision log says which decided (``by``).
+(fewer than half the window's frames with a usable one), or its landmarks match nothing
+(``no match``) while the last frame's body is upright (shoulders above hips:
+``PoseReader.upright``), the silhouette matcher decides from the same avatar frame, with
+its own reject threshold: a silhouette that matches nothing real is still refused. The
+pose model misplaces limbs now and then (for a second at a time, from some views) where
+the mask stays whole. Landmarks of a body upside down are not overruled: a silhouette,
+which cannot tell up from down, matched upside-down jumping jacks at half the decision
+points where the landmarks refused them (``tests/vision/test_views.py``). Both matchers
+cast their votes into one ``ActionVote``, so that the avatar's action does not restart
+when the evidence changes hands. The decision log says which decided (``by``).
 """
 
 from __future__ import annotations
@@ -36,11 +38,13 @@ from ._decision import Decision
 from ._matcher import Matcher
 from ._search import Bars
 
-__all__ = ["FALLBACK_REASONS", "SilhouetteFallback"]
+__all__ = ["FALLBACK_REASONS", "UPRIGHT_REASONS", "SilhouetteFallback"]
 
 #: the landmark matcher's reasons (``Matcher.why``, up to " (") after which the
 #: silhouette is tried: a person may be in view, and nothing was read of them
 FALLBACK_REASONS = ("no pose",)
+#: those after which it is tried only for an upright body (``PoseReader.upright``)
+UPRIGHT_REASONS = ("no match",)
 
 FloatArray = NDArray[np.float64]
 

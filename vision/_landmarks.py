@@ -15,6 +15,9 @@ Low confidence is handled per landmark (``PoseReader``):
   bend hides the legs, a turn hides one side after the other; all are matched.
   ``visibility`` keeps each landmark's confidence and ``hidden`` names those under
   ``min_visibility``, for the decision log;
+- ``upright`` says whether the shoulders are above the hips in the image: where the
+  landmarks match nothing, a silhouette (which cannot tell up from down) may decide only
+  for an upright body (``vision._fallback``);
 - ``why`` says, for the last frame, why it has no pose.
 """
 
@@ -52,6 +55,8 @@ class PoseReader:
         self.visibility = np.full(len(POSE_JOINTS), np.nan)
         #: ``POSE_JOINTS`` of the last frame under ``min_visibility``
         self.hidden: tuple[str, ...] = ()
+        #: whether the last frame's shoulders are above its hips in the image
+        self.upright = False
         self.why = ""
 
     def read(self, landmarks: FloatArray | None, size: tuple[int, int]) -> FloatArray:
@@ -61,6 +66,7 @@ class PoseReader:
         blank = np.full(self.desc.size, np.nan)
         self.visibility[:] = np.nan
         self.hidden = ()
+        self.upright = False
         if landmarks is None:
             self.why = "nobody in view"
             return blank
@@ -75,6 +81,7 @@ class PoseReader:
             self.why = "torso landmarks of low confidence"
             return blank
         pts = pick[:, :2] * np.array([size[0], size[1]], dtype=np.float64)
+        self.upright = bool(pts[[0, 1], 1].mean() < pts[[6, 7], 1].mean())  # (y downwards)
         vec = self.desc.from_points(pts)
         if not np.isfinite(vec).all():
             self.why = "degenerate torso"

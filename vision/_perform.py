@@ -34,7 +34,7 @@ from control.motion import Clip
 from silhouette_bank import Bank, silhouette_features
 
 from ._decision import Decision
-from ._fallback import FALLBACK_REASONS, SilhouetteFallback
+from ._fallback import FALLBACK_REASONS, UPRIGHT_REASONS, SilhouetteFallback
 from ._landmarks import PoseReader
 from ._matcher import Matcher
 from ._person import make_segmenter, resolve_segmentation
@@ -358,8 +358,9 @@ class Performance:
 
     def match(self, entry: dict[str, Any]) -> Decision | None:
         """The matcher's decision for the avatar's frame; where the landmark matcher
-        has none for want of a pose, the silhouette's (``vision._fallback``;
-        ``entry`` says which decided, ``by``, and why the silhouette did not)."""
+        has none for want of a pose, or its upright body matches nothing, the
+        silhouette's (``vision._fallback``; ``entry`` says which decided, ``by``, and
+        why the silhouette did not)."""
         matcher, avatar = self.matcher, self.avatar
         recent = avatar.recent(matcher.recent_frames)
         d = (
@@ -372,7 +373,9 @@ class Performance:
         if d is not None:
             entry["by"] = "landmarks"
             return d
-        if matcher.why.split(" (")[0] not in FALLBACK_REASONS:
+        why = matcher.why.split(" (")[0]
+        upright = self.reader is not None and self.reader.upright
+        if why not in FALLBACK_REASONS and not (why in UPRIGHT_REASONS and upright):
             return d
         d = self.fallback.decide(avatar.frame, recent, avatar.jump_costs)
         if d is None:

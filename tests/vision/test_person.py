@@ -196,7 +196,10 @@ def test_pose_landmarks_become_pose_vectors(squats: list[np.ndarray]) -> None:
     assert model.landmarks is not None
     lm = model.landmarks.copy()
     good = reader.read(lm, (720, 1280))
-    assert reader.hidden == ()
+    assert reader.hidden == () and reader.upright
+    flipped = lm.copy()  # the same landmarks upside down: read, and not upright
+    flipped[:, 1] = 1.0 - flipped[:, 1]
+    assert np.isfinite(reader.read(flipped, (720, 1280))).all() and not reader.upright
     lm[27, 2] = 0.0  # the left ankle unseen
     for _ in range(100):
         held = reader.read(lm, (720, 1280))
@@ -206,7 +209,7 @@ def test_pose_landmarks_become_pose_vectors(squats: list[np.ndarray]) -> None:
     # without the torso there is no pose: a frame of legs alone
     lm[[11, 12], 2] = 0.1
     assert np.isnan(reader.read(lm, (720, 1280))).all() and "torso" in reader.why
-    assert reader.hidden[:2] == ("left_shoulder", "right_shoulder")
+    assert reader.hidden[:2] == ("left_shoulder", "right_shoulder") and not reader.upright
     model.close()
 
 
