@@ -236,17 +236,25 @@ def test_where_the_landmarks_fail_the_silhouette_decides(
 
 
 @pytest.mark.gl
-def test_a_performer_upside_down_is_still_rejected(
-    setup: Any, pose_bank: Any, mocap: Path, films: Path, tmp_path: Path
+@pytest.mark.parametrize("garbage", ["upside down", "noise"])
+def test_garbage_is_still_rejected(
+    setup: Any, pose_bank: Any, mocap: Path, films: Path, tmp_path: Path, garbage: str
 ) -> None:
-    # garbage: the image upside down (the pose model may still find a body, whose torso
-    # is then upside down); no decision follows it
+    # the image upside down (the pose model may still find a body, whose torso is then
+    # upside down), or noise for every frame: no decision follows it
     video = _film(mocap, films, (0.0, 6.0), azimuth=0.0)
-    flipped = _rewrite(video, tmp_path / "upside.mkv", lambda img: img[::-1])
+    rng = np.random.default_rng(0)
+
+    def change(img: np.ndarray) -> np.ndarray:
+        if garbage == "upside down":
+            return img[::-1]
+        return rng.integers(0, 256, img.shape, dtype=np.uint8)
+
+    bad = _rewrite(video, tmp_path / "garbage.mkv", change)
     lib, layer, silhouettes = setup
     for fallback in (None, silhouettes):  # nor does the silhouette follow it
         r = perform(
-            VideoSource(flipped),
+            VideoSource(bad),
             layer,
             pose_bank,
             lib.clips,
