@@ -28,7 +28,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from control.artifacts import array_digest, read_checked_npz, write_checked_npz
+from control.artifacts import (
+    array_digest,
+    cached_in_parts,
+    read_checked_npz,
+    write_checked_npz,
+)
 from control.dtw import SHAPE_DTYPE, ShapeTable, dtw_windows
 
 from ._summaries import _bounds, _run_summaries, _summaries, fill_lists, projected
@@ -394,7 +399,9 @@ def cached_window_index(
     warning naming it; a folder that cannot be written is only read. ``progress`` and
     ``cluster``: ``WindowIndex``'s, as one is made (not when it is read). A build stopped
     midway keeps its finished jobs beside the file (``index-<hash>.parts/``) and
-    resumes from them; they are removed once the index is stored."""
+    resumes from them; they are removed once the index is stored. Of two processes that
+    need it at once, one builds it and the other waits and reads it
+    (``control.artifacts.cached_in_parts``, under the folder's build lock)."""
     import faiss
 
     if folder is None:
@@ -404,44 +411,53 @@ def cached_window_index(
     text = f"{INDEX_VERSION}|{length}|{sorted(options.items())}|{key}"
     digest = array_digest(text, (starts,) if key else (shape, centre, starts))
     path = Path(folder) / f"index-{f'{key[:24]}-' if key else ''}{digest[:24]}.npz"
-    if path.is_file():
+
+    def load() -> WindowIndex | None:
+        if not path.is_file():
+            return None
         try:
             keys = ("mean", "basis", "index", "nprobe")
             d = read_checked_npz(path, keys, IndexFileError, "window index")
             with contextlib.suppress(OSError):
                 os.utime(path)  # (used: the last of its tables' to be pruned)
             index: Any = faiss.deserialize_index(np.ascontiguousarray(d["index"], dtype=np.uint8))
-            if int(d["nprobe"]):  # (an inverted-file index: its lists searched)
-                index.nprobe = int(d["nprobe"])
-            built = (d["mean"], d["basis"], index, int(d["nprobe"]))
-            return WindowIndex(shape, centre, starts, length, **options, built=built)
         except IndexFileError as exc:  # (its message names the file)
             log.warning("building the window index again: %s", exc)
+            return None
         except RuntimeError as exc:  # faiss could not read the index it wrote
             log.warning("building the window index again: %s: %s", path, exc)
-    parts = path.with_suffix(".parts")
-    try:
-        parts.mkdir(exist_ok=True)
-        work: Path | None = parts
-    except OSError:  # a bank folder that is only ours to read: the parts go elsewhere
-        work = None
-    out = WindowIndex(
-        shape, centre, starts, length, progress=progress, work=work, cluster=cluster, **options
-    )
-    arrays: dict[str, np.ndarray] = {
-        "mean": np.asarray(out.mean, dtype=np.float32),
-        "basis": out.basis,
-        "index": np.asarray(faiss.serialize_index(out.index), dtype=np.uint8),
-        "nprobe": np.array(out.nprobe),
-    }
-    try:
-        write_checked_npz(path, arrays)
-    except OSError as exc:  # a bank folder that is only ours to read
-        log.info("the window index is not stored: %s", exc)
-    if work is not None:
-        shutil.rmtree(work, ignore_errors=True)
-    prune_indexes(Path(folder))
-    return out
+            return None
+        if int(d["nprobe"]):  # (an inverted-file index: its lists searched)
+            index.nprobe = int(d["nprobe"])
+        built = (d["mean"], d["basis"], index, int(d["nprobe"]))
+        return WindowIndex(shape, centre, starts, length, **options, built=built)
+
+    def build(parts: Path) -> WindowIndex:
+        try:
+            parts.mkdir(exist_ok=True)
+            work: Path | None = parts
+        except OSError:  # a bank folder that is only ours to read: the parts go elsewhere
+            work = None
+        return WindowIndex(
+            shape, centre, starts, length, progress=progress, work=work, cluster=cluster, **options
+        )
+
+    def save(out: WindowIndex) -> None:
+        arrays: dict[str, np.ndarray] = {
+            "mean": np.asarray(out.mean, dtype=np.float32),
+            "basis": out.basis,
+            "index": np.asarray(faiss.serialize_index(out.index), dtype=np.uint8),
+            "nprobe": np.array(out.nprobe),
+        }
+        try:
+            write_checked_npz(path, arrays)
+        except OSError as exc:  # a bank folder that is only ours to read
+            log.info("the window index is not stored: %s", exc)
+        prune_indexes(path.parent)
+
+    # (a second builder beside the first would read the first one's parts as they go,
+    # and find them gone once the first had stored the index)
+    return cached_in_parts(path, load, build, save)[0]
 
 
 def prune_indexes(folder: Path) -> None:

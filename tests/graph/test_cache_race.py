@@ -1,5 +1,5 @@
-"""Two processes that ask for the same graph, layer and bank at once (the three cache
-front doors): one builds each, the other waits and loads it, and the cache holds one
+"""Two processes that ask for the same graph, layer, bank and window index at once (the
+cache front doors): one builds each, the other waits and loads it, and the cache holds one
 good entry of each."""
 
 from __future__ import annotations
@@ -26,6 +26,21 @@ g, _, built_g = cached_graph(lib.clips, GraphOptions(coords="relative"), cache_d
 layer, _, built_l = cached_higher_layer(g, lib.clips, LayerSettings(k=12), cache_dir=sys.argv[2])
 small = BankSettings(CameraRing(n_views=4, width=64, height_px=48), descriptor="hu")
 bank, _, built_b = cached_bank(lib.clips, small, cache_dir=sys.argv[2], workers=1)
+from pathlib import Path
+from vision import Matcher, MatchSettings, _index, _summaries
+m = Matcher(layer, bank, MatchSettings())
+shape, centre, starts = m.windows.tables()
+# the window index: one process has done its jobs (kept as parts) and not yet filled its
+# lists when the other asks for the index
+kept = Path(sys.argv[2]).with_name("jobs-kept")
+if sys.argv[4] == "first":
+    jobs = _summaries.run_jobs
+    _summaries.run_jobs = lambda *a: (jobs(*a), kept.touch(), time.sleep(2.0))[0]
+else:
+    while not kept.exists():
+        time.sleep(0.01)
+# (an inverted file, as a large library's: built in jobs kept as parts)
+_index.cached_window_index(shape, centre, starts, m.n, bank.path, m.windows.key, flat_below=0)
 out = {"graph": built_g, "layer": built_l, "bank": built_b, "k": int(layer.clustering.k)}
 print(json.dumps({**out, "frames": bank.n_frames}))
 """
@@ -39,13 +54,13 @@ def test_two_processes_build_a_graph_a_layer_and_a_bank_once(mocap: Path, tmp_pa
     start = str(time.time() + 3.0)
     procs = [
         subprocess.Popen(
-            [sys.executable, "-c", CHILD, str(mocap), str(cache), start],
+            [sys.executable, "-c", CHILD, str(mocap), str(cache), start, pace],
             cwd=REPO,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
         )
-        for _ in range(2)
+        for pace in ("first", "second")
     ]
     got = []
     for p in procs:
@@ -59,3 +74,6 @@ def test_two_processes_build_a_graph_a_layer_and_a_bank_once(mocap: Path, tmp_pa
     assert len(manifests) == 1 and json.loads(manifests[0].read_text())["complete"]
     assert len(list(cache.glob("graph-*.npz"))) == 1 and len(list(cache.glob("layer-*.npz"))) == 1
     assert not list(cache.glob(".*.tmp"))
+    bank = manifests[0]
+    assert len(list(bank.parent.glob("index-*.npz"))) == 1
+    assert not list(bank.parent.glob("index-*.parts"))
