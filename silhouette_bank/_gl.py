@@ -142,22 +142,37 @@ class GLRenderer:
         offscreen._renderer.__class__ = _SingleSample
 
     def _mesh(
-        self, node: Any, vertices: FloatArray, faces: NDArray[np.int64], material: Any
+        self,
+        node: Any,
+        vertices: FloatArray,
+        faces: NDArray[np.int64],
+        material: Any,
+        placed: bool = False,
     ) -> Any:
-        """Replace ``node`` (or nothing) by a node of one triangle mesh; returns it."""
+        """Replace ``node`` (or nothing) by a node of one triangle mesh; returns it. With
+        ``placed``, the node sits at the mesh's centre (its vertices relative to it), so
+        that pyrender draws it in an order of its own: it draws a scene's meshes sorted by
+        their nodes' distance from the camera, ties in the order of a set (of objects
+        hashed by address), and where two meshes meet at one depth (the face's spheres
+        on the head) the first drawn shows. Nodes all at the origin made a render differ
+        from run to run at a few pixels, and the pose model's reading of a video with
+        them."""
         pyrender = self._pyrender
         v = np.asarray(vertices, dtype=np.float64)
         f = np.asarray(faces, dtype=np.int64)
+        at = v.mean(axis=0) if placed and v.size else np.zeros(3)
         prim = pyrender.Primitive(
             material=material,
-            positions=v.astype(np.float32),
+            positions=(v - at).astype(np.float32),
             normals=_normals(v, f).astype(np.float32),
             indices=f.astype(np.uint32),
             mode=4,
         )
         if node is not None:
             self._scene.remove_node(node)
-        return self._scene.add(pyrender.Mesh([prim]))
+        pose = np.eye(4)
+        pose[:3, 3] = at
+        return self._scene.add(pyrender.Mesh([prim]), pose=pose)
 
     def set_body(self, segments: FloatArray, radius: FloatArray) -> None:
         """Show the capsules ``(B, 2, 3)`` (world coordinates) as one mesh."""
@@ -169,7 +184,7 @@ class GLRenderer:
         nose); shaded renders only."""
         c = np.asarray(centres, dtype=np.float64)
         vertices, faces = capsule_mesh(np.stack((c, c), axis=1), np.asarray(radius))
-        self._face = self._mesh(self._face, vertices, faces, self._face_material)
+        self._face = self._mesh(self._face, vertices, faces, self._face_material, placed=True)
 
     def set_scenery(self, vertices: FloatArray, faces: NDArray[np.int64]) -> None:
         """Show a static mesh (world coordinates) beside the body, grey; shaded renders
@@ -177,7 +192,7 @@ class GLRenderer:
         material = self._pyrender.MetallicRoughnessMaterial(
             baseColorFactor=(0.45, 0.47, 0.5, 1.0), metallicFactor=0.0, roughnessFactor=0.9
         )
-        self._scenery = self._mesh(self._scenery, vertices, faces, material)
+        self._scenery = self._mesh(self._scenery, vertices, faces, material, placed=True)
 
     def render(self, camera_pose: FloatArray) -> NDArray[np.uint8]:
         """The silhouette ``(H, W)`` (1 inside) seen from the camera-to-world ``camera_pose``."""
