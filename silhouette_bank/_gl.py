@@ -154,9 +154,9 @@ class GLRenderer:
         that pyrender draws it in an order of its own: it draws a scene's meshes sorted by
         their nodes' distance from the camera, ties in the order of a set (of objects
         hashed by address), and where two meshes meet at one depth (the face's spheres
-        on the head) the first drawn shows. Nodes all at the origin made a render differ
-        from run to run at a few pixels, and the pose model's reading of a video with
-        them."""
+        on the head) the first drawn shows: with every node at the origin a render would
+        differ from run to run at a few pixels, and so would the pose model's reading of
+        it. (The body stays at the origin: its silhouettes are the rasterizer's.)"""
         pyrender = self._pyrender
         v = np.asarray(vertices, dtype=np.float64)
         f = np.asarray(faces, dtype=np.int64)
