@@ -392,10 +392,12 @@ def cached_window_index(
     **options: Any,
 ) -> WindowIndex:
     """``WindowIndex(shape, centre, starts, length, **options)``, stored in ``folder`` (a bank's
-    folder: the index is made from its features) as ``index-<hash>.npz`` and loaded from
-    there next time, checked (``control.artifacts``). The hash is of the tables' ``key``
-    (``cached_window_tables``: what names their content) and ``starts``, or without a key
-    of the tables themselves (read in full). A damaged file is built again with a
+    folder: the index is made from its features) as ``index-<tables>-<hash>.npz`` and
+    loaded from there next time, checked (``control.artifacts``). ``<tables>`` begins the
+    tables' ``key`` (``cached_window_tables``: what names their content), so that the
+    index goes when they do (``prune_indexes``); the hash is of the key and ``starts``,
+    or without a key of the tables themselves (read in full, and the name is
+    ``index-<hash>.npz``). A damaged file is built again with a
     warning naming it; a folder that cannot be written is only read. ``progress`` and
     ``cluster``: ``WindowIndex``'s, as one is made (not when it is read). A build stopped
     midway keeps its finished jobs beside the file (``index-<hash>.parts/``) and

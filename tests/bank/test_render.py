@@ -202,8 +202,9 @@ def test_a_shaded_render_does_not_depend_on_the_order_pyrender_keeps_its_meshes(
 ) -> None:
     # pyrender keeps a scene's meshes in a set (its order that of their addresses) and
     # draws them sorted by their distance from the camera; where the face's spheres meet
-    # the head at one depth, the first drawn shows. 14_20 seen from 45 degrees, as
-    # ``mimic record --colour`` films it: its frame 100 has such pixels
+    # the head at one depth, the first drawn shows. 14_20 seen from 45 degrees, by the
+    # camera ``mimic record --colour`` places for its first 200 frames: frame 100 has
+    # such pixels
     import dataclasses
 
     import pyrender

@@ -37,7 +37,8 @@ if sys.argv[4] == "first":
     jobs = _summaries.run_jobs
     _summaries.run_jobs = lambda *a: (jobs(*a), kept.touch(), time.sleep(2.0))[0]
 else:
-    while not kept.exists():
+    deadline = time.time() + 120
+    while not kept.exists() and time.time() < deadline:
         time.sleep(0.01)
 # (an inverted file, as a large library's: built in jobs kept as parts)
 _index.cached_window_index(shape, centre, starts, m.n, bank.path, m.windows.key, flat_below=0)
