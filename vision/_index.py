@@ -20,7 +20,6 @@ import itertools
 import logging
 import math
 import os
-import shutil
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -37,6 +36,7 @@ from control.artifacts import (
 from control.dtw import SHAPE_DTYPE, ShapeTable, dtw_windows
 
 from ._summaries import _bounds, _run_summaries, _summaries, fill_lists, projected
+from ._tables import prune_indexes
 
 log = logging.getLogger(__name__)
 
@@ -376,8 +376,6 @@ def best_of(
 
 #: the stored index's format (``cached_window_index``)
 INDEX_VERSION = 3  # 3: inverted files from 20,000 windows (100,000 before)
-#: index files kept per set of window tables (``prune_indexes``)
-KEEP_INDEXES = 3
 
 
 def cached_window_index(
@@ -394,10 +392,9 @@ def cached_window_index(
     """``WindowIndex(shape, centre, starts, length, **options)``, stored in ``folder`` (a bank's
     folder: the index is made from its features) as ``index-<tables>-<hash>.npz`` and
     loaded from there next time, checked (``control.artifacts``). ``<tables>`` begins the
-    tables' ``key`` (``cached_window_tables``: what names their content), so that the
-    index goes when they do (``prune_indexes``); the hash is of the key and ``starts``,
-    or without a key of the tables themselves (read in full, and the name is
-    ``index-<hash>.npz``). A damaged file is built again with a
+    tables' ``key`` (``cached_window_tables``), so that the index goes when they do
+    (``prune_indexes``); the hash is of the key and ``starts`` (without a key: of the
+    tables, read in full; no ``<tables>``). A damaged file is built again with a
     warning naming it; a folder that cannot be written is only read. ``progress`` and
     ``cluster``: ``WindowIndex``'s, as one is made (not when it is read). A build stopped
     midway keeps its finished jobs beside the file (``index-<hash>.parts/``) and
@@ -457,40 +454,8 @@ def cached_window_index(
             log.info("the window index is not stored: %s", exc)
         prune_indexes(path.parent)
 
-    # (a second builder beside the first would read the first one's parts as they go,
-    # and find them gone once the first had stored the index)
+    # (a second builder beside the first would find the first one's parts gone)
     return cached_in_parts(path, load, build, save)[0]
-
-
-def prune_indexes(folder: Path) -> None:
-    """Remove from a bank's ``folder`` the window indexes (and the parts of stopped index
-    builds) of window tables no longer there (``cached_window_tables`` keeps the few last
-    used), and all but the ``KEEP_INDEXES`` most recently used of each set of tables that
-    is: other performers' leave-outs and options each make an index of their own. An index
-    of unnamed tables in a folder of named ones is an older version's, never read again."""
-    tables = {m.name[len("windows-") : -len(".json")] for m in folder.glob("windows-*.json")}
-    groups: dict[str, list[tuple[int, Path]]] = {}
-    for f in folder.glob("index-*"):
-        name = f.name.split(".")[0][len("index-") :]
-        key = name.split("-")[0] if "-" in name else ""  # ("": an index of unnamed tables)
-        if key not in tables and (key or tables):
-            _remove(f)
-        elif f.suffix == ".npz":
-            with contextlib.suppress(OSError):
-                groups.setdefault(key, []).append((f.stat().st_mtime_ns, f))
-    for files in groups.values():
-        for _, f in sorted(files, reverse=True)[KEEP_INDEXES:]:
-            _remove(f)
-            _remove(f.with_suffix(".parts"))
-
-
-def _remove(path: Path) -> None:
-    """Remove a file or a folder, or leave it where the folder is only ours to read."""
-    if path.is_dir():
-        shutil.rmtree(path, ignore_errors=True)
-    else:
-        with contextlib.suppress(OSError):
-            path.unlink(missing_ok=True)
 
 
 class IndexFileError(ValueError):

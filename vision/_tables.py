@@ -18,7 +18,9 @@ The first run that needs them writes them (each file to a temporary one, then re
 and checks them in a background thread a moment later (``_check_later``); the next maps
 them, without reading them when that check was recorded. A damaged or mismatched file
 is made again with a warning naming it; a folder that cannot be written is only read. At
-most ``KEEP_TABLES`` table pairs are kept per bank (the least recently used go first).
+most ``KEEP_TABLES`` table pairs are kept per bank (the least recently used go first),
+and the window indexes made from them (``vision._index``) go with them
+(``prune_indexes``).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ import contextlib
 import json
 import logging
 import os
+import shutil
 import threading
 import time
 from collections.abc import Callable
@@ -69,6 +72,8 @@ TABLES_VERSION = 2
 _DTYPES = {"shape": SHAPE_DTYPE, "centre": np.float64}
 #: table pairs kept in a bank's folder
 KEEP_TABLES = 3
+#: window indexes kept per set of window tables (``prune_indexes``)
+KEEP_INDEXES = 3
 #: frames of a stored table hashed as one block
 _ROWS = 4096
 
@@ -289,3 +294,34 @@ def _prune(folder: Path) -> None:
             m.unlink()
             for name in ("shape", "centre"):
                 Path(f"{stem}-{name}.npy").unlink(missing_ok=True)
+
+
+def prune_indexes(folder: Path) -> None:
+    """Remove from a bank's ``folder`` the window indexes (and the parts of stopped index
+    builds) of window tables no longer there (``cached_window_tables`` keeps the few last
+    used), and all but the ``KEEP_INDEXES`` most recently used of each set of tables that
+    is: other performers' leave-outs and options each make an index of their own. An index
+    of unnamed tables in a folder of named ones is an older version's, never read again."""
+    tables = {m.name[len("windows-") : -len(".json")] for m in folder.glob("windows-*.json")}
+    groups: dict[str, list[tuple[int, Path]]] = {}
+    for f in folder.glob("index-*"):
+        name = f.name.split(".")[0][len("index-") :]
+        key = name.split("-")[0] if "-" in name else ""  # ("": an index of unnamed tables)
+        if key not in tables and (key or tables):
+            _remove(f)
+        elif f.suffix == ".npz":
+            with contextlib.suppress(OSError):
+                groups.setdefault(key, []).append((f.stat().st_mtime_ns, f))
+    for files in groups.values():
+        for _, f in sorted(files, reverse=True)[KEEP_INDEXES:]:
+            _remove(f)
+            _remove(f.with_suffix(".parts"))
+
+
+def _remove(path: Path) -> None:
+    """Remove a file or a folder, or leave it where the folder is only ours to read."""
+    if path.is_dir():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        with contextlib.suppress(OSError):
+            path.unlink(missing_ok=True)

@@ -24,6 +24,7 @@ from vision import (
     cached_window_index,
 )
 from vision import _index as index_module
+from vision import _tables as tables_module
 from vision._index import best_of
 from vision._summaries import _bounds, _run_summaries, _summaries
 
@@ -180,7 +181,7 @@ def test_indexes_go_with_their_tables_and_the_least_used_first(setup, tmp_path) 
     shape, centre, starts = m.windows.tables()
     old, new = "a" * 40, "b" * 40  # two sets of window tables' keys
     (tmp_path / f"windows-{old[:24]}.json").write_text("{}")
-    keep = index_module.KEEP_INDEXES
+    keep = tables_module.KEEP_INDEXES
 
     def stored(key: str) -> set[Path]:
         return set(tmp_path.glob(f"index-{key[:24]}-*.npz"))
