@@ -11,7 +11,8 @@ Layout of a bank folder::
     root_motion.npy        their root motion: plain ``.npy`` files, opened memory-mapped
                            (a bank is not copied into memory)
     bank.npz               the small arrays (clip starts, key, the learned metric)
-    index-<hash>.npz       the matcher's window index of these features
+    index-<t>-<hash>.npz   the matcher's window index of these features (``<t>``: its
+                           window tables' key)
                            (``vision.cached_window_index``: made by the first run that
                            needs it, loaded by the next)
     windows-<hash>.*       the matcher's window tables and shape statistics made from

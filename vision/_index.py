@@ -397,7 +397,7 @@ def cached_window_index(
     tables, read in full; no ``<tables>``). A damaged file is built again with a
     warning naming it; a folder that cannot be written is only read. ``progress`` and
     ``cluster``: ``WindowIndex``'s, as one is made (not when it is read). A build stopped
-    midway keeps its finished jobs beside the file (``index-<hash>.parts/``) and
+    midway keeps its finished jobs beside the file (``index-<tables>-<hash>.parts/``) and
     resumes from them; they are removed once the index is stored. Of two processes that
     need it at once, one builds it and the other waits and reads it
     (``control.artifacts.cached_in_parts``, under the folder's build lock)."""
