@@ -96,6 +96,7 @@ def run_settings(args: argparse.Namespace) -> RunSettings:
             margin=args.vote_margin,
             switch_chance=args.vote_switch,
             confidence=args.vote_confidence,
+            temperature=args.vote_temperature,
             strict_share=args.vote_strict,
             classify=not args.no_classify,
         ),
@@ -228,51 +229,14 @@ def _add_vision_args(p: argparse.ArgumentParser) -> None:
 
 
 def _add_jump_args(p: argparse.ArgumentParser) -> None:
-    """The direct jumps' options, and the action vote's."""
+    """The direct jumps' options, and the action vote's (``_add_vote_args``)."""
     p.add_argument(
         "--no-jumps",
         action="store_true",
         help="only the paper's cluster paths (and a relocation through the graph once a "
         "second), no direct blended jumps into the best-matching windows",
     )
-    p.add_argument(
-        "--vote",
-        type=number(int, 0, 1000),
-        default=ActionSettings.vote,
-        help="keep to the action the best windows of the last N decisions voted for (0: off)",
-    )
-    p.add_argument(
-        "--vote-margin",
-        type=number(float, 0, 1000, inf=True),
-        default=ActionSettings.margin,
-        help="with the vote, a window of another action is taken when it fits better even "
-        "at 1 + M times its cost, and the avatar's own motion of another action costs as "
-        "much more (default %(default)s; inf: only the voted action)",
-    )
-    p.add_argument(
-        "--vote-strict",
-        type=number(float, 0, 1),
-        default=ActionSettings.strict_share,
-        metavar="SHARE",
-        help="with the counted vote, a decision where at least this share of the last votes "
-        "went to the voted action jumps only into that action (its own motion and holds keep "
-        "the margin); 0: off (default %(default)s)",
-    )
-    p.add_argument(
-        "--vote-switch",
-        type=number(float, 0, 0.99),
-        default=ActionSettings.switch_chance,
-        metavar="P",
-        help="filter the voted action by a hidden Markov model whose chance of a change "
-        "per decision is P, instead of counting votes (default %(default)s: counting)",
-    )
-    p.add_argument(
-        "--vote-confidence",
-        type=number(float, 0, 1),
-        default=ActionSettings.confidence,
-        help="with --vote-switch, change the voted action only to one believed at least "
-        "this much (default %(default)s)",
-    )
+    _add_vote_args(p)
     p.add_argument(
         "--recency",
         type=number(float, 0, 1000),
@@ -304,6 +268,56 @@ def _add_jump_args(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="each decision votes for its best window's action alone, not settled by the "
         "action classifier learned from the library",
+    )
+
+
+def _add_vote_args(p: argparse.ArgumentParser) -> None:
+    """The action vote's options."""
+    p.add_argument(
+        "--vote",
+        type=number(int, 0, 1000),
+        default=ActionSettings.vote,
+        help="keep to the action the best windows of the last N decisions voted for (0: off)",
+    )
+    p.add_argument(
+        "--vote-margin",
+        type=number(float, 0, 1000, inf=True),
+        default=ActionSettings.margin,
+        help="with the vote, a window of another action is taken when it fits better even "
+        "at 1 + M times its cost, and the avatar's own motion of another action costs as "
+        "much more (default %(default)s; inf: only the voted action)",
+    )
+    p.add_argument(
+        "--vote-strict",
+        type=number(float, 0, 1),
+        default=ActionSettings.strict_share,
+        metavar="SHARE",
+        help="a decision where at least this share of the last votes went to the voted "
+        "action (with --vote-switch: where it is believed at least this much) jumps only into "
+        "that action (its own motion and holds keep the margin); 0: off (default %(default)s)",
+    )
+    p.add_argument(
+        "--vote-switch",
+        type=number(float, 0, 0.99),
+        default=ActionSettings.switch_chance,
+        metavar="P",
+        help="filter the voted action by a hidden Markov model whose chance of a change "
+        "per decision is P, instead of counting votes (default %(default)s: counting)",
+    )
+    p.add_argument(
+        "--vote-confidence",
+        type=number(float, 0, 1),
+        default=ActionSettings.confidence,
+        help="with --vote-switch, change the voted action only to one believed at least "
+        "this much (default %(default)s)",
+    )
+    p.add_argument(
+        "--vote-temperature",
+        type=number(float, 0, 100, above=True),
+        default=ActionSettings.temperature,
+        help="with --vote-switch, what turns each decision's action scores into evidence: "
+        "higher weighs one decision less, so a change needs more decisions that agree "
+        "(default %(default)s)",
     )
 
 

@@ -175,15 +175,21 @@ def action_scores(
     classifier: ActionClassifier | None,
     queries: list[FloatArray],
     n_actions: int = 0,
+    unseen: bool = False,
 ) -> FloatArray | None:
     """Each action's score at this decision (``choose_action``'s, lower is better; inf:
     no window of it among the ranked short lists); ``None`` without a classifier or a
-    window."""
+    window. ``unseen``: an action with no window among the lists is scored at their
+    cutoff instead (the least cost a window left off every list can have), not ruled
+    out, for a filter that weighs every action at every decision."""
     if classifier is None or not ranked:
         return None
     cost = np.full(n_actions or int(actions.max()) + 1, np.inf)
     for s, _, c in ranked:
         np.minimum.at(cost, actions[np.minimum(s + length - 1, actions.size - 1)], c)
+    cutoffs = [float(np.max(c)) for _, _, c in ranked if len(c)]
+    if unseen and cutoffs:
+        cost[~np.isfinite(cost)] = min(cutoffs)
     return action_score(cost, classifier.log_proba(queries, cost.size))
 
 

@@ -177,9 +177,10 @@ class ActionSettings:
         Each decision votes for the action the library's action classifier and the
         search's costs agree on (``vision._classify``), not the best window's alone.
     strict_share : float
-        With the counted vote, where at least this share of the last ``vote`` decisions
-        voted for the voted action, that decision jumps only into the voted action, and
-        the avatar playing on out of it jumps before it does; where the vote is split,
+        Where at least this share of the last ``vote`` decisions voted for the voted
+        action (with the filter: where it is believed at least this much), that
+        decision jumps only into the voted action, and the avatar playing on out of it
+        jumps before it does; where the vote is split,
         the margin lets a jump take a nearer pose of another action (0: off). The
         avatar's own motion of another action, and its holds, keep the margin: a
         performer standing still is still mirrored by a held frame of whatever action.

@@ -126,7 +126,13 @@ class ActionVote:
             p = moved
         ok = np.isfinite(scores)
         if ok.any():
-            gap = np.where(ok, scores - scores[ok].min(), np.inf)
+            # one decision rules no action out: an action without a score (``inf``) has
+            # the worst scored action's evidence. Ruled out, the action believed in was
+            # dropped whenever its windows fell off the search's short lists for one
+            # decision (a sixth of the decisions from the side); ``ActionChoice`` scores
+            # such an action at the lists' cutoff instead
+            gap = scores - scores[ok].min()
+            gap = np.where(ok, gap, gap[ok].max())
             p = p * np.exp(-np.minimum(gap / self.temperature, 50.0))[:, None]
         p = p / p.sum()
         self._belief = p
@@ -171,7 +177,10 @@ class ActionVote:
         return self.gate(target)
 
     def share(self) -> float:
-        """The share of the last votes that went to the voted action (0 before any)."""
+        """The share of the last votes that went to the voted action (0 before any); with
+        the filter, how much the voted action is believed."""
+        if self._belief is not None and 0 <= self.voted < self._belief.shape[0]:
+            return float(self._belief[self.voted].sum())
         if not self._votes or self.voted < 0:
             return 0.0
         return sum(1 for v in self._votes if v == self.voted) / len(self._votes)
@@ -250,7 +259,8 @@ class ActionChoice:
         performer: FloatArray,
     ) -> tuple[int | None, FloatArray | None]:
         """The action this decision votes for in ``vote`` (``None``: the best window's)
-        and every action's score, from the search's short lists ``ranked``."""
+        and every action's score, from the search's short lists ``ranked`` (for the
+        filter, an action with no window listed at the lists' cutoff)."""
         if vote.actions is None or vote.size <= 0:
             return None, None
         st, w = self.settings, self.windows
@@ -261,7 +271,9 @@ class ActionChoice:
             w.ranked(extra, ranked)
         clf = self.classifier(vote.actions)
         n = self._classifier[1] if self._classifier else 0
-        scores = action_scores(ranked, vote.actions, self.n, clf, queries + extra, n)
+        # the filter weighs every action at every decision, those off the lists too
+        unseen = vote.switch > 0
+        scores = action_scores(ranked, vote.actions, self.n, clf, queries + extra, n, unseen)
         if scores is None or not np.isfinite(scores).any():
             return None, None
         return int(np.argmin(scores)), scores

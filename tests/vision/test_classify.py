@@ -15,6 +15,8 @@ from vision import ActionSettings, Matcher, MatchSettings
 from vision._classify import (
     FLOOR,
     ActionClassifier,
+    action_score,
+    action_scores,
     cached_action_classifier,
     choose_action,
     voted_action,
@@ -94,6 +96,13 @@ def test_a_near_tie_goes_to_the_more_probable_action_and_a_clear_win_stays() -> 
     cost = np.array([4.0, 4.1, np.inf])  # action 0 (frames 0 and 50 end in it), action 1
     assert got == choose_action(cost, logp)
     assert voted_action(ranked, act, 10, None, [q]) is None
+    # for the filter, action 2 (no window listed) is scored at the lists' cutoff, the
+    # least a window left off both lists can cost (4.1, the second list's last), not inf
+    scores = action_scores(ranked, act, 10, clf, [q], 3)
+    seen = action_scores(ranked, act, 10, clf, [q], 3, unseen=True)
+    assert scores is not None and seen is not None and np.isinf(scores[2])
+    np.testing.assert_allclose(seen[:2], scores[:2])
+    np.testing.assert_allclose(seen[2], action_score(np.array([4.0, 4.1, 4.1]), logp)[2])
 
 
 def test_the_stored_classifier_is_read_back_and_a_damaged_one_learned_again(

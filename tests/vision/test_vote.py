@@ -287,6 +287,31 @@ def test_the_filtered_vote_ignores_odd_decisions_and_follows_a_real_change() -> 
     assert taken <= 5, taken  # within 0.5 s of decisions
 
 
+def test_an_action_missing_from_the_short_lists_for_a_moment_is_kept() -> None:
+    """An action none of whose windows made the search's short lists at a decision (its
+    score infinite) is not ruled out: its evidence is the worst seen action's. Ruled
+    out, the filter dropped the action it believed in for any other at once."""
+    from vision._vote import ActionVote
+
+    vote = ActionVote(15, 7, switch=0.02, temperature=0.3, confidence=0.9)
+    vote.actions = np.array([0, 1, 2, 3], dtype=np.int64)
+    target = np.array([0], dtype=np.int64)
+    for _ in range(50):  # 5 s of action 0, sure
+        vote.cast(target, None, np.array([1.0, 1.2, 1.3, 1.3]))
+    assert vote.voted == 0 and vote.share() > 0.9  # (the strict vote reads the belief)
+    voted = []
+    for i in range(30):  # action 0 off the short lists at every third decision
+        gone = i % 3 == 0
+        scores = np.array([np.inf, 1.0, 1.2, np.inf]) if gone else np.array([1.0, 1.1, 1.1, 1.3])
+        vote.cast(target, None, scores)
+        voted.append(vote.voted)
+    assert voted == [0] * 30
+    for _ in range(20):  # then it is gone for good, and another action wins clearly
+        vote.cast(target, None, np.array([np.inf, 1.0, 1.3, np.inf]))
+    assert vote.voted == 1
+    assert np.isfinite(vote._belief).all() and vote._belief.sum() == pytest.approx(1.0)
+
+
 def test_a_confident_filter_keeps_its_action_while_two_are_about_as_likely() -> None:
     from vision._vote import ActionVote
 
