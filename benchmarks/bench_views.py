@@ -150,7 +150,7 @@ def main() -> None:
                     flush=True,
                 )
     result = {
-        "command": "python -m benchmarks.bench_views " + " ".join(sys.argv[1:]),
+        "command": "python -m benchmarks.bench_views " + shlex.join(sys.argv[1:]),
         "machine": machine(),
         "library": str(library),
         "fold": a.fold,
