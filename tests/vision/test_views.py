@@ -271,8 +271,8 @@ def test_garbage_is_still_rejected(
         return rng.integers(0, 256, img.shape, dtype=np.uint8)
 
     bad = _rewrite(video, tmp_path / "garbage.mkv", change)
-    tape: list[Any] = []  # (the second run replays the first's readings of the model)
-    for fallback in (None, setup[2]):  # nor does the silhouette follow it
+    silhouettes, tape = setup[2], []  # (the second run replays the first's readings)
+    for fallback in (None, silhouettes):  # nor does the silhouette follow it
         r = _run(bad, setup, pose_bank, _Taped(tape), fallback=fallback).run()
         points = decision_points(r.decisions)
         assert points["decided"] <= 0.1 * points["points"], points
