@@ -178,15 +178,14 @@ class ActionSettings:
         search's costs agree on (``vision._classify``), not the best window's alone.
     strict_share : float
         Where at least this share of the last ``vote`` decisions voted for the voted
-        action (with the filter: where it is believed at least this much), that
-        decision jumps only into the voted action, and the avatar playing on out of it
-        jumps before it does; where the vote is split,
-        the margin lets a jump take a nearer pose of another action (0: off). The
-        avatar's own motion of another action, and its holds, keep the margin: a
-        performer standing still is still mirrored by a held frame of whatever action.
-        0.9 is steadier than off on every fold at about the same pose score; from the
-        side and from behind it agrees a little less (``benchmarks/HISTORY.md``,
-        "Steadiness").
+        action (with the filter: where it is believed at least this much), that decision
+        jumps only into the voted action, and the avatar playing on out of it jumps
+        before it does; where the vote is split, the margin lets a jump take a nearer
+        pose of another action (0: off). The avatar's own motion of another action, and
+        its holds, keep the margin: a performer standing still is still mirrored by a
+        held frame of whatever action. 0.9 is steadier than off on every fold at about
+        the same pose score; from the side and from behind it agrees a little less
+        (``benchmarks/HISTORY.md``, "Steadiness").
     tempos : tuple of float
         The vote also reads the performer at these tempos against the library's (0.6:
         the performer moves at 0.6 times its speed, so their last ``window / 0.6``
