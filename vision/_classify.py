@@ -187,8 +187,8 @@ def action_scores(
     cost = np.full(n_actions or int(actions.max()) + 1, np.inf)
     for s, _, c in ranked:
         np.minimum.at(cost, actions[np.minimum(s + length - 1, actions.size - 1)], c)
-    cutoffs = [float(np.max(c)) for _, _, c in ranked if len(c)]
-    if unseen and cutoffs:
+    cutoffs = [float(np.max(c)) for _, _, c in ranked if len(c)] if unseen else []
+    if cutoffs:
         cost[~np.isfinite(cost)] = min(cutoffs)
     return action_score(cost, classifier.log_proba(queries, cost.size))
 
