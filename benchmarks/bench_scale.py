@@ -292,7 +292,8 @@ def _search(root: Path, n: int) -> dict[str, Any]:
         # is what the process held before: ``rss_before_build_mb``)
         "rss_before_build_mb": None if rss_before is None else round(rss_before, 1),
         "build_peak_rss_mb": None if build_peak is None else round(build_peak, 1),
-        **_spread(build, index.seconds.get("jobs", 0.0)),  # (its summaries' jobs)
+        # (its jobs: the summaries', and the encoding's for the trained lists)
+        **_spread(build, index.seconds.get("jobs", 0.0) + index.seconds.get("encode", 0.0)),
     }
 
 

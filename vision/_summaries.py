@@ -3,14 +3,18 @@ filled with them.
 
 A window's summary is the mean of each of a few stretches of its frames (PAA) of the
 numbers DTW compares, reduced by PCA. Past ``flat_below`` windows the index is an inverted
-file (``fill_lists``): every window's summary is taken in jobs of ``JOB_STARTS`` starts,
-here or on a cluster (``control.jobs``), each job's summaries kept as a part in a folder
+file (``fill_lists``), made in two passes of jobs, here or on a cluster
+(``control.jobs``). The first takes every window's summary, ``JOB_STARTS`` starts a job;
+the lists are then trained here on a sample of them (kept in faiss's order: its
+seeding). The second encodes each job's summaries for the trained lists (which list,
+and the 8-bit code: the quantizer's search, most of filling's time), and the codes are
+added here in the jobs' order. Each job's result is kept as a part in a folder
 (``control.jobs.JobStore``), so that a stopped build resumes from the parts it finished
 and every summary is never held at once (500k frames: 8.6 million windows, 1.1 GB as
-float32); the lists are trained on a sample of them (kept in faiss's order: its
-seeding), then filled from the parts one at a time. A job carries its slice of the
-tables, so a cluster's workers need no copy of them, and its summaries are the ones this
-machine would take, number for number: the index is the local build's.
+float32). A job carries its data (a first-pass job its slice of the tables, a second-pass
+job its summaries and, once for each worker, the trained lists), so a cluster's workers
+need no copy of anything, and its results are the ones this machine would make, number
+for number: the index is the local build's.
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ import hashlib
 import itertools
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -138,8 +142,9 @@ def fill_lists(
     job. ``work``: the folder of the jobs' parts, kept until it is removed (``None``: a
     temporary one); ``cluster``: where the jobs run (``control.jobs.run_jobs``);
     ``count(rows, 2)`` as rows are summarised, and again as they are added. The
-    seconds of each pass go into ``win.seconds`` (``jobs``, ``train``, ``fill``), with
-    the jobs ``resumed`` from parts."""
+    seconds of each pass go into ``win.seconds`` (``jobs``, ``train``, ``encode``: the
+    encoding jobs, ``fill``: adding their codes), with the summary jobs ``resumed`` from
+    parts."""
     starts, v = win.starts, win.n_views
     spans = [(a, min(a + JOB_STARTS, starts.size)) for a in range(0, starts.size, JOB_STARTS)]
     order = np.argsort(train)
@@ -173,18 +178,98 @@ def fill_lists(
         t1 = time.perf_counter()
         win.index.train(picked)
         t2 = time.perf_counter()
-        for i in range(len(spans)):
-            got = store.read(i, ("z",))
-            if got is None:  # (removed or damaged since it was written)
-                raise RuntimeError(f"{folder}: the part of job {i} is gone; build again")
-            win.index.add(got["z"])
-            count(got["z"].shape[0], 2)
+        adding = _encode(win, store, len(spans), count, cluster)
         win.seconds.update(
             jobs=t1 - t0,
             train=t2 - t1,
-            fill=time.perf_counter() - t2,
+            encode=time.perf_counter() - t2 - adding,
+            fill=adding,
             resumed=len(spans) - len(todo),
         )
+
+
+def _encode(
+    win: WindowIndex,
+    store: JobStore,
+    n_parts: int,
+    count: Callable[[int, int], None],
+    cluster: str | None,
+) -> float:
+    """The second pass of ``fill_lists``: each of the ``n_parts`` parts of ``store``
+    encoded for ``win``'s trained lists in a job (its codes kept as a part beside them,
+    under the trained lists' name), and the codes added to the lists in the parts'
+    order (which fixes each window's number: row ``r`` is start ``r // V``, view ``r %
+    V``), as they come in order. Returns the seconds spent adding."""
+    import faiss
+
+    trained = np.frombuffer(faiss.serialize_index(win.index), dtype=np.uint8)
+    name = hashlib.sha256(trained.tobytes()).hexdigest()[:24]
+    codes = JobStore(store.folder / "codes", f"{store.key}-{name}")
+    waiting: dict[int, NDArray[np.uint8]] = {}
+    added, adding = [0], [0.0]
+
+    def add(i: int, got: NDArray[np.uint8]) -> None:
+        waiting[i] = got
+        while added[0] in waiting:  # (a cluster's results come in any order)
+            z = waiting.pop(added[0])
+            t0 = time.perf_counter()
+            win.index.add_sa_codes(z)
+            adding[0] += time.perf_counter() - t0
+            count(z.shape[0], 2)
+            added[0] += 1
+
+    todo = []
+    for i in range(n_parts):
+        if (got := codes.read(i, ("codes",))) is None:
+            todo.append(i)
+        else:
+            add(i, got["codes"])
+
+    def finished(j: int, got: NDArray[np.uint8]) -> None:
+        codes.save(todo[j], {"codes": got})
+        add(todo[j], got)
+
+    run_jobs(_code_job, _Parts(store, todo), finished, 1, cluster, (name, trained))
+    if added[0] != n_parts:  # (cannot happen: every part was added or encoded)
+        raise RuntimeError(f"{store.folder}: {n_parts - added[0]} parts were not added")
+    return adding[0]
+
+
+class _Parts(Sequence[NDArray[np.float32]]):
+    """The summaries of the parts ``todo`` of ``store``, each read as its job is handed
+    out (``control.jobs.run_jobs`` hands a cluster a few at a time), not all at once."""
+
+    def __init__(self, store: JobStore, todo: list[int]) -> None:
+        self.store, self.todo = store, todo
+
+    def __len__(self) -> int:
+        return len(self.todo)
+
+    def __getitem__(self, j: int) -> NDArray[np.float32]:  # type: ignore[override]
+        got = self.store.read(self.todo[j], ("z",))
+        if got is None:  # (removed or damaged since it was written)
+            raise RuntimeError(
+                f"{self.store.folder}: the part of job {self.todo[j]} is gone; build again"
+            )
+        return got["z"]
+
+
+#: the trained lists a worker process has read, by name (one a build)
+_TRAINED: dict[str, Any] = {}
+
+
+def _code_job(shared: tuple[str, NDArray[np.uint8]], z: NDArray[np.float32]) -> NDArray[np.uint8]:
+    """One job of ``_encode``: the codes (``sa_encode``: the list, then the 8-bit code)
+    of summaries ``z`` for the trained lists ``shared`` (their name and faiss's bytes)."""
+    import faiss
+
+    name, trained = shared
+    if name not in _TRAINED:
+        _TRAINED.clear()
+        faiss.omp_set_num_threads(1)  # (one job a thread of the worker)
+        _TRAINED[name] = faiss.deserialize_index(np.ascontiguousarray(trained))
+    out: NDArray[np.uint8] = _TRAINED[name].sa_encode(np.ascontiguousarray(z, dtype=np.float32))
+    return out
 
 
 def _slice(win: WindowIndex, a: int, b: int) -> tuple[Any, Any, IntArray]:

@@ -346,9 +346,9 @@ def test_an_index_filled_in_small_chunks_is_the_one_filled_at_once(
     setup, monkeypatch, flat_below
 ) -> None:
     """The index is filled a chunk of starts at a time (its inverted file's training rows
-    picked out on the way, the rest spooled to a file): in chunks of 7 starts, it is
-    the index trained and filled from every window's summary at once, answer for
-    answer."""
+    picked out on the way, the summaries kept as parts and encoded in jobs): in chunks
+    of 7 starts, it is the index trained and filled from every window's summary at once
+    by faiss's own ``add``, answer for answer and, an inverted file, byte for byte."""
     import faiss
 
     from vision import _index
@@ -374,6 +374,8 @@ def test_an_index_filled_in_small_chunks_is_the_one_filled_at_once(
         at_once.train(z[rng.choice(z.shape[0], min(z.shape[0], 64 * nlist), replace=False)])
         at_once.nprobe = chunked.nprobe
     at_once.add(z)
+    if not flat_below:  # (the encoding jobs' codes are faiss's own)
+        assert np.array_equal(faiss.serialize_index(at_once), faiss.serialize_index(chunked.index))
     for s in np.random.default_rng(3).choice(starts, 20, replace=False):
         q = np.concatenate((shape[s : s + m.n, 2], centre[s : s + m.n, 2]), axis=1)
         x = chunked.summary(q)
@@ -489,10 +491,57 @@ def test_a_stopped_index_build_resumes_from_the_jobs_it_finished(
     assert not list(tmp_path.glob("index-*.parts")) and list(tmp_path.glob("index-*.npz"))
 
 
+def test_a_build_stopped_while_encoding_resumes_from_the_codes_it_kept(
+    setup, tmp_path, monkeypatch
+) -> None:
+    """The second pass (each part's summaries encoded for the trained lists) keeps its
+    codes as parts too: a build stopped after 2 encoding jobs runs no summary job and
+    only the other encoding jobs when it runs again, and gives the index of one build,
+    byte for byte."""
+    import faiss
+
+    from vision import _summaries as summaries_module
+
+    _, layer, bank = setup
+    m = Matcher(layer, bank)
+    shape, centre, starts = m.windows.tables()
+    monkeypatch.setattr(summaries_module, "JOB_STARTS", 40)
+    n_jobs = -(-starts.size // 40)
+    whole = WindowIndex(shape, centre, starts, m.n, flat_below=0)
+    summary, code = summaries_module._summary_job, summaries_module._code_job
+    ran: dict[str, int] = {"summary": 0, "code": 0}
+    stop_after = [2]
+
+    def summary_job(shared, job):
+        ran["summary"] += 1
+        return summary(shared, job)
+
+    def code_job(shared, z):
+        if ran["code"] == stop_after[0]:
+            raise KeyboardInterrupt
+        ran["code"] += 1
+        return code(shared, z)
+
+    monkeypatch.setattr(summaries_module, "_summary_job", summary_job)
+    monkeypatch.setattr(summaries_module, "_code_job", code_job)
+    with pytest.raises(KeyboardInterrupt):
+        cached_window_index(shape, centre, starts, m.n, tmp_path, flat_below=0)
+    assert ran == {"summary": n_jobs, "code": 2}
+    (parts,) = tmp_path.glob("index-*.parts")
+    assert len(list((parts / "codes").glob("part-*.npz"))) == 2
+    ran.update(summary=0, code=0)
+    stop_after[0] = -1
+    resumed = cached_window_index(shape, centre, starts, m.n, tmp_path, flat_below=0)
+    assert ran == {"summary": 0, "code": n_jobs - 2}
+    assert np.array_equal(faiss.serialize_index(resumed.index), faiss.serialize_index(whole.index))
+    assert not list(tmp_path.glob("index-*.parts"))
+
+
 @pytest.mark.slow  # (a local cluster starts in a few seconds)
 def test_an_index_built_on_a_two_worker_cluster_is_the_local_build(setup, monkeypatch) -> None:
-    """Each job carries its slice of the tables to a worker and brings its summaries
-    back: the index is the local build's, list for list."""
+    """Each first-pass job carries its slice of the tables to a worker and brings its
+    summaries back, each second-pass job its summaries and brings their codes back: the
+    index is the local build's, byte for byte."""
     import faiss
 
     from vision import _summaries as summaries_module
