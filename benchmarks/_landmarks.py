@@ -65,7 +65,8 @@ def landmark_points(
 class LandmarkSource:
     """Frames that carry landmarks ``(33, 3)`` (MediaPipe Pose's layout) instead of
     pictures: ``points`` ``(F, 12, 2)`` at ``fps``, with their ``visibility`` ``(F, 12)``
-    (default: every landmark seen)."""
+    (default: every landmark seen), and with ``masks`` (at ``mask_fps``) the person's
+    mask too, as a pose model gives both in one pass."""
 
     def __init__(
         self,
@@ -73,10 +74,13 @@ class LandmarkSource:
         fps: float,
         name: str = "landmarks",
         visibility: np.ndarray | None = None,
+        masks: list[np.ndarray] | None = None,
+        mask_fps: float = 0.0,
     ) -> None:
         self.points, self.fps, self.name = np.asarray(points, dtype=np.float64), fps, name
         n = self.points.shape[0]
         self.visibility = np.ones((n, 12)) if visibility is None else np.asarray(visibility)
+        self.masks, self.mask_fps = masks, mask_fps
         self.i = 0
 
     def read(self) -> Frame | None:
@@ -85,7 +89,11 @@ class LandmarkSource:
         lm = np.zeros((33, 3))
         lm[list(MEDIAPIPE_INDEX), :2] = self.points[self.i]
         lm[list(MEDIAPIPE_INDEX), 2] = self.visibility[self.i]
-        frame = Frame(t=self.i / self.fps, index=self.i, landmarks=lm)
+        mask = None
+        if self.masks:  # the mask shown at this frame's time
+            k = min(int(self.i / self.fps * self.mask_fps + 1e-6), len(self.masks) - 1)
+            mask = self.masks[k]
+        frame = Frame(t=self.i / self.fps, index=self.i, landmarks=lm, mask=mask)
         self.i += 1
         return frame
 

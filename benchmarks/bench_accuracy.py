@@ -544,6 +544,16 @@ def fold(
     return out
 
 
+def _masks(video: Path) -> tuple[list[np.ndarray], float]:
+    """Every mask of a silhouette recording, and its frame rate."""
+    src = VideoSource(video, silhouette=True)
+    out = []
+    while (f := src.read()) is not None:
+        out.append(np.asarray(f.mask, dtype=bool))
+    src.close()
+    return out, src.fps
+
+
 def _recorded_runs(
     rec: str,
     ctx: tuple[Any, ...],
@@ -558,6 +568,7 @@ def _recorded_runs(
     the label ceiling, and a run of ``perform`` per match setting."""
     perf_clip, layer, bank, train, lib_labels, lib_q, truth_q, walk_frames, lib_qm = ctx
     runs = []
+    fallback = None
     with tempfile.TemporaryDirectory() as tmp:
         video = Path(tmp) / f"{perf_clip.name}_{rec}.mkv"
         side = record_clip(perf_clip, video, RECORDINGS[rec])
@@ -577,9 +588,15 @@ def _recorded_runs(
             assert isinstance(desc, PoseDescriptor)
             rows = _landmark_rows(desc.from_points(points), perf_labels, rate, fps)
 
+            # with the fused ballot, the recording's masks beside the landmarks (as the
+            # pose model gives both), matched on a silhouette bank of the library
+            masks, mask_fps = _masks(video) if (match or {}).get("action.fuse") else ([], 0.0)
+            if masks:
+                fallback, _, _ = cached_bank(train, BankSettings())
+
             def source() -> Any:
                 name = f"{video.stem} landmarks"
-                return LandmarkSource(points, rate, name, visibility=vis)
+                return LandmarkSource(points, rate, name, vis, masks, mask_fps)
 
         else:
             rows = _silhouette_rows(video, bank.settings.descriptor, perf_labels, fps)
@@ -596,7 +613,7 @@ def _recorded_runs(
                 ),
                 match or {},
             )
-            r = perform(source(), layer, bank, train, PerformSettings(match=ms))
+            r = perform(source(), layer, bank, train, PerformSettings(match=ms), fallback=fallback)
             # mimic evaluate's figures of the same run (the confusion matrix among them)
             truth = truth_for(video)
             assert truth is not None  # the recording's sidecar

@@ -190,7 +190,8 @@ def agreement(
         args = build_parser().parse_args([*argv, "--library", str(root), *run_args])
         source = open_source(None, str(path), None, silhouette=silhouette_flag(args))
         ready = prepare(run_settings(args), source)
-        run = functools.partial(perform, start=ready.start, seed=args.seed)
+        # (mimic evaluate's own call: the silhouette decides where the landmarks fail)
+        run = functools.partial(perform, start=ready.start, seed=args.seed, fallback=ready.fallback)
         t0 = time.perf_counter()
         result = run(source, ready.layer, ready.bank, ready.clips, ready.settings)
         wall = time.perf_counter() - t0

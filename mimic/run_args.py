@@ -98,6 +98,7 @@ def run_settings(args: argparse.Namespace) -> RunSettings:
             confidence=args.vote_confidence,
             temperature=args.vote_temperature,
             strict_share=args.vote_strict,
+            fuse=args.fuse,
             classify=not args.no_classify,
         ),
     )
@@ -273,6 +274,13 @@ def _add_jump_args(p: argparse.ArgumentParser) -> None:
 
 def _add_vote_args(p: argparse.ArgumentParser) -> None:
     """The action vote's options."""
+    p.add_argument(
+        "--fuse",
+        action="store_true",
+        help="with landmarks, each decision's vote weighs the silhouette's action scores "
+        "too, each descriptor by how well its best window fits (for a camera at the side "
+        "or behind; the silhouette's search runs at every decision)",
+    )
     p.add_argument(
         "--vote",
         type=number(int, 0, 1000),

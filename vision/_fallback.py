@@ -16,7 +16,9 @@ the mask stays whole. Landmarks of a body upside down are not overruled: a silho
 which cannot tell up from down, matched upside-down jumping jacks at half the decision
 points where the landmarks refused them (``tests/vision/test_views.py``). Both matchers
 cast their votes into one ``ActionVote``, so that the avatar's action does not restart
-when the evidence changes hands. The decision log says which decided (``by``).
+when the evidence changes hands. The decision log says which decided (``by``). With
+``ActionSettings.fuse`` the silhouette also speaks at every landmark decision: its action
+scores are weighed into the landmarks' ballot (``evidence``, ``vision._vote.fused``).
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from silhouette_bank import Bank, silhouette_features
 from ._decision import Decision
 from ._matcher import Matcher
 from ._search import Bars
+from ._vote import ActionVote
 
 __all__ = ["FALLBACK_REASONS", "UPRIGHT_REASONS", "SilhouetteFallback"]
 
@@ -80,6 +83,8 @@ class SilhouetteFallback:
             matcher.windows.open(bars, "search (fallback)")
             matcher.warm_up(avatar.frame, avatar.recent(matcher.recent_frames), costs)
         matcher.ready(clips, period)
+        if settings.action.fuse:  # the landmarks' ballot weighs the silhouette's too
+            main.ballot.partner = self.evidence
         self.blank = np.full(matcher.n_features, np.nan)
         #: the performer's masks at the library's rate, in step with the landmark
         #: features' history
@@ -114,6 +119,20 @@ class SilhouetteFallback:
         if matcher.settings.landing.jumps:
             return matcher.decide(frame, self.features(), recent, costs)
         return matcher.decide(frame, self.features(matcher.n))
+
+    def evidence(self, vote: ActionVote) -> tuple[FloatArray, float] | None:
+        """The silhouette's action scores for ``vote`` over its last window, and its fit
+        (``ActionChoice.scores``): what the landmarks' ballot weighs beside its own with
+        ``ActionSettings.fuse``; ``None`` while the window is not yet full or its
+        silhouettes are too few."""
+        m = self.matcher
+        if len(self.history) < m.n or (queries := m.queries(self.features(m.n))) is None:
+            return None
+        ranked: list[tuple[NDArray[np.int64], NDArray[np.int64], FloatArray]] = []
+        m.windows.ranked(queries, ranked)
+        if m.windows.facing is not None:  # (as the silhouette's own decisions weigh it)
+            ranked[:] = m.windows.facing.weigh(ranked, recost=m.windows.plain_cost(queries))
+        return m.ballot.scores(vote, queries, ranked)
 
     @property
     def why(self) -> str:

@@ -59,6 +59,11 @@ SUBSET_FLAT = 20_000
 FLAT_ROWS = 200_000
 #: starts summarised at a time while the index is filled (bounds the build's memory)
 _CHUNK = 4096
+#: windows up to which the short list is ``shortlist`` long; past it, it grows with the
+#: square root of the windows: a large library holds more near twins of each window,
+#: which crowd the exact best off a list of fixed length (``benchmarks/HISTORY.md``,
+#: "the exact best window at 500k")
+LIST_ROWS = 2_000_000
 
 
 def _resample(query: FloatArray, length: int) -> FloatArray:
@@ -94,7 +99,8 @@ class WindowIndex:
     starts : the frames a window may start at (each with ``length`` frames ahead).
     length : window length in frames.
     dims, segments : PCA dimensions and PAA segments of the summaries.
-    shortlist : summaries taken from the broad phase per query.
+    shortlist : summaries taken from the broad phase per query, up to ``LIST_ROWS``
+        windows (more: this times the square root of their ratio).
     flat_below : fewer windows than this are scanned exactly (faiss ``IndexFlatL2``);
         more go into an inverted-file index of 8-bit summaries (``IndexIVFScalarQuantizer``,
         ``nprobe`` lists searched); either way exact DTW ranks the short list.
@@ -134,7 +140,8 @@ class WindowIndex:
         self.starts = starts
         self.length = int(length)
         self.n_views = shape.shape[1]
-        self.shortlist = int(shortlist)
+        rows = starts.size * self.n_views
+        self.shortlist = max(int(shortlist), round(int(shortlist) * math.sqrt(rows / LIST_ROWS)))
         self.bounds = _bounds(self.length, segments)
         self._ok = np.zeros(shape.shape[0], dtype=bool)
         self._ok[starts] = True
@@ -192,7 +199,10 @@ class WindowIndex:
         self.index = faiss.IndexIVFScalarQuantizer(
             quantizer, k, nlist, faiss.ScalarQuantizer.QT_8bit
         )
-        self.nprobe = max(32, nlist // 32)  # 1/32 of the lists (and at least 32) are scanned
+        # 1/32 of the lists, at least 32 and at most 64, are scanned: the exact best
+        # window is found as often at 64 of 4,096 lists as at 128 (the short list decides
+        # that), in half the time
+        self.nprobe = max(32, min(64, nlist // 32))
         self.index.nprobe = self.nprobe
         self.index.cp.seed = seed
 
@@ -375,7 +385,7 @@ def best_of(
 
 
 #: the stored index's format (``cached_window_index``)
-INDEX_VERSION = 3  # 3: inverted files from 20,000 windows (100,000 before)
+INDEX_VERSION = 4  # 4: at most 64 lists scanned; 3: inverted files from 20,000 windows
 
 
 def cached_window_index(

@@ -223,6 +223,10 @@ class Performance:
                 )
             self.latest = self.reader.read(frame.landmarks, (1, 1))
             self.why_blank, self.latest_mask = self.reader.why, None
+            if self.fallback is not None:  # the person's mask, where the source gives
+                # one too, cleaned as a silhouette source's is
+                m = frame.mask
+                self.fallback.see(None if m is None else clean_mask_others(m)[0])
             return None
         if frame.mask is not None:
             if self.landmarks:

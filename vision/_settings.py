@@ -186,6 +186,14 @@ class ActionSettings:
         held frame of whatever action. 0.9 is steadier than off on every fold at about
         the same pose score; from the side and from behind it agrees a little less
         (``benchmarks/HISTORY.md``, "Steadiness").
+    fuse : bool
+        With landmarks and the silhouette beside them (``vision._fallback``): each
+        decision's ballot weighs both descriptors' action scores, each by how well its
+        best window fits (``vision._vote.fused``). From the side and from behind the pose
+        model misplaces limbs that the silhouette still shows; from the front the
+        landmarks fit better and weigh more. Off by default: it follows the side and the
+        back better, the front and the one real squat clip worse
+        (``benchmarks/HISTORY.md``, "Both descriptors").
     tempos : tuple of float
         The vote also reads the performer at these tempos against the library's (0.6:
         the performer moves at 0.6 times its speed, so their last ``window / 0.6``
@@ -202,6 +210,7 @@ class ActionSettings:
     confidence: float = 0.0
     classify: bool = True
     strict_share: float = 0.9
+    fuse: bool = False
     tempos: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:

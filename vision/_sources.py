@@ -44,8 +44,10 @@ class Frame:
     """One frame: ``t`` seconds of media time; ``image`` (H, W, 3) BGR, or ``mask``
     (H, W) bool for sources that are already silhouettes, or ``landmarks`` (33, 3) for
     sources that already give body landmarks (MediaPipe Pose's 33 points: x, y in
-    pixels, visibility in [0, 1]); none when the source has nothing right now (a camera
-    reconnecting), and then ``problem`` may say why (an unreadable mask file)."""
+    pixels, visibility in [0, 1]), with the person's ``mask`` beside them where the
+    source has it (the silhouette matched beside the landmarks: ``vision._fallback``);
+    none when the source has nothing right now (a camera reconnecting), and then
+    ``problem`` may say why (an unreadable mask file)."""
 
     t: float
     index: int

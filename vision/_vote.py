@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import itertools
 from collections import Counter, deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,9 +40,15 @@ from numpy.typing import NDArray
 from ._classify import ActionClassifier, action_scores, cached_action_classifier
 from ._search import WindowSearch
 from ._settings import ActionSettings, MatchSettings
-from ._windows import tempo_readings
+from ._windows import per_frame_cost, tempo_readings
 
-__all__ = ["ActionChoice", "ActionVote"]
+__all__ = ["ActionChoice", "ActionVote", "fused"]
+
+#: how steeply ``fused`` weighs a descriptor by its fit: (reject / per-frame cost) to this
+#: power (from the front, the landmarks' best windows cost about 0.3 of their threshold
+#: and the silhouette's 0.5, so the landmarks weigh about 8 times as much; from behind
+#: about alike)
+FIT_POWER = 4.0
 
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
@@ -226,6 +232,20 @@ class ActionVote:
         return {int(self.actions[frame]), int(self.actions[ahead])} != {self.voted}
 
 
+def fused(scores: Sequence[FloatArray], fits: Sequence[float]) -> FloatArray:
+    """Action scores ``scores`` of several descriptors (each ``action_scores``', no
+    ``inf``) as one: their mean, each weighed by ``fit ** -FIT_POWER``, ``fit`` its best
+    window's per-frame cost over its reject threshold (lower: the descriptor reads the
+    performer better)."""
+    w = np.array([max(f, 1e-6) ** -FIT_POWER for f in fits])
+    return np.asarray(np.tensordot(w / w.sum(), np.asarray(scores), axes=1), dtype=np.float64)
+
+
+#: a second descriptor's evidence at a decision (``ActionChoice.partner``): its action
+#: scores and its fit (best per-frame cost over its reject threshold), or ``None``
+Partner = Callable[[ActionVote], "tuple[FloatArray, float] | None"]
+
+
 class ActionChoice:
     """Each decision's ballot: the action the performer's window votes for, as the
     library's action classifier (``vision._classify``) and the search's costs agree
@@ -238,6 +258,9 @@ class ActionChoice:
     ) -> None:
         self.windows, self.settings, self.n, self.folder = windows, settings, n, folder
         self._classifier: tuple[ActionClassifier | None, int] | None = None
+        #: another descriptor's evidence, weighed with this one's (``fused``) at every
+        #: decision (``ActionSettings.fuse``: the silhouette beside the landmarks)
+        self.partner: Partner | None = None
 
     def classifier(self, actions: IntArray | None) -> ActionClassifier | None:
         """The classifier of the library's ``actions``, learned on first use and stored;
@@ -271,9 +294,37 @@ class ActionChoice:
             w.ranked(extra, ranked)
         clf = self.classifier(vote.actions)
         n = self._classifier[1] if self._classifier else 0
-        # the filter weighs every action at every decision, those off the lists too
-        unseen = vote.switch > 0
+        # the filter weighs every action at every decision, those off the lists too (and
+        # so do fused scores, which cannot average an ``inf``)
+        other = self.partner(vote) if self.partner is not None else None
+        unseen = vote.switch > 0 or other is not None
         scores = action_scores(ranked, vote.actions, self.n, clf, queries + extra, n, unseen)
         if scores is None or not np.isfinite(scores).any():
             return None, None
+        if other is not None and np.isfinite(scores).all():
+            scores = fused([scores, other[0]], [self.fit(ranked, queries[0]), other[1]])
         return int(np.argmin(scores)), scores
+
+    def scores(
+        self,
+        vote: ActionVote,
+        queries: list[FloatArray],
+        ranked: list[tuple[IntArray, IntArray, FloatArray]],
+    ) -> tuple[FloatArray, float] | None:
+        """Every action's score from the short lists ``ranked`` of ``queries`` (an action
+        off them at the lists' cutoff) and this descriptor's fit, for another's ballot
+        (a ``Partner``); ``None`` without a score for every action."""
+        if vote.actions is None or not any(len(c) for _, _, c in ranked):
+            return None
+        clf = self.classifier(vote.actions)
+        n = self._classifier[1] if self._classifier else 0
+        got = action_scores(ranked, vote.actions, self.n, clf, queries, n, True)
+        if got is None or not np.isfinite(got).all():
+            return None
+        return got, self.fit(ranked, queries[0])
+
+    def fit(self, ranked: list[tuple[IntArray, IntArray, FloatArray]], query: FloatArray) -> float:
+        """The best listed window's per-frame cost over the descriptor's reject threshold."""
+        best = min(float(np.min(c)) for _, _, c in ranked if len(c))
+        reject = self.windows.desc.reject
+        return per_frame_cost(best, query.shape[0]) / (reject if np.isfinite(reject) else 1.0)

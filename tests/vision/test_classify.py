@@ -22,6 +22,7 @@ from vision._classify import (
     voted_action,
     window_summary,
 )
+from vision._vote import FIT_POWER, fused
 
 
 def _tables(actions: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -170,3 +171,42 @@ def test_perform_says_whether_the_classifier_settles_the_vote(
         err = capsys.readouterr().err
         assert "actions: " in err
         assert ("settled by an action classifier" in err) is said
+
+
+def test_fused_scores_weigh_the_descriptor_that_fits_better() -> None:
+    a, b = np.array([1.0, 1.5, 2.0]), np.array([2.0, 1.0, 1.2])
+    np.testing.assert_allclose(fused([a, b], [0.4, 0.4]), (a + b) / 2)  # alike: the mean
+    # half the per-frame cost: 2**FIT_POWER times the weight
+    w = 2.0**FIT_POWER
+    np.testing.assert_allclose(fused([a, b], [0.5, 0.25]), (a + w * b) / (1 + w))
+    assert int(np.argmin(fused([a, b], [0.5, 0.25]))) == 1
+    assert int(np.argmin(fused([a, b], [0.25, 0.5]))) == 0
+
+
+def test_a_ballot_with_a_partner_takes_the_better_fitting_descriptors_action(setup) -> None:
+    """``ActionChoice.partner`` (the silhouette beside the landmarks): its scores are
+    weighed with the ballot's own by each one's fit, so a partner that fits far better
+    carries the vote, one that fits far worse does not, and none leaves the ballot's own."""
+    lib, layer, bank = setup
+    keys = action_keys(lib.clips)
+    assert keys is not None
+    m = Matcher(layer, bank, MatchSettings(action=ActionSettings(vote=3)), actions=keys)
+    x = np.asarray(bank.features[100 : 100 + m.n, 3], dtype=np.float64)
+    queries = m.queries(x)
+    assert queries is not None
+    ranked: list = []
+    m.windows.ranked(queries, ranked)
+    own, _ = m.ballot.choose(m.vote, queries, ranked, x)
+    assert own is not None
+    fit = m.ballot.fit(ranked, queries[0])
+    got = m.ballot.scores(m.vote, queries, ranked)
+    assert got is not None and got[1] == fit and np.isfinite(got[0]).all()
+    other = (own + 1) % got[0].size
+    theirs = np.full(got[0].size, 3.0)
+    theirs[other] = 1.0
+    for their_fit, want in ((fit / 10, other), (fit * 10, own)):
+        m.ballot.partner = lambda vote, f=their_fit: (theirs, f)
+        choice, scores = m.ballot.choose(m.vote, queries, ranked, x)
+        assert choice == want and scores is not None and int(np.argmin(scores)) == want
+    m.ballot.partner = lambda vote: None
+    assert m.ballot.choose(m.vote, queries, ranked, x)[0] == own

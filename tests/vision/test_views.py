@@ -17,6 +17,8 @@ from control.motion import load_library
 from silhouette_bank import BankSettings, build_bank
 from tests.conftest import Prebuild
 from vision import (
+    ActionSettings,
+    MatchSettings,
     PerformSettings,
     PersonSegmenter,
     RecordSettings,
@@ -188,12 +190,48 @@ class _Taped:
         return mask
 
 
-def _run(video: Path, setup: Any, bank: Any, segmenter: _Taped, **kw: Any) -> Performance:
+def _run(
+    video: Path,
+    setup: Any,
+    bank: Any,
+    segmenter: _Taped,
+    settings: PerformSettings | None = None,
+    **kw: Any,
+) -> Performance:
     """A run of ``video`` as ``perform`` makes it, the frames read by ``segmenter``."""
     lib, layer, _ = setup
-    run = Performance(VideoSource(video), layer, bank, lib.clips, PerformSettings(), seed=1, **kw)
+    st = settings or PerformSettings()
+    run = Performance(VideoSource(video), layer, bank, lib.clips, st, seed=1, **kw)
     run.segmenter = segmenter
     return run
+
+
+@pytest.mark.gl
+def test_a_fused_ballot_weighs_the_silhouette_at_every_landmark_decision(
+    setup: Any, pose_bank: Any, mocap: Path, films: Path
+) -> None:
+    # the side view (jumping jacks, then twists): with ``fuse`` the silhouette's action
+    # scores are weighed into each landmark decision's ballot, and the action is found
+    lib, _, silhouettes = setup
+    video = _film(mocap, films, (0.0, 8.0), azimuth=90.0)
+    fused = PerformSettings(match=MatchSettings(action=ActionSettings(fuse=True)))
+    run = _run(video, setup, pose_bank, _Taped([]), fused, fallback=silhouettes)
+    assert run.fallback is not None and run.matcher.ballot.partner is not None
+    asked: list[Any] = []
+    own = run.fallback.evidence
+    run.fallback.evidence = lambda vote: asked.append(got := own(vote)) or got  # type: ignore[method-assign]
+    run.matcher.ballot.partner = run.fallback.evidence
+    r = run.run()
+    by_landmarks = [d for d in r.decisions if d.get("by") == "landmarks"]
+    assert len(by_landmarks) > 50 and len(asked) >= len(by_landmarks) - 10
+    assert sum(a is not None for a in asked) >= len(asked) - 10  # (its window full, it speaks)
+    truth = truth_for(video)
+    assert truth is not None
+    report = evaluation(r.decisions, lib.clips, truth, r.media_seconds)
+    assert report["best_at_lag_le_1s"] >= 0.6, report["per_action_at_best_lag"]
+    # without the silhouette beside them, there is nothing to weigh
+    alone = _run(video, setup, pose_bank, _Taped([]), fused)
+    assert alone.fallback is None and alone.matcher.ballot.partner is None
 
 
 class _Misread(_Taped):
