@@ -278,8 +278,8 @@ def _add_vote_args(p: argparse.ArgumentParser) -> None:
         "--fuse",
         action="store_true",
         help="with landmarks, each decision's vote weighs the silhouette's action scores "
-        "too, each descriptor by how well its best window fits (for a camera at the side "
-        "or behind; the silhouette's search runs at every decision)",
+        "too, each descriptor by how well its best window fits: a camera at the side or "
+        "behind is followed much better (a silhouette search at every decision)",
     )
     p.add_argument(
         "--vote",

@@ -28,6 +28,7 @@ from collections import deque
 from collections.abc import Sequence
 from typing import Any
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -38,6 +39,7 @@ from silhouette_bank import Bank, silhouette_features
 
 from ._decision import Decision
 from ._matcher import Matcher
+from ._person import MAX_SIDE
 from ._search import Bars
 from ._vote import ActionVote
 
@@ -95,7 +97,7 @@ class SilhouetteFallback:
 
     def see(self, mask: NDArray[np.bool_] | None) -> None:
         """The latest frame's person mask (``None``: none)."""
-        self.latest = _Seen(mask if mask is not None and mask.any() else None)
+        self.latest = _Seen(_at_most(mask, MAX_SIDE) if mask is not None and mask.any() else None)
 
     def tick(self) -> None:
         """One library frame on: the latest mask into the history."""
@@ -140,11 +142,26 @@ class SilhouetteFallback:
         return "filling buffer" if self.filling else self.matcher.why
 
 
+def _at_most(mask: NDArray[np.bool_], side: int) -> NDArray[np.bool_]:
+    """``mask`` scaled down (by area) to at most ``side`` pixels on its longest side: the
+    person model's own resolution. A silhouette's features are taken from its bounding
+    box in cells, so they hardly change, and a 720x1280 mask's cost 10 ms a frame
+    against 2 ms (with ``ActionSettings.fuse``, every frame's are taken)."""
+    h, w = mask.shape
+    if max(h, w) <= side:
+        return mask
+    f = side / max(h, w)
+    size = (max(1, round(w * f)), max(1, round(h * f)))
+    small = cv2.resize(mask.astype(np.uint8) * 255, size, interpolation=cv2.INTER_AREA)
+    return np.asarray(small >= 128)  # (a pixel at least half covered)
+
+
 class _Seen:
     """A frame's person mask, and its silhouette features, made on first use: the
-    features cost 1-6 ms a frame (a 720x1280 mask the most), and while the landmarks
-    serve they are never needed. A frame ticked twice into the history is one object,
-    its features made once."""
+    features cost 1-3 ms a frame (the mask scaled to at most 640 pixels: ``_at_most``),
+    and while the landmarks serve alone (without ``ActionSettings.fuse``) they are never
+    needed. A frame ticked twice into the history is one object, its features made
+    once."""
 
     __slots__ = ("_features", "mask")
 

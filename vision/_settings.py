@@ -190,9 +190,10 @@ class ActionSettings:
         With landmarks and the silhouette beside them (``vision._fallback``): each
         decision's ballot weighs both descriptors' action scores, each by how well its
         best window fits (``vision._vote.fused``). From the side and from behind the pose
-        model misplaces limbs that the silhouette still shows; from the front the
-        landmarks fit better and weigh more. Off by default: it follows the side and the
-        back better, the front and the one real squat clip worse
+        model misplaces limbs that the silhouette still shows, and the two fit about
+        alike; from the front the landmarks fit far better and carry the vote. Off by
+        default: on the pose model's readings of another person it follows the side and
+        the back much better, but the one real squat clip through the live page worse
         (``benchmarks/HISTORY.md``, "Both descriptors").
     tempos : tuple of float
         The vote also reads the performer at these tempos against the library's (0.6:

@@ -45,10 +45,12 @@ from ._windows import per_frame_cost, tempo_readings
 __all__ = ["ActionChoice", "ActionVote", "fused"]
 
 #: how steeply ``fused`` weighs a descriptor by its fit: (reject / per-frame cost) to this
-#: power (from the front, the landmarks' best windows cost about 0.3 of their threshold
-#: and the silhouette's 0.5, so the landmarks weigh about 8 times as much; from behind
-#: about alike)
-FIT_POWER = 4.0
+#: power. From the front the pose model's landmarks' best windows cost about 0.3 of their
+#: threshold and the silhouette's 0.5, so the landmarks weigh about 60 times as much;
+#: from the side and behind the two cost about alike and weigh alike. At 4 the
+#: silhouette of another body than the library's still swayed landmarks that were right
+#: (``benchmarks/HISTORY.md``, "Both descriptors")
+FIT_POWER = 8.0
 
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]

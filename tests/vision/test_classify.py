@@ -171,6 +171,11 @@ def test_perform_says_whether_the_classifier_settles_the_vote(
         err = capsys.readouterr().err
         assert "actions: " in err
         assert ("settled by an action classifier" in err) is said
+    # a silhouette video has no landmarks for the silhouette to be weighed beside
+    out = tmp_path / "fuse.bvh"
+    assert main([*base, "--fuse", "--seconds", "1.5", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "--fuse weighs the silhouette beside the landmarks" in err and "changes nothing" in err
 
 
 def test_fused_scores_weigh_the_descriptor_that_fits_better() -> None:

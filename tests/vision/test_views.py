@@ -210,8 +210,9 @@ def _run(
 def test_a_fused_ballot_weighs_the_silhouette_at_every_landmark_decision(
     setup: Any, pose_bank: Any, mocap: Path, films: Path
 ) -> None:
-    # the side view (jumping jacks, then twists): with ``fuse`` the silhouette's action
-    # scores are weighed into each landmark decision's ballot, and the action is found
+    # the side view (jumping jacks, then twists): with ``fuse`` (``--fuse``) the
+    # silhouette's action scores are weighed into each landmark decision's ballot, and
+    # the action is found
     lib, _, silhouettes = setup
     video = _film(mocap, films, (0.0, 8.0), azimuth=90.0)
     fused = PerformSettings(match=MatchSettings(action=ActionSettings(fuse=True)))
@@ -229,9 +230,12 @@ def test_a_fused_ballot_weighs_the_silhouette_at_every_landmark_decision(
     assert truth is not None
     report = evaluation(r.decisions, lib.clips, truth, r.media_seconds)
     assert report["best_at_lag_le_1s"] >= 0.6, report["per_action_at_best_lag"]
-    # without the silhouette beside them, there is nothing to weigh
+    # without the silhouette beside them there is nothing to weigh; and without
+    # ``fuse`` (the default), the silhouette decides only where the landmarks fail
     alone = _run(video, setup, pose_bank, _Taped([]), fused)
     assert alone.fallback is None and alone.matcher.ballot.partner is None
+    plain = _run(video, setup, pose_bank, _Taped([]), PerformSettings(), fallback=silhouettes)
+    assert plain.fallback is not None and plain.matcher.ballot.partner is None
 
 
 class _Misread(_Taped):
