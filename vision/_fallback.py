@@ -97,7 +97,7 @@ class SilhouetteFallback:
 
     def see(self, mask: NDArray[np.bool_] | None) -> None:
         """The latest frame's person mask (``None``: none)."""
-        self.latest = _Seen(_at_most(mask, MAX_SIDE) if mask is not None and mask.any() else None)
+        self.latest = _Seen(mask if mask is not None and mask.any() else None)
 
     def tick(self) -> None:
         """One library frame on: the latest mask into the history."""
@@ -158,10 +158,10 @@ def _at_most(mask: NDArray[np.bool_], side: int) -> NDArray[np.bool_]:
 
 class _Seen:
     """A frame's person mask, and its silhouette features, made on first use: the
-    features cost 1-3 ms a frame (the mask scaled to at most 640 pixels: ``_at_most``),
-    and while the landmarks serve alone (without ``ActionSettings.fuse``) they are never
-    needed. A frame ticked twice into the history is one object, its features made
-    once."""
+    features cost 1-3 ms a frame (the mask scaled to at most 640 pixels first:
+    ``_at_most``), and while the landmarks serve alone (without ``ActionSettings.fuse``)
+    they are never needed. A frame ticked twice into the history is one object, its
+    features made once."""
 
     __slots__ = ("_features", "mask")
 
@@ -171,6 +171,7 @@ class _Seen:
 
     def features(self, desc: Any, blank: FloatArray) -> FloatArray:
         if self._features is None:
-            made = blank if self.mask is None else silhouette_features(self.mask, descriptor=desc)
+            mask = None if self.mask is None else _at_most(self.mask, MAX_SIDE)
+            made = blank if mask is None else silhouette_features(mask, descriptor=desc)
             self._features, self.mask = made, None  # (the mask is not needed again)
         return self._features

@@ -160,17 +160,7 @@ def fill_lists(
     with contextlib.ExitStack() as stack:
         folder = work or Path(stack.enter_context(tempfile.TemporaryDirectory()))
         store = JobStore(folder, _key(win, chunk))
-        todo = []
-        for i in range(len(spans)):
-            if (got := store.read(i, ("z",))) is None:
-                todo.append(i)
-            else:
-                take(i, got["z"])
-
-        def finished(j: int, z: NDArray[np.float32]) -> None:
-            store.save(todo[j], {"z": z})
-            take(todo[j], z)
-
+        todo, finished = _resumed(store, len(spans), "z", take)
         jobs = [_slice(win, *spans[i]) for i in todo]
         shared = (win.length, win.bounds, win.mean, win.basis, chunk)
         t0 = time.perf_counter()
@@ -218,21 +208,31 @@ def _encode(
             count(z.shape[0], 2)
             added[0] += 1
 
-    todo = []
-    for i in range(n_parts):
-        if (got := codes.read(i, ("codes",))) is None:
-            todo.append(i)
-        else:
-            add(i, got["codes"])
-
-    def finished(j: int, got: NDArray[np.uint8]) -> None:
-        codes.save(todo[j], {"codes": got})
-        add(todo[j], got)
-
+    todo, finished = _resumed(codes, n_parts, "codes", add)
     run_jobs(_code_job, _Parts(store, todo), finished, 1, cluster, (name, trained))
     if added[0] != n_parts:  # (cannot happen: every part was added or encoded)
         raise RuntimeError(f"{store.folder}: {n_parts - added[0]} parts were not added")
     return adding[0]
+
+
+def _resumed(
+    store: JobStore, n_jobs: int, key: str, use: Callable[[int, Any], None]
+) -> tuple[list[int], Callable[[int, Any], None]]:
+    """The jobs of ``n_jobs`` that ``store`` holds no part of (``use(i, array)`` for
+    each that it holds, in order), and what to call with the ``j``-th of them's result:
+    it is kept as job ``todo[j]``'s part (array ``key``) and used."""
+    todo = []
+    for i in range(n_jobs):
+        if (got := store.read(i, (key,))) is None:
+            todo.append(i)
+        else:
+            use(i, got[key])
+
+    def finished(j: int, out: Any) -> None:
+        store.save(todo[j], {key: out})
+        use(todo[j], out)
+
+    return todo, finished
 
 
 class _Parts(Sequence[NDArray[np.float32]]):
