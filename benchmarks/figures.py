@@ -160,8 +160,7 @@ def table() -> str:
             "`--fuse` (the silhouette's vote beside the landmarks): another person read by "
             "MediaPipe",
             fuse[0],
-            f"{fuse[1]:.0f} switches a minute ({fuse[2]:.0f} brief); the squats through the "
-            f"live page {_load('page_fuse.json')['pose_squats']['agreement_best_lag_le_1s']:.3f}",
+            f"{fuse[1]:.0f} switches a minute ({fuse[2]:.0f} brief)",
         ),
         (
             f"{STEADY} and `--fuse`: another person read by MediaPipe",

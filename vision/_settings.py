@@ -192,8 +192,9 @@ class ActionSettings:
         best window fits (``vision._vote.fused``). From the side and from behind the pose
         model misplaces limbs that the silhouette still shows, and the two fit about
         alike; from the front the landmarks fit far better and carry the vote. Off by
-        default: on the pose model's readings of another person it follows the side and
-        the back much better, but the one real squat clip through the live page worse
+        default: it follows the side and the back of another person much better, but
+        each decision costs a silhouette search more, and where the performer does what
+        the library lacks the avatar switches action twice as often
         (``benchmarks/HISTORY.md``, "Both descriptors").
     tempos : tuple of float
         The vote also reads the performer at these tempos against the library's (0.6:
