@@ -294,13 +294,11 @@ class ActionChoice:
         if extra:
             ranked = list(ranked)
             w.ranked(extra, ranked)
-        clf = self.classifier(vote.actions)
-        n = self._classifier[1] if self._classifier else 0
         # the filter weighs every action at every decision, those off the lists too (and
         # so do fused scores, which cannot average an ``inf``)
         other = self.partner(vote) if self.partner is not None else None
         unseen = vote.switch > 0 or other is not None
-        scores = action_scores(ranked, vote.actions, self.n, clf, queries + extra, n, unseen)
+        scores = self._action_scores(vote, queries + extra, ranked, unseen)
         if scores is None or not np.isfinite(scores).any():
             return None, None
         if other is not None and np.isfinite(scores).all():
@@ -318,12 +316,23 @@ class ActionChoice:
         (a ``Partner``); ``None`` without a score for every action."""
         if vote.actions is None or not any(len(c) for _, _, c in ranked):
             return None
-        clf = self.classifier(vote.actions)
-        n = self._classifier[1] if self._classifier else 0
-        got = action_scores(ranked, vote.actions, self.n, clf, queries, n, True)
+        got = self._action_scores(vote, queries, ranked, True)
         if got is None or not np.isfinite(got).all():
             return None
         return got, self.fit(ranked, queries[0])
+
+    def _action_scores(
+        self,
+        vote: ActionVote,
+        queries: list[FloatArray],
+        ranked: list[tuple[IntArray, IntArray, FloatArray]],
+        unseen: bool,
+    ) -> FloatArray | None:
+        """``action_scores`` of the vote's actions, with this library's classifier."""
+        assert vote.actions is not None
+        clf = self.classifier(vote.actions)
+        n = self._classifier[1] if self._classifier else 0
+        return action_scores(ranked, vote.actions, self.n, clf, queries, n, unseen)
 
     def fit(self, ranked: list[tuple[IntArray, IntArray, FloatArray]], query: FloatArray) -> float:
         """The best listed window's per-frame cost over the descriptor's reject threshold."""
