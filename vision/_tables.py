@@ -20,7 +20,9 @@ them, without reading them when that check was recorded. A damaged or mismatched
 is made again with a warning naming it; a folder that cannot be written is only read. At
 most ``KEEP_TABLES`` table pairs are kept per bank (the least recently used go first),
 and the window indexes made from them (``vision._index``) go with them
-(``prune_indexes``).
+(``prune_indexes``). Tables that a process has open are not removed: it holds a shared
+``flock`` on their manifest while their arrays live (``_hold``), so that another
+performer's run beside it cannot prune them, and with them the index it is building.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ import os
 import shutil
 import threading
 import time
+import weakref
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -52,6 +55,11 @@ from control.dtw import SHAPE_DTYPE, ShapeTable
 from silhouette_bank import Bank, block_hashes, npy_file, open_mapped
 
 from ._windows import shape_stats, window_tables
+
+try:  # (POSIX; elsewhere tables in use are not told from others)
+    import fcntl
+except ImportError:  # pragma: no cover
+    fcntl = None  # type: ignore[assignment]
 
 log = logging.getLogger(__name__)
 
@@ -169,6 +177,7 @@ def cached_window_tables(
             shape, centre = _open(manifest, stem, key, shapes)
             with contextlib.suppress(OSError):
                 os.utime(manifest)  # (used: the last to be pruned)
+            _hold(manifest, shape)
             return shape, centre, key
         except WindowTablesError as exc:
             log.warning("making the window tables again: %s", exc)
@@ -180,6 +189,7 @@ def cached_window_tables(
         log.info("the window tables are not stored: %s", exc)
         made = window_tables(bank, frames, clip_start, mean, proj, centre_weight, None, progress)
         return (*made, key)
+    _hold(manifest, shape)
     _prune(folder)
     _check_later(manifest, stem, key, shapes)
     return shape, centre, key
@@ -282,13 +292,49 @@ def _write(
     )
 
 
+def _hold(manifest: Path, table: np.ndarray) -> None:
+    """Hold a shared ``flock`` on ``manifest`` for as long as ``table`` (the mapped shape
+    table; the centre table's user holds it too) lives: ``_prune`` leaves the tables of a
+    manifest someone holds."""
+    if fcntl is None:
+        return
+    try:
+        fh = open(manifest, "rb")  # noqa: SIM115  (closed when ``table`` goes)
+    except OSError:
+        return
+    try:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except OSError:  # (a file system without locks: the tables are only pruned by age)
+        fh.close()
+        return
+    weakref.finalize(table, fh.close)
+
+
+def _in_use(manifest: Path) -> bool:
+    """Whether a process (this one too) holds ``manifest`` (``_hold``)."""
+    if fcntl is None:
+        return False
+    try:
+        with open(manifest, "rb") as fh:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+    except BlockingIOError:
+        return True
+    except OSError:
+        return False
+    return False
+
+
 def _prune(folder: Path) -> None:
-    """Remove all but the ``KEEP_TABLES`` most recently used table pairs of ``folder``."""
+    """Remove all but the ``KEEP_TABLES`` most recently used table pairs of ``folder``,
+    and never a pair that a process has open (``_hold``)."""
     sets = []
     for m in folder.glob("windows-*.json"):
         with contextlib.suppress(OSError):
             sets.append((m.stat().st_mtime_ns, m))
     for _, m in sorted(sets, reverse=True)[KEEP_TABLES:]:
+        if _in_use(m):
+            continue
         stem = str(m)[: -len(".json")]
         with contextlib.suppress(OSError):
             m.unlink()

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import dataclasses
+import gc
 import json
 import logging
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -80,11 +83,38 @@ def test_stored_tables_are_the_made_ones_and_are_mapped_next_time(
         fixed = cached_window_tables(bank, frames, cs, mean, proj, w)
     assert shape_file.name in caplog.text and "checksum mismatch" in caplog.text
     np.testing.assert_array_equal(fixed[0], want[0])
-    # other arguments: other tables; at most KEEP_TABLES pairs are kept
+
+
+def test_at_most_a_few_tables_are_kept_and_never_ones_still_open(setup, tmp_path) -> None:
+    """Other arguments make other tables, and at most ``KEEP_TABLES`` pairs are kept (the
+    least recently used go), but never a pair a run still has open, in this process or
+    another: that run would lose them, and the index it is building with them."""
+    _, layer, session_bank = setup
+    bank = _copy(session_bank, tmp_path)
+    folder = Path(bank.path)
+    mean, proj = cached_shape_stats(bank)
+    m = Matcher(layer, bank, MatchSettings())
+    frames, cs, w = m.windows.to_bank, layer.graph.clip_start, m.settings.centre_weight
+    held = cached_window_tables(bank, frames, cs, mean, proj, w)
+    manifest = folder / f"windows-{held[2][:24]}.json"
     for k in range(KEEP_TABLES + 1):
         cached_window_tables(bank, frames, cs, mean, proj, w + 0.1 * (k + 1))
+    assert manifest.is_file()
+    assert len(list(folder.glob("windows-*.json"))) == KEEP_TABLES + 1
+    assert len(list(folder.glob("windows-*-shape.npy"))) == KEEP_TABLES + 1
+    # another process's prune leaves it too (the lock is the file's, not this process's)
+    code = (
+        "import sys; from pathlib import Path; import vision._tables as t; "
+        "print(t._in_use(Path(sys.argv[1])))"
+    )
+    out = subprocess.run([sys.executable, "-c", code, str(manifest)], capture_output=True)
+    assert out.stdout.decode().strip() == "True", out.stderr.decode()[-2000:]
+    del held
+    gc.collect()  # closed: the next tables made prune them
+    cached_window_tables(bank, frames, cs, mean, proj, w + 0.1 * (KEEP_TABLES + 2))
     assert len(list(folder.glob("windows-*.json"))) == KEEP_TABLES
     assert len(list(folder.glob("windows-*-shape.npy"))) == KEEP_TABLES
+    assert not manifest.exists()
 
 
 def test_tables_just_written_are_checked_in_the_background(setup, tmp_path, monkeypatch) -> None:
