@@ -22,7 +22,7 @@ most ``KEEP_TABLES`` table pairs are kept per bank (the least recently used go f
 and the window indexes made from them (``vision._index``) go with them
 (``prune_indexes``). Tables that a process has open are not removed: it holds a shared
 ``flock`` on their manifest while their arrays live (``_hold``), so that another
-performer's run beside it cannot prune them, and with them the index it is building.
+performer's run beside it cannot prune them, and with them the index stored for them.
 """
 
 from __future__ import annotations

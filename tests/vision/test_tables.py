@@ -88,7 +88,7 @@ def test_stored_tables_are_the_made_ones_and_are_mapped_next_time(
 def test_at_most_a_few_tables_are_kept_and_never_ones_still_open(setup, tmp_path) -> None:
     """Other arguments make other tables, and at most ``KEEP_TABLES`` pairs are kept (the
     least recently used go), but never a pair a run still has open, in this process or
-    another: that run would lose them, and the index it is building with them."""
+    another: that run would lose them, and the index stored for them."""
     _, layer, session_bank = setup
     bank = _copy(session_bank, tmp_path)
     folder = Path(bank.path)
