@@ -588,9 +588,9 @@ def _recorded_runs(
             assert isinstance(desc, PoseDescriptor)
             rows = _landmark_rows(desc.from_points(points), perf_labels, rate, fps)
 
-            # with the fused ballot (``--match action.fuse=True``), the recording's masks
-            # beside the landmarks, as the pose model gives both, matched on a silhouette
-            # bank of the library
+            # with the fused ballot (the default; ``--match action.fuse=False``: off), the
+            # recording's masks beside the landmarks, as the pose model gives both,
+            # matched on a silhouette bank of the library
             fuse = with_values(MatchSettings(), match or {}).action.fuse
             masks, mask_fps = _masks(video) if fuse else ([], 0.0)
             if masks:

@@ -105,7 +105,6 @@ def table() -> str:
     squats, squat_lag = _squats()
     page = _load("page.json")["pose_squats"]
     steady, s_views = _runs("accuracy_pose_recordings_steady.json"), _views("views_steady.json")
-    fuse, f_views = _views("views_fuse.json"), _views("views_steady_fuse.json")
     rows = [
         (
             f"other takes of the same person, simulated landmarks ({takes['runs']} runs)",
@@ -155,17 +154,6 @@ def table() -> str:
             f"{STEADY}: another person read by MediaPipe",
             s_views[0],
             f"{s_views[1]:.0f} switches a minute ({s_views[2]:.0f} brief)",
-        ),
-        (
-            "`--fuse` (the silhouette's vote beside the landmarks): another person read by "
-            "MediaPipe",
-            fuse[0],
-            f"{fuse[1]:.0f} switches a minute ({fuse[2]:.0f} brief)",
-        ),
-        (
-            f"{STEADY} and `--fuse`: another person read by MediaPipe",
-            f_views[0],
-            f"{f_views[1]:.0f} switches a minute ({f_views[2]:.0f} brief)",
         ),
     ]
     lines = ["| performer | agreement | note |", "|---|---|---|"]

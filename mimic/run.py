@@ -138,18 +138,15 @@ def prepare(settings: RunSettings, source: Source) -> Prepared:
         print(
             f"where the landmarks fail, the silhouette ({DEFAULT_DESCRIPTOR}) is matched "
             "(--no-fallback: no decision there)"
-            + ("; every landmark decision's vote weighs it too (--fuse)" if fuse else ""),
+            + (
+                "; where limbs are hidden, the landmarks' vote weighs it too (--no-fuse: off)"
+                if fuse
+                else ""
+            ),
             file=sys.stderr,
         )
         fallback, _, _ = cached_bank(
             clips, BankSettings(), progress=bar("silhouette bank (fallback)", "silhouettes")
-        )
-    elif fuse:
-        why = "--no-fallback" if descriptor == "pose" else f"the {descriptor} descriptor"
-        print(
-            f"note: --fuse weighs the silhouette beside the landmarks; with {why} there is "
-            "none, so it changes nothing",
-            file=sys.stderr,
         )
     _say_vote(clips, match)
     start = start_frame(graph, settings.start)

@@ -276,10 +276,12 @@ def _add_vote_args(p: argparse.ArgumentParser) -> None:
     """The action vote's options."""
     p.add_argument(
         "--fuse",
-        action="store_true",
-        help="with landmarks, each decision's vote weighs the silhouette's action scores "
-        "too, each descriptor by how well its best window fits: a camera at the side or "
-        "behind is followed much better (a silhouette search at every decision)",
+        action=argparse.BooleanOptionalAction,
+        default=ActionSettings.fuse,
+        help="with landmarks, where the pose model's limbs are of low confidence (a camera "
+        "at the side or behind), each decision's vote weighs the silhouette's action "
+        "scores too, each descriptor by how well its best window fits (--no-fuse: the "
+        "landmarks alone wherever they give a pose)",
     )
     p.add_argument(
         "--vote",

@@ -17,8 +17,10 @@ which cannot tell up from down, matched upside-down jumping jacks at half the de
 points where the landmarks refused them (``tests/vision/test_views.py``). Both matchers
 cast their votes into one ``ActionVote``, so that the avatar's action does not restart
 when the evidence changes hands. The decision log says which decided (``by``). With
-``ActionSettings.fuse`` the silhouette also speaks at every landmark decision: its action
-scores are weighed into the landmarks' ballot (``evidence``, ``vision._vote.fused``).
+``ActionSettings.fuse`` (the default) the silhouette also speaks at the landmark
+decisions whose window has limb landmarks of low confidence: its action scores are
+weighed into the landmarks' ballot, the more the more limbs are hidden (``evidence``,
+``vision._vote.fused``).
 """
 
 from __future__ import annotations
@@ -50,6 +52,11 @@ __all__ = ["FALLBACK_REASONS", "UPRIGHT_REASONS", "SilhouetteFallback"]
 FALLBACK_REASONS = ("no pose",)
 #: those after which it is tried only for an upright body (``PoseReader.upright``)
 UPRIGHT_REASONS = ("no match",)
+
+#: the share of a window's limb landmarks of low confidence at which the silhouette's
+#: evidence weighs in full beside the landmarks (``SilhouetteFallback.evidence``): a
+#: performer seen from the side, the far arm and leg hidden, is at about a half
+HIDDEN_FULL = 0.25
 
 FloatArray = NDArray[np.float64]
 
@@ -95,9 +102,10 @@ class SilhouetteFallback:
         #: the history held under a window at the last ``decide``
         self.filling = False
 
-    def see(self, mask: NDArray[np.bool_] | None) -> None:
-        """The latest frame's person mask (``None``: none)."""
-        self.latest = _Seen(mask if mask is not None and mask.any() else None)
+    def see(self, mask: NDArray[np.bool_] | None, hidden: float = 1.0) -> None:
+        """The latest frame's person mask (``None``: none), and the share of the limb
+        landmarks the pose model saw it with that were of low confidence (1: no pose)."""
+        self.latest = _Seen(mask if mask is not None and mask.any() else None, hidden)
 
     def tick(self) -> None:
         """One library frame on: the latest mask into the history."""
@@ -122,19 +130,32 @@ class SilhouetteFallback:
             return matcher.decide(frame, self.features(), recent, costs)
         return matcher.decide(frame, self.features(matcher.n))
 
-    def evidence(self, vote: ActionVote) -> tuple[FloatArray, float] | None:
-        """The silhouette's action scores for ``vote`` over its last window, and its fit
-        (``ActionChoice.scores``): what the landmarks' ballot weighs beside its own with
-        ``ActionSettings.fuse``; ``None`` while the window is not yet full or its
-        silhouettes are too few."""
+    def hidden(self, last: int) -> float:
+        """The share of limb landmarks of low confidence over the history's ``last``
+        frames (``see``)."""
+        n = len(self.history)
+        seen = list(itertools.islice(self.history, max(0, n - last), n))
+        return float(np.mean([s.hidden for s in seen])) if seen else 1.0
+
+    def evidence(self, vote: ActionVote) -> tuple[FloatArray, float, float] | None:
+        """The silhouette's action scores for ``vote`` over its last window, its fit
+        (``ActionChoice.scores``) and its weight: what the landmarks' ballot weighs
+        beside its own with ``ActionSettings.fuse``. The weight grows with the window's
+        share of limb landmarks of low confidence, to 1 at ``HIDDEN_FULL``: the pose
+        model's limbs are then guesses and the mask shows them; with every limb seen
+        (a performer facing the camera) the silhouette does not speak (``None``), nor
+        while the window is not yet full or its silhouettes are too few."""
         m = self.matcher
-        if len(self.history) < m.n or (queries := m.queries(self.features(m.n))) is None:
+        if len(self.history) < m.n or (weight := min(1.0, self.hidden(m.n) / HIDDEN_FULL)) <= 0:
+            return None
+        if (queries := m.queries(self.features(m.n))) is None:
             return None
         ranked: list[tuple[NDArray[np.int64], NDArray[np.int64], FloatArray]] = []
         m.windows.ranked(queries, ranked)
         if m.windows.facing is not None:  # (as the silhouette's own decisions weigh it)
             ranked[:] = m.windows.facing.weigh(ranked, recost=m.windows.plain_cost(queries))
-        return m.ballot.scores(vote, queries, ranked)
+        got = m.ballot.scores(vote, queries, ranked)
+        return None if got is None else (*got, weight)
 
     @property
     def why(self) -> str:
@@ -146,7 +167,8 @@ def _at_most(mask: NDArray[np.bool_], side: int) -> NDArray[np.bool_]:
     """``mask`` scaled down (by area) to at most ``side`` pixels on its longest side: the
     person model's own resolution. A silhouette's features are taken from its bounding
     box in cells, so they hardly change, and a 720x1280 mask's cost 10 ms a frame
-    against 2 ms (with ``ActionSettings.fuse``, every frame's are taken)."""
+    against 2 ms (with ``ActionSettings.fuse``, every frame's are taken while limbs are
+    hidden)."""
     h, w = mask.shape
     if max(h, w) <= side:
         return mask
@@ -159,14 +181,15 @@ def _at_most(mask: NDArray[np.bool_], side: int) -> NDArray[np.bool_]:
 class _Seen:
     """A frame's person mask, and its silhouette features, made on first use: the
     features cost 1-3 ms a frame (the mask scaled to at most 640 pixels first:
-    ``_at_most``), and while the landmarks serve alone (without ``ActionSettings.fuse``)
-    they are never needed. A frame ticked twice into the history is one object, its
-    features made once."""
+    ``_at_most``), and while the landmarks serve alone (every limb seen, or
+    ``ActionSettings.fuse`` off) they are never needed. ``hidden``: the share of the
+    frame's limb landmarks of low confidence. A frame ticked twice into the history is
+    one object, its features made once."""
 
-    __slots__ = ("_features", "mask")
+    __slots__ = ("_features", "hidden", "mask")
 
-    def __init__(self, mask: NDArray[np.bool_] | None) -> None:
-        self.mask = mask
+    def __init__(self, mask: NDArray[np.bool_] | None, hidden: float = 1.0) -> None:
+        self.mask, self.hidden = mask, hidden
         self._features: FloatArray | None = None
 
     def features(self, desc: Any, blank: FloatArray) -> FloatArray:

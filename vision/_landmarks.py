@@ -33,6 +33,8 @@ __all__ = ["MEDIAPIPE_INDEX", "PoseReader"]
 #: MediaPipe Pose's landmark index of each of ``POSE_JOINTS``
 MEDIAPIPE_INDEX = (11, 12, 13, 14, 15, 16, 23, 24, 25, 26, 27, 28)
 _TORSO = (0, 1, 6, 7)  # shoulders and hips, in POSE_JOINTS order
+_TORSO_NAMES = frozenset(POSE_JOINTS[j] for j in _TORSO)
+_LIMBS = len(POSE_JOINTS) - len(_TORSO)
 
 FloatArray = NDArray[np.float64]
 
@@ -58,6 +60,14 @@ class PoseReader:
         #: whether the last frame's shoulders are above its hips in the image
         self.upright = False
         self.why = ""
+
+    @property
+    def limbs_hidden(self) -> float:
+        """The share of the last frame's limb landmarks (those past the torso) of low
+        confidence; 1 where the frame has no pose."""
+        if self.why or not np.isfinite(self.visibility).all():
+            return 1.0
+        return sum(1 for j in self.hidden if j not in _TORSO_NAMES) / _LIMBS
 
     def read(self, landmarks: FloatArray | None, size: tuple[int, int]) -> FloatArray:
         """The pose vector ``(26,)`` of one frame's landmarks ``(33, 3)`` (x, y as image

@@ -226,7 +226,9 @@ class Performance:
             if self.fallback is not None:  # the person's mask, where the source gives
                 # one too, cleaned as a silhouette source's is
                 m = frame.mask
-                self.fallback.see(None if m is None else clean_mask_others(m)[0])
+                self.fallback.see(
+                    None if m is None else clean_mask_others(m)[0], self.reader.limbs_hidden
+                )
             return None
         if frame.mask is not None:
             if self.landmarks:
@@ -262,7 +264,7 @@ class Performance:
             if lm is None and getattr(self.segmenter, "unposed", False):
                 self.why_blank = UNPOSED
             if self.fallback is not None:
-                self.fallback.see(mask)
+                self.fallback.see(mask, self.reader.limbs_hidden)
         elif mask is not None:
             self.latest = silhouette_features(mask, descriptor=self.matcher.desc)
         else:

@@ -187,14 +187,15 @@ class ActionSettings:
         the same pose score; from the side and from behind it agrees a little less
         (``benchmarks/HISTORY.md``, "Steadiness").
     fuse : bool
-        With landmarks and the silhouette beside them (``vision._fallback``): each
-        decision's ballot weighs both descriptors' action scores, each by how well its
-        best window fits (``vision._vote.fused``). From the side and from behind the pose
-        model misplaces limbs that the silhouette still shows, and the two fit about
-        alike; from the front the landmarks fit far better and carry the vote. Off by
-        default: it follows the side and the back of another person much better, but
-        each decision costs a silhouette search more, and where the performer does what
-        the library lacks the avatar switches action twice as often
+        With landmarks and the silhouette beside them (``vision._fallback``): where the
+        pose model's limbs are of low confidence, each decision's ballot weighs both
+        descriptors' action scores, each by how well its best window fits
+        (``vision._vote.fused``) and the silhouette more the more limbs are hidden
+        (``SilhouetteFallback.evidence``). From the side the pose model places the far
+        arm and leg by guess, and the silhouette still shows them; with every limb seen
+        (a performer facing the camera) the landmarks decide alone, as without it, and
+        no silhouette search is made. On by default: a camera at the side or at three
+        quarters behind is followed much better, a performer facing it as before
         (``benchmarks/HISTORY.md``, "Both descriptors").
     tempos : tuple of float
         The vote also reads the performer at these tempos against the library's (0.6:
@@ -212,7 +213,7 @@ class ActionSettings:
     confidence: float = 0.0
     classify: bool = True
     strict_share: float = 0.9
-    fuse: bool = False
+    fuse: bool = True
     tempos: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:

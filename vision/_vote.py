@@ -234,18 +234,23 @@ class ActionVote:
         return {int(self.actions[frame]), int(self.actions[ahead])} != {self.voted}
 
 
-def fused(scores: Sequence[FloatArray], fits: Sequence[float]) -> FloatArray:
+def fused(
+    scores: Sequence[FloatArray], fits: Sequence[float], weights: Sequence[float] | None = None
+) -> FloatArray:
     """Action scores ``scores`` of several descriptors (each ``action_scores``', no
-    ``inf``) as one: their mean, each weighed by ``fit ** -FIT_POWER``, ``fit`` its best
-    window's per-frame cost over its reject threshold (lower: the descriptor reads the
-    performer better)."""
+    ``inf``) as one: their mean, each weighed by ``fit ** -FIT_POWER`` (times its
+    ``weights``, default 1), ``fit`` its best window's per-frame cost over its reject
+    threshold (lower: the descriptor reads the performer better)."""
     w = np.array([max(f, 1e-6) ** -FIT_POWER for f in fits])
+    if weights is not None:
+        w = w * np.asarray(weights, dtype=np.float64)
     return np.asarray(np.tensordot(w / w.sum(), np.asarray(scores), axes=1), dtype=np.float64)
 
 
 #: a second descriptor's evidence at a decision (``ActionChoice.partner``): its action
-#: scores and its fit (best per-frame cost over its reject threshold), or ``None``
-Partner = Callable[[ActionVote], "tuple[FloatArray, float] | None"]
+#: scores, its fit (best per-frame cost over its reject threshold) and its weight
+#: (``fused``), or ``None``
+Partner = Callable[[ActionVote], "tuple[FloatArray, float, float] | None"]
 
 
 class ActionChoice:
@@ -302,7 +307,8 @@ class ActionChoice:
         if scores is None or not np.isfinite(scores).any():
             return None, None
         if other is not None and np.isfinite(scores).all():
-            scores = fused([scores, other[0]], [self.fit(ranked, queries[0]), other[1]])
+            fits = [self.fit(ranked, queries[0]), other[1]]
+            scores = fused([scores, other[0]], fits, [1.0, other[2]])
         return int(np.argmin(scores)), scores
 
     def scores(

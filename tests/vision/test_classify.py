@@ -171,11 +171,13 @@ def test_perform_says_whether_the_classifier_settles_the_vote(
         err = capsys.readouterr().err
         assert "actions: " in err
         assert ("settled by an action classifier" in err) is said
-    # a silhouette video has no landmarks for the silhouette to be weighed beside
-    out = tmp_path / "fuse.bvh"
-    assert main([*base, "--fuse", "--seconds", "1.5", "--out", str(out)]) == 0
-    err = capsys.readouterr().err
-    assert "--fuse weighs the silhouette beside the landmarks" in err and "changes nothing" in err
+    # a silhouette video has no landmarks for the silhouette to be weighed beside: the
+    # option is taken, and the run says nothing of it
+    for flag in ("--fuse", "--no-fuse"):
+        out = tmp_path / f"fuse{flag}.bvh"
+        assert main([*base, flag, "--seconds", "1.5", "--out", str(out)]) == 0
+        err = capsys.readouterr().err
+        assert "fuse" not in err and "weighs it too" not in err
 
 
 def test_fused_scores_weigh_the_descriptor_that_fits_better() -> None:
@@ -186,12 +188,16 @@ def test_fused_scores_weigh_the_descriptor_that_fits_better() -> None:
     np.testing.assert_allclose(fused([a, b], [0.5, 0.25]), (a + w * b) / (1 + w))
     assert int(np.argmin(fused([a, b], [0.5, 0.25]))) == 1
     assert int(np.argmin(fused([a, b], [0.25, 0.5]))) == 0
+    # a weight multiplies the fit's (the silhouette's: how many limbs are hidden)
+    np.testing.assert_allclose(fused([a, b], [0.4, 0.4], [1.0, 0.5]), (a + 0.5 * b) / 1.5)
+    np.testing.assert_allclose(fused([a, b], [0.5, 0.25], [1.0, 0.0]), a)
 
 
 def test_a_ballot_with_a_partner_takes_the_better_fitting_descriptors_action(setup) -> None:
     """``ActionChoice.partner`` (the silhouette beside the landmarks): its scores are
-    weighed with the ballot's own by each one's fit, so a partner that fits far better
-    carries the vote, one that fits far worse does not, and none leaves the ballot's own."""
+    weighed with the ballot's own by each one's fit and its weight, so a partner that fits
+    far better carries the vote, one that fits far worse or weighs nothing does not, and
+    none leaves the ballot's own."""
     lib, layer, bank = setup
     keys = action_keys(lib.clips)
     assert keys is not None
@@ -209,8 +215,12 @@ def test_a_ballot_with_a_partner_takes_the_better_fitting_descriptors_action(set
     other = (own + 1) % got[0].size
     theirs = np.full(got[0].size, 3.0)
     theirs[other] = 1.0
-    for their_fit, want in ((fit / 10, other), (fit * 10, own)):
-        m.ballot.partner = lambda vote, f=their_fit: (theirs, f)
+    for their_fit, weight, want in (
+        (fit / 10, 1.0, other),
+        (fit * 10, 1.0, own),
+        (fit / 10, 0.0, own),
+    ):
+        m.ballot.partner = lambda vote, f=their_fit, w=weight: (theirs, f, w)
         choice, scores = m.ballot.choose(m.vote, queries, ranked, x)
         assert choice == want and scores is not None and int(np.argmin(scores)) == want
     m.ballot.partner = lambda vote: None

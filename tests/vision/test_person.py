@@ -194,7 +194,7 @@ def test_pose_landmarks_become_pose_vectors(squats: list[np.ndarray]) -> None:
     # ``hidden`` names it for the log and ``visibility`` keeps each landmark's
     model.apply(squats[0])
     assert model.landmarks is not None
-    lm = model.landmarks.copy()
+    lm, good_lm = model.landmarks.copy(), model.landmarks.copy()
     good = reader.read(lm, (720, 1280))
     assert reader.hidden == () and reader.upright
     flipped = lm.copy()  # the same landmarks upside down: read, and not upright
@@ -206,10 +206,19 @@ def test_pose_landmarks_become_pose_vectors(squats: list[np.ndarray]) -> None:
         assert reader.why == "" and reader.hidden == ("left_ankle",)
     np.testing.assert_allclose(held, good)
     assert reader.visibility[POSE_JOINTS.index("left_ankle")] == 0.0
+    # the share of the 8 limb landmarks of low confidence, which weighs the silhouette
+    # beside the landmarks (``SilhouetteFallback.evidence``): one here, none before
+    assert reader.limbs_hidden == 1 / 8
+    lm[[13, 15], 2] = 0.2  # the left elbow and wrist too: the far arm and leg of a side view
+    reader.read(lm, (720, 1280))
+    assert reader.limbs_hidden == 3 / 8
     # without the torso there is no pose: a frame of legs alone
     lm[[11, 12], 2] = 0.1
     assert np.isnan(reader.read(lm, (720, 1280))).all() and "torso" in reader.why
     assert reader.hidden[:2] == ("left_shoulder", "right_shoulder") and not reader.upright
+    assert reader.limbs_hidden == 1.0  # (no pose: the silhouette alone can speak)
+    reader.read(good_lm, (720, 1280))
+    assert reader.limbs_hidden == 0.0
     model.close()
 
 

@@ -30,6 +30,7 @@ from vision import (
     record_clip,
     truth_for,
 )
+from vision._fallback import HIDDEN_FULL
 from vision._perform import UNPOSED, Performance
 
 
@@ -207,11 +208,12 @@ def _run(
 
 
 @pytest.mark.gl
-def test_a_fused_ballot_weighs_the_silhouette_at_every_landmark_decision(
+def test_the_silhouette_weighs_in_each_landmark_decision_where_limbs_are_hidden(
     setup: Any, pose_bank: Any, mocap: Path, films: Path
 ) -> None:
     # the side view (jumping jacks, then twists): with ``fuse`` (``--fuse``) the
-    # silhouette's action scores are weighed into each landmark decision's ballot, and
+    # silhouette's action scores are weighed into each landmark decision's ballot where
+    # the pose model's limbs are of low confidence (from the side, most windows), and
     # the action is found
     lib, _, silhouettes = setup
     video = _film(mocap, films, (0.0, 8.0), azimuth=90.0)
@@ -225,16 +227,32 @@ def test_a_fused_ballot_weighs_the_silhouette_at_every_landmark_decision(
     r = run.run()
     by_landmarks = [d for d in r.decisions if d.get("by") == "landmarks"]
     assert len(by_landmarks) > 50 and len(asked) >= len(by_landmarks) - 10
-    assert sum(a is not None for a in asked) >= len(asked) - 10  # (its window full, it speaks)
+    assert sum(a is not None for a in asked) >= 0.8 * len(asked)  # (limbs hidden: it speaks)
     truth = truth_for(video)
     assert truth is not None
     report = evaluation(r.decisions, lib.clips, truth, r.media_seconds)
     assert report["best_at_lag_le_1s"] >= 0.6, report["per_action_at_best_lag"]
-    # without the silhouette beside them there is nothing to weigh; and without
-    # ``fuse`` (the default), the silhouette decides only where the landmarks fail
+    # its weight follows the window's share of limbs of low confidence: none with every
+    # limb seen (a performer facing the camera, whom the landmarks read well), in full
+    # from HIDDEN_FULL on
+    fallback, vote = run.fallback, run.matcher.vote
+    for seen in fallback.history:
+        seen.hidden = 0.0
+    assert fallback.evidence(vote) is None
+    for seen in fallback.history:
+        seen.hidden = HIDDEN_FULL / 2
+    half = fallback.evidence(vote)
+    assert half is not None and half[2] == pytest.approx(0.5)
+    for seen in fallback.history:
+        seen.hidden = 1.0
+    whole = fallback.evidence(vote)
+    assert whole is not None and whole[2] == 1.0
+    # without the silhouette beside them there is nothing to weigh; and with ``fuse``
+    # off (``--no-fuse``), the silhouette decides only where the landmarks fail
     alone = _run(video, setup, pose_bank, _Taped([]), fused)
     assert alone.fallback is None and alone.matcher.ballot.partner is None
-    plain = _run(video, setup, pose_bank, _Taped([]), PerformSettings(), fallback=silhouettes)
+    off = PerformSettings(match=MatchSettings(action=ActionSettings(fuse=False)))
+    plain = _run(video, setup, pose_bank, _Taped([]), off, fallback=silhouettes)
     assert plain.fallback is not None and plain.matcher.ballot.partner is None
 
 
