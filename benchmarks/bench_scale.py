@@ -3,7 +3,7 @@ frames.
 
 Usage: python -m benchmarks.bench_scale [LIBRARY_DIR] [--sizes 50000,200000,500000]
        [--steps graph,layer,bank,search,open] [--timeout 900] [--out FILE]
-       [--cluster local:2]
+       [--cluster local:2] [--merge]
 
 The synthetic library: every shared clip with the exercise subject's 31 joints, loaded
 at 15, 16, 17, ... frames/s and each played back at 15 frames/s (so a clip loaded at
@@ -28,7 +28,10 @@ memory, which includes the library's):
   shape statistics, window tables and index, and the first search, cold and warm
   (``benchmarks/_scale_open.py``);
 
-and a plot of each against frames (beside ``--out``: ``benchmarks/results/scale.png``).
+and a plot of each against frames (beside ``--out``: ``benchmarks/results/scale.png``),
+and each measure's growth exponent with the frames (``growth``: 1 linear, 2 quadratic).
+``--merge --steps ''`` runs nothing and writes the growth and the plot of what ``--out``
+holds.
 The library is ``../shared/mocap`` when it is beside the checkout (else the embedded one,
 said on stderr; name it when running from a copy elsewhere). A step that passes
 ``--timeout`` seconds or fails (memory) is recorded as such, and a step that passed the
@@ -321,6 +324,42 @@ def _run(root: Path, step: str, n: int, timeout: float) -> dict[str, Any]:
     return out
 
 
+#: the measures whose growth with the library's frames is reported (``_growth``)
+GROWTH = {
+    "graph": ("seconds", "peak_rss_mb"),
+    "layer": ("seconds", "peak_rss_mb"),
+    "bank": ("seconds_per_worker",),
+    "search": ("build_seconds", "build_peak_rss_mb", "query_ms_p99"),
+    "open": ("warm_seconds",),
+}
+
+
+def _growth(result: dict[str, Any]) -> dict[str, dict[str, dict[str, float]]]:
+    """Each measure's growth exponent: ``log(y2 / y1) / log(n2 / n1)`` between each pair
+    of sizes measured in a row, and over the smallest and largest of 50k and up (1:
+    linear in the frames; 2: quadratic)."""
+    out: dict[str, dict[str, dict[str, float]]] = {}
+    for step, keys in GROWTH.items():
+        for key in keys:
+            pts = sorted(
+                (int(p["frames"]), float(p[key]))
+                for p in result["steps"].get(step, [])
+                if isinstance(p.get(key), (int, float)) and p[key] > 0 and p["frames"] >= 50_000
+            )
+            if len(pts) < 2:
+                continue
+            pairs = [*itertools.pairwise(pts)]
+            if len(pts) > 2:
+                pairs.append((pts[0], pts[-1]))
+            out.setdefault(step, {})[key] = {
+                f"{a[0] // 1000}k-{b[0] // 1000}k": round(
+                    float(np.log(b[1] / a[1]) / np.log(b[0] / a[0])), 2
+                )
+                for a, b in pairs
+            }
+    return out
+
+
 def _plot(result: dict[str, Any], path: Path) -> None:
     import matplotlib
 
@@ -392,7 +431,7 @@ def main() -> None:
             file=sys.stderr,
         )
     result["library"] = str(root)
-    for step in args.steps.split(","):
+    for step in [s for s in args.steps.split(",") if s]:  # (--merge --steps '': growth)
         # --merge: the sizes not run now keep their earlier results
         result["steps"][step] = [
             e for e in result["steps"].get(step, []) if e.get("frames") not in sizes
@@ -412,6 +451,7 @@ def main() -> None:
             result["steps"][step].sort(key=lambda e: int(e.get("frames", 0)))
             print(step, json.dumps(got), flush=True)
             save(result, args.out)  # (so far, should a later step be stopped)
+    result["growth"] = _growth(result)
     _plot(result, Path(args.out).with_suffix(".png"))
     save(result, args.out)
 
