@@ -63,6 +63,7 @@ __all__ = [
     "checksum",
     "clear_cache",
     "current_umask",
+    "is_held",
     "is_locked",
     "read_checked_npz",
     "read_npz",
@@ -413,11 +414,15 @@ def cached_in_parts(
 
 def is_locked(folder: str | Path) -> bool:
     """Whether a process holds ``folder``'s build lock now."""
-    path = Path(folder) / LOCK_NAME
-    if fcntl is None or not path.is_file():
+    return is_held(Path(folder) / LOCK_NAME)
+
+
+def is_held(path: str | Path) -> bool:
+    """Whether a process (this one too) holds a ``flock`` on the file ``path`` now."""
+    if fcntl is None or not Path(path).is_file():
         return False
     try:
-        with open(path, "a") as fh:
+        with open(path, "rb") as fh:
             fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
             fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
     except BlockingIOError:

@@ -101,6 +101,8 @@ class SilhouetteFallback:
         self.latest = _Seen(None)
         #: the history held under a window at the last ``decide``
         self.filling = False
+        #: the weight of the last ``evidence`` given (0: none since it was reset)
+        self.weighed = 0.0
 
     def see(self, mask: NDArray[np.bool_] | None, hidden: float = 1.0) -> None:
         """The latest frame's person mask (``None``: none), and the share of the limb
@@ -155,7 +157,10 @@ class SilhouetteFallback:
         if m.windows.facing is not None:  # (as the silhouette's own decisions weigh it)
             ranked[:] = m.windows.facing.weigh(ranked, recost=m.windows.plain_cost(queries))
         got = m.ballot.scores(vote, queries, ranked)
-        return None if got is None else (*got, weight)
+        if got is None:
+            return None
+        self.weighed = weight
+        return (*got, weight)
 
     @property
     def why(self) -> str:

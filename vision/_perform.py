@@ -225,10 +225,8 @@ class Performance:
             self.why_blank, self.latest_mask = self.reader.why, None
             if self.fallback is not None:  # the person's mask, where the source gives
                 # one too, cleaned as a silhouette source's is
-                m = frame.mask
-                self.fallback.see(
-                    None if m is None else clean_mask_others(m)[0], self.reader.limbs_hidden
-                )
+                m = None if frame.mask is None else clean_mask_others(frame.mask)[0]
+                self.fallback.see(m, self.reader.limbs_hidden)
             return None
         if frame.mask is not None:
             if self.landmarks:
@@ -369,6 +367,8 @@ class Performance:
         why the silhouette did not)."""
         matcher, avatar = self.matcher, self.avatar
         recent = avatar.recent(matcher.recent_frames)
+        if self.fallback is not None:
+            self.fallback.weighed = 0.0  # (set by its evidence, where the ballot asks it)
         d = (
             matcher.decide(avatar.frame, np.array(self.history), recent, avatar.jump_costs)
             if self.jumps
@@ -378,6 +378,8 @@ class Performance:
             return d
         if d is not None:
             entry["by"] = "landmarks"
+            if self.fallback.weighed > 0:  # the silhouette weighed in (limbs hidden)
+                entry["silhouette_weight"] = round(self.fallback.weighed, 2)
             return d
         why = matcher.why.split(" (")[0]
         upright = self.reader is not None and self.reader.upright

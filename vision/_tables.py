@@ -47,6 +47,7 @@ import silhouette_bank
 from control.artifacts import (
     atomic_write,
     checksum,
+    is_held,
     read_checked_npz,
     verify_checksum,
     write_checked_npz,
@@ -310,21 +311,6 @@ def _hold(manifest: Path, table: np.ndarray) -> None:
     weakref.finalize(table, fh.close)
 
 
-def _in_use(manifest: Path) -> bool:
-    """Whether a process (this one too) holds ``manifest`` (``_hold``)."""
-    if fcntl is None:
-        return False
-    try:
-        with open(manifest, "rb") as fh:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
-    except BlockingIOError:
-        return True
-    except OSError:
-        return False
-    return False
-
-
 def _prune(folder: Path) -> None:
     """Remove all but the ``KEEP_TABLES`` most recently used table pairs of ``folder``,
     and never a pair that a process has open (``_hold``)."""
@@ -333,7 +319,7 @@ def _prune(folder: Path) -> None:
         with contextlib.suppress(OSError):
             sets.append((m.stat().st_mtime_ns, m))
     for _, m in sorted(sets, reverse=True)[KEEP_TABLES:]:
-        if _in_use(m):
+        if is_held(m):  # (open in a run: ``_hold``)
             continue
         stem = str(m)[: -len(".json")]
         with contextlib.suppress(OSError):

@@ -103,10 +103,7 @@ def test_at_most_a_few_tables_are_kept_and_never_ones_still_open(setup, tmp_path
     assert len(list(folder.glob("windows-*.json"))) == KEEP_TABLES + 1
     assert len(list(folder.glob("windows-*-shape.npy"))) == KEEP_TABLES + 1
     # another process's prune leaves it too (the lock is the file's, not this process's)
-    code = (
-        "import sys; from pathlib import Path; import vision._tables as t; "
-        "print(t._in_use(Path(sys.argv[1])))"
-    )
+    code = "import sys; from control.artifacts import is_held; print(is_held(sys.argv[1]))"
     out = subprocess.run([sys.executable, "-c", code, str(manifest)], capture_output=True)
     assert out.stdout.decode().strip() == "True", out.stderr.decode()[-2000:]
     del held

@@ -228,6 +228,9 @@ def test_the_silhouette_weighs_in_each_landmark_decision_where_limbs_are_hidden(
     by_landmarks = [d for d in r.decisions if d.get("by") == "landmarks"]
     assert len(by_landmarks) > 50 and len(asked) >= len(by_landmarks) - 10
     assert sum(a is not None for a in asked) >= 0.8 * len(asked)  # (limbs hidden: it speaks)
+    # the log says where it weighed in, and how much
+    weighed = [d["silhouette_weight"] for d in by_landmarks if "silhouette_weight" in d]
+    assert len(weighed) >= 0.8 * len(by_landmarks) - 10 and all(0 < w <= 1 for w in weighed)
     truth = truth_for(video)
     assert truth is not None
     report = evaluation(r.decisions, lib.clips, truth, r.media_seconds)
