@@ -101,8 +101,8 @@ class SilhouetteFallback:
         self.latest = _Seen(None)
         #: the history held under a window at the last ``decide``
         self.filling = False
-        #: the weight of the last ``evidence`` given (0: none since it was reset)
-        self.weighed = 0.0
+        #: the weight of the evidence given since ``weight_given`` was last asked
+        self._weighed = 0.0
 
     def see(self, mask: NDArray[np.bool_] | None, hidden: float = 1.0) -> None:
         """The latest frame's person mask (``None``: none), and the share of the limb
@@ -159,8 +159,14 @@ class SilhouetteFallback:
         got = m.ballot.scores(vote, queries, ranked)
         if got is None:
             return None
-        self.weighed = weight
+        self._weighed = weight
         return (*got, weight)
+
+    def weight_given(self) -> float:
+        """The weight of the evidence given to the landmarks' ballot since the last ask
+        (0: none; the decision log's ``silhouette_weight``)."""
+        weight, self._weighed = self._weighed, 0.0
+        return weight
 
     @property
     def why(self) -> str:

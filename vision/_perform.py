@@ -367,8 +367,6 @@ class Performance:
         why the silhouette did not)."""
         matcher, avatar = self.matcher, self.avatar
         recent = avatar.recent(matcher.recent_frames)
-        if self.fallback is not None:
-            self.fallback.weighed = 0.0  # (set by its evidence, where the ballot asks it)
         d = (
             matcher.decide(avatar.frame, np.array(self.history), recent, avatar.jump_costs)
             if self.jumps
@@ -376,10 +374,11 @@ class Performance:
         )
         if self.fallback is None:
             return d
+        weight = self.fallback.weight_given()  # (where the ballot asked it: limbs hidden)
         if d is not None:
             entry["by"] = "landmarks"
-            if self.fallback.weighed > 0:  # the silhouette weighed in (limbs hidden)
-                entry["silhouette_weight"] = round(self.fallback.weighed, 2)
+            if weight > 0:
+                entry["silhouette_weight"] = round(weight, 2)
             return d
         why = matcher.why.split(" (")[0]
         upright = self.reader is not None and self.reader.upright
