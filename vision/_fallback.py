@@ -113,11 +113,14 @@ class SilhouetteFallback:
         """One library frame on: the latest mask into the history."""
         self.history.append(self.latest)
 
+    def _last(self, last: int | None) -> list[_Seen]:
+        """The history's ``last`` frames (``None``: all of it)."""
+        n = len(self.history)
+        return list(itertools.islice(self.history, 0 if last is None else max(0, n - last), n))
+
     def features(self, last: int | None = None) -> FloatArray:
         """The silhouette features ``(m, F)`` of the history (its ``last`` frames)."""
-        n = len(self.history)
-        seen = itertools.islice(self.history, 0 if last is None else max(0, n - last), n)
-        return np.array([s.features(self.matcher.desc, self.blank) for s in seen])
+        return np.array([s.features(self.matcher.desc, self.blank) for s in self._last(last)])
 
     def decide(
         self, frame: int, recent: NDArray[np.int64] | None, costs: JumpCosts | None
@@ -135,8 +138,7 @@ class SilhouetteFallback:
     def hidden(self, last: int) -> float:
         """The share of limb landmarks of low confidence over the history's ``last``
         frames (``see``)."""
-        n = len(self.history)
-        seen = list(itertools.islice(self.history, max(0, n - last), n))
+        seen = self._last(last)
         return float(np.mean([s.hidden for s in seen])) if seen else 1.0
 
     def evidence(self, vote: ActionVote) -> tuple[FloatArray, float, float] | None:

@@ -265,8 +265,9 @@ class ActionChoice:
     ) -> None:
         self.windows, self.settings, self.n, self.folder = windows, settings, n, folder
         self._classifier: tuple[ActionClassifier | None, int] | None = None
-        #: another descriptor's evidence, weighed with this one's (``fused``) at every
-        #: decision (``ActionSettings.fuse``: the silhouette beside the landmarks)
+        #: another descriptor's evidence, weighed with this one's (``fused``) at the
+        #: decisions where it gives any (``ActionSettings.fuse``: the silhouette beside
+        #: the landmarks, where limbs are hidden)
         self.partner: Partner | None = None
 
     def classifier(self, actions: IntArray | None) -> ActionClassifier | None:
