@@ -34,11 +34,6 @@ import os
 import shutil
 import tempfile
 import time
-
-try:
-    import fcntl
-except ImportError:  # (not POSIX: no locks)
-    fcntl = None  # type: ignore[assignment]
 from collections.abc import Callable, Collection, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -46,6 +41,8 @@ from pathlib import Path
 from typing import IO, Any, TypeVar
 
 import numpy as np
+
+from ._locks import LOCK_NAME, build_lock, hold_while, is_held, is_locked
 
 __all__ = [
     "CACHE_KINDS",
@@ -63,6 +60,7 @@ __all__ = [
     "checksum",
     "clear_cache",
     "current_umask",
+    "hold_while",
     "is_held",
     "is_locked",
     "read_checked_npz",
@@ -319,27 +317,6 @@ def _remove(path: Path) -> None:
         path.unlink(missing_ok=True)
 
 
-#: the lock file inside a folder that a process is building (``build_lock``)
-LOCK_NAME = ".building.lock"
-
-
-@contextmanager
-def build_lock(folder: str | Path) -> Iterator[None]:
-    """Hold the build lock of ``folder`` (made if missing): another process that asks
-    for it waits until this one is done, then finds what it built. (POSIX ``flock``; a
-    no-op where there is none.)"""
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    with open(folder / LOCK_NAME, "a") as fh:
-        if fcntl is not None:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            if fcntl is not None:
-                fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
-
-
 @contextmanager
 def _cache_lock(folder: Path) -> Iterator[None]:
     """``build_lock`` of a cache folder, or none where the folder cannot hold one (a
@@ -410,26 +387,6 @@ def cached_in_parts(
         return entry
 
     return cached_entry(path, load, make, rebuild)
-
-
-def is_locked(folder: str | Path) -> bool:
-    """Whether a process holds ``folder``'s build lock now."""
-    return is_held(Path(folder) / LOCK_NAME)
-
-
-def is_held(path: str | Path) -> bool:
-    """Whether a process (this one too) holds a ``flock`` on the file ``path`` now."""
-    if fcntl is None or not Path(path).is_file():
-        return False
-    try:
-        with open(path, "rb") as fh:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
-    except BlockingIOError:
-        return True
-    except OSError:
-        return False
-    return False
 
 
 def bound_cache(

@@ -92,8 +92,6 @@ class SilhouetteFallback:
             matcher.windows.open(bars, "search (fallback)")
             matcher.warm_up(avatar.frame, avatar.recent(matcher.recent_frames), costs)
         matcher.ready(clips, period)
-        if settings.action.fuse:  # the landmarks' ballot weighs the silhouette's too
-            main.ballot.partner = self.evidence
         self.blank = np.full(matcher.n_features, np.nan)
         #: the performer's masks at the library's rate, in step with the landmark
         #: features' history

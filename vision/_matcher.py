@@ -40,7 +40,7 @@ from ._landing import Lander
 from ._paths import CandidatePaths
 from ._search import WindowSearch
 from ._settings import MatchSettings
-from ._vote import ActionChoice, ActionVote
+from ._vote import ActionChoice, ActionVote, Partner
 from ._windows import (
     per_frame_cost,
 )
@@ -67,6 +67,7 @@ class Matcher:
         actions: IntArray | None = None,
         names: Sequence[str] = (),
         vote: ActionVote | None = None,
+        partner: Partner | None = None,
     ) -> None:
         self.layer = layer
         self.graph = layer.graph
@@ -92,8 +93,9 @@ class Matcher:
         self.why = ""
         #: Lee et al.'s candidate paths from the avatar's frame
         self.paths = CandidatePaths(layer, self.settings.paths, self.n, self.bound, self.plays)
-        #: what each decision votes for
-        self.ballot = ActionChoice(self.windows, self.settings, self.n, bank.path or None)
+        #: what each decision votes for (``partner``: another descriptor's evidence, weighed
+        #: with this one's)
+        self.ballot = ActionChoice(self.windows, self.settings, self.n, bank.path or None, partner)
         #: frames the avatar must have played on before it may jump again; ``decide``
         #: needs at least this many (and a window's) ``recent`` frames
         self.hold_frames = max(1, round(self.settings.landing.min_play * self.graph.fps))

@@ -100,11 +100,9 @@ def perform(
     pose model's landmarks, each ``None`` when there are none), ``on_decision(entry)``
     with every decision log entry (the live view uses both). ``stop()`` is asked before
     every frame: a non-empty answer (why) ends the run there, and what was performed is
-    returned as usual.
-    ``fallback``: with a pose ``bank``, a silhouette bank of the same clips, whose
-    matcher decides when the landmarks cannot (``vision._fallback``). ``bars(label,
-    unit)``: progress bars (``control.progress.bar``) for the search's tables and index
-    where they are made before the run (a large library's take minutes)."""
+    returned as usual. ``fallback``: with a pose ``bank``, a silhouette bank of the same
+    clips (``vision._fallback``). ``bars(label, unit)``: progress bars for the search's
+    tables and index where they are made before the run (a large library's take minutes)."""
     run = Performance(source, layer, bank, clips, settings, start, seed, fallback, bars)
     return run.run(log=log, tape=tape, on_frame=on_frame, on_decision=on_decision, stop=stop)
 
@@ -131,7 +129,12 @@ class Performance:
         self.graph, clips = layer.graph, layer.graph.clips_of(clips)
         self.source, self.clips, self.start, self.seed = source, clips, start, seed
         self.settings = settings = settings or PerformSettings()
-        self.matcher = matcher = Matcher(layer, bank, settings.match)
+        #: the silhouette's matcher, where the landmarks fail (landmarks only; made below)
+        self.fallback: SilhouetteFallback | None = None
+        # with ``fuse``, the landmarks' ballot weighs the silhouette's evidence too
+        fuse = fallback is not None and settings.match.action.fuse
+        partner = (lambda v: self.fallback.evidence(v) if self.fallback else None) if fuse else None
+        self.matcher = matcher = Matcher(layer, bank, settings.match, partner=partner)
         # motion matching: relocation at every decision. One set of jump costs for every
         # avatar of the run, its frame features computed before the first frame
         self.jumps = jumps = settings.match.landing.jumps
@@ -152,14 +155,9 @@ class Performance:
         self.segmenter: Any = None
         self.landmarks = matcher.desc.kind == "pose"
         self.reader = PoseReader() if self.landmarks else None
-        #: the silhouette's matcher, where the landmarks fail (landmarks only)
-        self.fallback = (
-            SilhouetteFallback(
-                layer, fallback, clips, matcher, self.avatar, self.costs, period, bars
-            )
-            if fallback is not None and self.landmarks
-            else None
-        )
+        if fallback is not None and self.landmarks:
+            args = (layer, fallback, clips, matcher, self.avatar, self.costs, period, bars)
+            self.fallback = SilhouetteFallback(*args)
         self.why_blank = ""  # why the latest frame has no features
         #: other people in view in the latest frame's mask, beside the one followed (the
         #: largest blob: ``clean_mask_others``); the decisions' log says so

@@ -21,7 +21,7 @@ is made again with a warning naming it; a folder that cannot be written is only 
 most ``KEEP_TABLES`` table pairs are kept per bank (the least recently used go first),
 and the window indexes made from them (``vision._index``) go with them
 (``prune_indexes``). Tables that a process has open are not removed: it holds a shared
-``flock`` on their manifest while their arrays live (``_hold``), so that another
+``flock`` on their manifest while their arrays live (``hold_while``), so that another
 performer's run beside it cannot prune them, and with them the index stored for them.
 """
 
@@ -35,7 +35,6 @@ import os
 import shutil
 import threading
 import time
-import weakref
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -47,6 +46,7 @@ import silhouette_bank
 from control.artifacts import (
     atomic_write,
     checksum,
+    hold_while,
     is_held,
     read_checked_npz,
     verify_checksum,
@@ -56,11 +56,6 @@ from control.dtw import SHAPE_DTYPE, ShapeTable
 from silhouette_bank import Bank, block_hashes, npy_file, open_mapped
 
 from ._windows import shape_stats, window_tables
-
-try:  # (POSIX; elsewhere tables in use are not told from others)
-    import fcntl
-except ImportError:  # pragma: no cover
-    fcntl = None  # type: ignore[assignment]
 
 log = logging.getLogger(__name__)
 
@@ -178,7 +173,7 @@ def cached_window_tables(
             shape, centre = _open(manifest, stem, key, shapes)
             with contextlib.suppress(OSError):
                 os.utime(manifest)  # (used: the last to be pruned)
-            _hold(manifest, shape)
+            hold_while(manifest, shape)
             return shape, centre, key
         except WindowTablesError as exc:
             log.warning("making the window tables again: %s", exc)
@@ -190,7 +185,7 @@ def cached_window_tables(
         log.info("the window tables are not stored: %s", exc)
         made = window_tables(bank, frames, clip_start, mean, proj, centre_weight, None, progress)
         return (*made, key)
-    _hold(manifest, shape)
+    hold_while(manifest, shape)
     _prune(folder)
     _check_later(manifest, stem, key, shapes)
     return shape, centre, key
@@ -293,33 +288,15 @@ def _write(
     )
 
 
-def _hold(manifest: Path, table: np.ndarray) -> None:
-    """Hold a shared ``flock`` on ``manifest`` for as long as ``table`` (the mapped shape
-    table; the centre table's user holds it too) lives: ``_prune`` leaves the tables of a
-    manifest someone holds."""
-    if fcntl is None:
-        return
-    try:
-        fh = open(manifest, "rb")  # noqa: SIM115  (closed when ``table`` goes)
-    except OSError:
-        return
-    try:
-        fcntl.flock(fh.fileno(), fcntl.LOCK_SH | fcntl.LOCK_NB)
-    except OSError:  # (a file system without locks: the tables are only pruned by age)
-        fh.close()
-        return
-    weakref.finalize(table, fh.close)
-
-
 def _prune(folder: Path) -> None:
     """Remove all but the ``KEEP_TABLES`` most recently used table pairs of ``folder``,
-    and never a pair that a process has open (``_hold``)."""
+    and never a pair that a process has open (``hold_while``)."""
     sets = []
     for m in folder.glob("windows-*.json"):
         with contextlib.suppress(OSError):
             sets.append((m.stat().st_mtime_ns, m))
     for _, m in sorted(sets, reverse=True)[KEEP_TABLES:]:
-        if is_held(m):  # (open in a run: ``_hold``)
+        if is_held(m):  # (open in a run: ``hold_while``)
             continue
         stem = str(m)[: -len(".json")]
         with contextlib.suppress(OSError):

@@ -42,7 +42,7 @@ from ._search import WindowSearch
 from ._settings import ActionSettings, MatchSettings
 from ._windows import per_frame_cost, tempo_readings
 
-__all__ = ["ActionChoice", "ActionVote", "fused"]
+__all__ = ["ActionChoice", "ActionVote", "Partner", "fused"]
 
 #: how steeply ``fused`` weighs a descriptor by its fit: (reject / per-frame cost) to this
 #: power. From the front the pose model's landmarks' best windows cost about 0.3 of their
@@ -258,17 +258,22 @@ class ActionChoice:
     library's action classifier (``vision._classify``) and the search's costs agree
     (``action_scores``), the performer read at ``settings.action.tempos`` too.
     ``windows``: the matcher's window search, whose tables the classifier is learned
-    from and stored beside (in ``folder``, the bank's)."""
+    from and stored beside (in ``folder``, the bank's). ``partner``: another
+    descriptor's evidence, weighed with this one's (``fused``) at the decisions where it
+    gives any (``ActionSettings.fuse``: the silhouette beside the landmarks, where limbs
+    are hidden)."""
 
     def __init__(
-        self, windows: WindowSearch, settings: MatchSettings, n: int, folder: str | None
+        self,
+        windows: WindowSearch,
+        settings: MatchSettings,
+        n: int,
+        folder: str | None,
+        partner: Partner | None = None,
     ) -> None:
         self.windows, self.settings, self.n, self.folder = windows, settings, n, folder
         self._classifier: tuple[ActionClassifier | None, int] | None = None
-        #: another descriptor's evidence, weighed with this one's (``fused``) at the
-        #: decisions where it gives any (``ActionSettings.fuse``: the silhouette beside
-        #: the landmarks, where limbs are hidden)
-        self.partner: Partner | None = None
+        self.partner = partner
 
     def classifier(self, actions: IntArray | None) -> ActionClassifier | None:
         """The classifier of the library's ``actions``, learned on first use and stored;
