@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from vision import ActionVote
+from vision import ActionVote, switch_delays
 
 LAGS = (0.0, 0.25, 0.5, 0.75, 1.0)
 
@@ -92,9 +92,19 @@ def pose_oracle(
             scores.append(float(np.mean([g == t for g, t in pairs])) if pairs else 0.0)
         return round(max(scores), 3)
 
+    # how long after each of the performer's switches the nearest windows take the new
+    # action up: the lag of a window this long even where the pose is exact
+    labelled = {str(a) for a in lib_actions if not str(a).startswith("clip ")}
+    k = np.clip(np.round(times * fps).astype(int), 0, len(truth_labels) - 1)
+    performer = [truth_labels[i] for i in k]
+    voted = _voted(best, vote)
     return {
         "decisions": int(times.size),
         "pose_error": float(np.mean(err)),
         "best_at_lag_le_1s": agreement(best),
-        f"voted_{vote}_best_at_lag_le_1s": agreement(_voted(best, vote)),
+        f"voted_{vote}_best_at_lag_le_1s": agreement(voted),
+        "switch_followed_after_s": switch_delays(best, performer, times.tolist(), labelled),
+        f"voted_{vote}_switch_followed_after_s": switch_delays(
+            voted, performer, times.tolist(), labelled
+        ),
     }

@@ -98,6 +98,7 @@ from vision import (
     perform,
     performer_sequence,
     record_clip,
+    switch_delays,
     truth_for,
 )
 
@@ -345,6 +346,11 @@ def _run_figures(
                 [x or "(none)" for x in avatar_labels], times.tolist(), seconds
             ),
         },
+        # the lag as a viewer sees it: how long after each of the performer's switches
+        # the avatar took the new action up
+        "switch_followed_after_s": switch_delays(
+            avatar_labels, [x or None for x in performer_labels], times.tolist(), known
+        ),
         "latency_ms": {
             "p50": float(np.percentile(lat, 50)),
             "p99": float(np.percentile(lat, 99)),

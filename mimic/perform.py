@@ -29,9 +29,11 @@ from vision import (
     StagePainter,
     Truth,
     agreement,
+    avatar_labels,
     library_actions,
     open_source,
     perform,
+    switch_delays,
     truth_for,
     write_video,
 )
@@ -449,3 +451,13 @@ def _print_agreement(decisions: list[dict[str, Any]], clips: list[Clip], truth: 
         f"do the performer's action (best lag within 1 s: {got['best_lag_s']:g} s; "
         f"by lag {curve}; {n} decisions)"
     )
+    at = [float(d["t"]) for d in decisions]
+    theirs = [truth.label_at(t) for t in at]
+    lag = switch_delays(avatar_labels(decisions, clips), theirs, at, known)
+    if lag["switches"]:
+        followed = lag["switches"] - lag["missed"]
+        after = f", a median {lag['median_s']:g} s later" if followed else ""
+        print(
+            f"the avatar took up the performer's new action at {followed} of "
+            f"{lag['switches']} changes{after}"
+        )

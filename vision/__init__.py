@@ -20,6 +20,7 @@ from ._evaluate import (
     evaluation,
     plot_evaluation,
     plot_timeline,
+    switch_delays,
 )
 from ._index import (
     IndexFileError,
@@ -182,6 +183,7 @@ __all__ = [
     "read_span_labels",
     "record_clip",
     "shape_stats",
+    "switch_delays",
     "truth_for",
     "vendor_three",
     "window_tables",

@@ -5,6 +5,8 @@ From a performance (``perform``'s result) and its ground truth: agreement agains
 a lag of at most 1 s, the confusion matrix and per-action agreement at that lag, chance
 (the avatar at a random library frame), the avatar's and the performer's action switches
 a minute, the avatar's brief actions a minute (flicker: ``brief_actions_per_minute``),
+how long after each of the performer's switches the avatar took the new action up
+(``switch_delays``: the lag as a viewer sees it, to the decision),
 the decision points without a decision, per reason (``decision_points``), and the
 decision latency. ``plot_evaluation`` draws agreement against lag beside
 the confusion matrix (matplotlib, headless).
@@ -31,6 +33,7 @@ __all__ = [
     "evaluation",
     "plot_evaluation",
     "plot_timeline",
+    "switch_delays",
 ]
 
 #: an action the avatar shows for less than this (seconds) is flicker: it is gone before
@@ -54,6 +57,49 @@ def brief_actions_per_minute(
     starts = [next(g)[1] for _, g in itertools.groupby(kept, key=lambda p: p[0])]
     n = sum(b - a < brief for a, b in itertools.pairwise(starts[1:]))
     return round(n / max(seconds / 60.0, 1e-9), 2)
+
+
+#: a performer's switch that the avatar has not followed within this many seconds is
+#: missed (``switch_delays``): by then the avatar is doing something else for good
+FOLLOW_WITHIN_S = 4.0
+
+
+def switch_delays(
+    avatar: Sequence[str | None],
+    performer: Sequence[str | None],
+    times: Sequence[float],
+    known: set[str] | None = None,
+    within: float = FOLLOW_WITHIN_S,
+) -> dict[str, Any]:
+    """How long after each switch of the performer's action (``performer`` at ``times``,
+    ``None``: unlabelled) into an action the library has (``known``; default: every
+    action the avatar shows) the avatar first shows it (``avatar``): the lag of the
+    action as a viewer sees it, switch by switch, where the best lag of the agreement
+    curve is one number over its coarse steps. A switch is where the performer's label
+    changes into such an action, from another or from an unlabelled stretch (standing
+    between squats); one not followed within ``within`` seconds is ``missed``, and one
+    the recording's end cuts off before then is not counted. ``median_s`` and ``mean_s``
+    are over the followed."""
+    have = {a for a in avatar if a} if known is None else known
+    t = [float(x) for x in times]
+    each: list[float] = []
+    missed = 0
+    for i in range(1, len(performer)):
+        new, old = performer[i], performer[i - 1]
+        if not new or new == old or new not in have:
+            continue
+        j = next((j for j in range(i, len(t)) if t[j] - t[i] > within or avatar[j] == new), None)
+        if j is not None and avatar[j] == new:
+            each.append(round(t[j] - t[i], 3))
+        elif j is not None:  # (else cut off by the end)
+            missed += 1
+    return {
+        "switches": len(each) + missed,
+        "missed": missed,
+        "median_s": round(float(np.median(each)), 3) if each else None,
+        "mean_s": round(float(np.mean(each)), 3) if each else None,
+        "each_s": each,
+    }
 
 
 #: reasons for no decision that are no failure to follow a person in view: nobody is, the
@@ -135,6 +181,7 @@ def evaluation(
                 mine, at, media_seconds
             ),
         },
+        "switch_followed_after_s": switch_delays(mine, theirs, at, known),
         "decision_points": decision_points(decisions),
         # what a viewer compares: the performer's action and the avatar's, on one time axis
         "timeline": {"t": [round(x, 3) for x in at], "performer": theirs, "avatar": mine},

@@ -17,6 +17,7 @@ from vision import (
     agreement,
     brief_actions_per_minute,
     plot_timeline,
+    switch_delays,
     truth_for,
 )
 from vision._video import PANE, MaskTape, _frame_decisions, performer_pane
@@ -99,6 +100,27 @@ def test_a_brief_action_is_one_the_avatar_shows_under_half_a_second() -> None:
     assert brief_actions_per_minute(["a", "b", "c", "d", "e"], t[:5], 60.0) == 3.0
     # an unlabelled decision (None) is skipped
     assert brief_actions_per_minute(["a", "b", None, "a", "a"], t[:5], 30.0) == 2.0
+
+
+def test_a_switch_is_followed_when_the_avatar_first_shows_the_new_action() -> None:
+    t = [i / 10 for i in range(60)]
+    performer = ["a"] * 10 + ["b"] * 20 + [None] * 5 + ["c"] * 10 + ["d"] * 15
+    # b taken up 0.8 s after the performer, after a brief third action; c (after an
+    # unlabelled stretch) at once; d not within 1 s: missed
+    avatar = ["a"] * 15 + ["x"] * 3 + ["b"] * 17 + ["c"] * 25
+    got = switch_delays(avatar, performer, t, known={"a", "b", "c", "d"}, within=1.0)
+    assert got["each_s"] == [0.8, 0.0] and got["missed"] == 1 and got["switches"] == 3
+    assert got["median_s"] == 0.4 and got["mean_s"] == 0.4
+    # a switch into an action the library lacks is none the avatar could follow
+    got = switch_delays(avatar, performer, t, known={"a", "b"})
+    assert got == {"switches": 1, "missed": 0, "median_s": 0.8, "mean_s": 0.8, "each_s": [0.8]}
+    # not followed within the limit: missed; cut off by the end before it: not counted
+    late = ["a"] * 55 + ["b"] * 5
+    assert switch_delays(late, performer, t, known={"b"}, within=4.0)["missed"] == 1
+    assert switch_delays(late, performer, t, known={"b"}, within=5.0)["each_s"] == [4.5]
+    assert switch_delays(late[:50], performer[:50], t[:50], known={"b"}, within=5.0) == {
+        "switches": 0, "missed": 0, "median_s": None, "mean_s": None, "each_s": []
+    }  # fmt: skip
 
 
 def test_the_mask_tape_plays_back_what_was_written(rng: np.random.Generator) -> None:
