@@ -217,6 +217,7 @@ def agreement(
             "confusion_at_best_lag": report["confusion_at_best_lag"],
             "chance": report["chance"],
             "switches_per_minute": report["switches_per_minute"],
+            "switch_followed_after_s": report["switch_followed_after_s"],
             "decisions": len(result.decisions),
             "loop_frames_per_s": round(result.frames_read / wall, 1),
             "loop_frames_per_s_search_in_thread": round(live.frames_read / live_wall, 1),
