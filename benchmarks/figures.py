@@ -42,11 +42,13 @@ def _load(name: str) -> dict[str, Any]:
 def _runs(name: str) -> dict[str, float]:
     """Means over a ``bench_accuracy`` result's runs: agreement (actions the library
     has, the best lag within 1 s), pose score, the avatar's and the performers' action
-    switches a minute, and the brief ones."""
-    agree, pose, avatar, brief, performer = [], [], [], [], []
+    switches a minute, and the brief ones; and the median delay with which the avatar
+    took up the performers' changes of action, over every run's."""
+    agree, pose, avatar, brief, performer, after = [], [], [], [], [], []
     try:
         for fold in _load(name)["folds"]:
             for run in fold["runs"]:
+                after += run.get("switch_followed_after_s", {}).get("each_s", [])
                 curve = [c for c in run["curve"] if c["lag"] <= 1.0]
                 agree.append(max(c["label_agreement_known_actions"] or 0.0 for c in curve))
                 pose.append(max(c["score"] for c in curve))
@@ -65,6 +67,8 @@ def _runs(name: str) -> dict[str, float]:
         "switches": float(np.mean(avatar)),
         "brief": float(np.mean(brief)),
         "performer": float(np.mean(performer)),
+        # how long after the performer's changes of action the avatar took them up
+        "followed": float(np.median(after)) if after else float("nan"),
     }
 
 
@@ -111,7 +115,8 @@ def table() -> str:
             f"{takes['agreement']:.3f}",
             f"pose score {takes['pose']:.3f}; {takes['switches']:.0f} action switches a "
             f"minute ({takes['brief']:.0f} brief) against the performer's "
-            f"{takes['performer']:.0f}",
+            f"{takes['performer']:.0f}; a new action taken up {takes['followed']:.1f} s after "
+            "the performer (median)",
         ),
         (
             f"the same, silhouette videos ({sil['runs']} runs)",
@@ -121,7 +126,8 @@ def table() -> str:
         (
             f"another person, simulated landmarks ({person['runs']} runs)",
             f"{person['agreement']:.3f}",
-            f"{person['switches']:.0f} switches a minute against {person['performer']:.0f}",
+            f"{person['switches']:.0f} switches a minute against {person['performer']:.0f}; "
+            f"new actions taken up after {person['followed']:.1f} s",
         ),
         (
             f"another person, silhouettes ({sil_person['runs']} runs)",
@@ -148,7 +154,7 @@ def table() -> str:
             f"{STEADY}: other takes, simulated landmarks ({steady['runs']} runs)",
             f"{steady['agreement']:.3f}",
             f"pose score {steady['pose']:.3f}; {steady['switches']:.0f} switches a minute "
-            f"({steady['brief']:.0f} brief)",
+            f"({steady['brief']:.0f} brief); taken up after {steady['followed']:.1f} s",
         ),
         (
             f"{STEADY}: another person read by MediaPipe",
