@@ -98,6 +98,8 @@ def run_settings(args: argparse.Namespace) -> RunSettings:
             confidence=args.vote_confidence,
             temperature=args.vote_temperature,
             strict_share=args.vote_strict,
+            weak_fit=args.weak_fit,
+            weak_margin=args.weak_margin,
             fuse=args.fuse,
             classify=not args.no_classify,
         ),
@@ -305,6 +307,22 @@ def _add_vote_args(p: argparse.ArgumentParser) -> None:
         help="a decision where at least this share of the last votes went to the voted "
         "action (with --vote-switch: where it is believed at least this much) jumps only into "
         "that action (its own motion and holds keep the margin); 0: off (default %(default)s)",
+    )
+    p.add_argument(
+        "--weak-fit",
+        type=number(float, 0.01, 1000, inf=True),
+        default=ActionSettings.weak_fit,
+        metavar="SHARE",
+        help="where the best window's per-frame cost is over SHARE of the reject threshold "
+        "(an action the library lacks, a pose model guessing), a window of another action "
+        "than the voted one costs 1 + --weak-margin times as much (default %(default)s; "
+        "inf: off)",
+    )
+    p.add_argument(
+        "--weak-margin",
+        type=number(float, 0, 1000, inf=True),
+        default=ActionSettings.weak_margin,
+        help="the margin where the best window fits weakly (default %(default)s)",
     )
     p.add_argument(
         "--vote-switch",

@@ -25,7 +25,7 @@ from ._index import best_of
 from ._search import Windows, WindowSearch
 from ._settings import MatchSettings
 from ._vote import ActionVote
-from ._windows import phased_targets, window_costs
+from ._windows import per_frame_cost, phased_targets, window_costs
 
 __all__ = ["Gate", "Lander"]
 
@@ -195,7 +195,8 @@ class Lander:
         (``(got, target, ok, there)``; ``voted``: which show the voted action), with those
         of the voted action added when none does (``_voted_windows``), and ``(got,
         target, ok, weight, own_weight)``: each window's cost is times ``weight`` (1 + the
-        settings' ``action.margin`` for another action), the avatar's own times
+        settings' ``action.margin`` for another action, ``weak_margin`` where the best
+        fits weakly: ``weak``), the avatar's own times
         ``own_weight`` (the same, where it shows another action). Where the decision is
         ``strict``, windows of another action are not ``ok``; with the margin infinite,
         ``own_weight`` is infinite where the avatar must leave its action."""
@@ -203,6 +204,7 @@ class Lander:
         if voted is None:
             return got, target, ok, np.ones(len(got)), 1.0
         margin, strict = self.margin(), self.strict()
+        weak = self.weak(got, queries[0])
         if not (ok & voted).any():
             more = self.voted_windows(frame, queries, ranked, costs, there & voted)
             if strict:
@@ -219,7 +221,19 @@ class Lander:
             if away and not self.vote.leaves(frame, frame):
                 own = math.inf
             return got, target, ok & voted, np.ones(len(got)), own
-        return got, target, ok, np.where(voted, 1.0, 1.0 + margin), own
+        other = max(margin, self.settings.action.weak_margin) if weak else margin
+        return got, target, ok, np.where(voted, 1.0, 1.0 + other), own
+
+    def weak(self, got: Windows, query: FloatArray) -> bool:
+        """Whether the best of the windows ``got`` fits ``query`` weakly
+        (``ActionSettings.weak_fit``): another action's window must then fit far better
+        to be taken (``weak_margin``)."""
+        st = self.settings
+        reject = self.windows.desc.reject if st.reject is None else st.reject
+        if not got or not math.isfinite(reject) or not math.isfinite(st.action.weak_fit):
+            return False
+        best = min(g[2] for g in got)
+        return per_frame_cost(best, query.shape[0]) > st.action.weak_fit * reject
 
     def voted_windows(
         self,

@@ -186,6 +186,18 @@ class ActionSettings:
         held frame of whatever action. 0.9 is steadier than off on every fold at about
         the same pose score; from the side and from behind it agrees a little less
         (``benchmarks/HISTORY.md``, "Steadiness").
+    weak_fit : float
+        A decision whose best window's per-frame cost is over this share of the
+        descriptor's reject threshold fits weakly: the performer does something the
+        library lacks, or the pose model guesses (from behind it misplaces wrists and
+        ankles by a fifth of the body), and the pose then says less of the action than
+        the vote over the last decisions does. There windows of another action than the
+        voted one cost ``1 + weak_margin`` times as much (where that is more than
+        ``margin``); the avatar's own motion keeps ``margin``. The actions a performer
+        does fit at about a quarter of the threshold, what the library lacks at about
+        half (``benchmarks/HISTORY.md``, "Weak fits"). ``inf``: off.
+    weak_margin : float
+        The margin where the best window fits weakly (``weak_fit``).
     fuse : bool
         With landmarks and the silhouette beside them (``vision._fallback``): where the
         pose model's limbs are of low confidence, each decision's ballot weighs both
@@ -213,6 +225,8 @@ class ActionSettings:
     confidence: float = 0.0
     classify: bool = True
     strict_share: float = 0.9
+    weak_fit: float = 0.35
+    weak_margin: float = 1.0
     fuse: bool = True
     tempos: tuple[float, ...] = ()
 
@@ -225,6 +239,11 @@ class ActionSettings:
             raise ValueError(f"switch_chance must lie in [0, 1), got {self.switch_chance}")
         if not 0.0 <= self.strict_share <= 1.0:
             raise ValueError(f"strict_share must lie in [0, 1], got {self.strict_share}")
+        if not (self.weak_fit > 0 and self.weak_margin >= 0):
+            raise ValueError(
+                f"weak_fit must be > 0 (inf: off) and weak_margin >= 0, got "
+                f"{self.weak_fit} and {self.weak_margin}"
+            )
         if not (self.temperature > 0 and math.isfinite(self.temperature)):
             raise ValueError(f"temperature must be positive, got {self.temperature}")
         object.__setattr__(self, "tempos", tuple(self.tempos))

@@ -14,7 +14,14 @@ from control.avatar import JumpCosts
 from control.motion import Library, action_keys, load_library
 from mimic.cli import main
 from tests.vision.conftest import RECORDING
-from vision import ActionSettings, ActionVote, LandingSettings, Matcher, MatchSettings
+from vision import (
+    ActionSettings,
+    ActionVote,
+    LandingSettings,
+    Matcher,
+    MatchSettings,
+    per_frame_cost,
+)
 
 
 def _squats_and_jogs(lib: Library) -> tuple[list[str | None], list[int], list[int]]:
@@ -393,3 +400,39 @@ def test_where_the_vote_agrees_the_avatar_leaves_its_action_before_playing_out_o
     lander.settings = MatchSettings(action=ActionSettings(vote=10, margin=0.2, strict_share=0))
     _, _, ok, weight, own_weight = lander.gated(8, [], [], None, found, voted)
     assert ok.tolist() == [True, True] and weight.tolist() == [1.0, 1.2] and own_weight == 1.2
+
+
+def test_where_the_best_window_fits_weakly_another_action_costs_more(setup) -> None:
+    # the performer does the library's window ending at frame 200, seen from view 3: as
+    # the library has it, and so blurred by noise that no window fits it well
+    lib, layer, bank = setup
+    m = Matcher(layer, bank, MatchSettings(landing=LandingSettings(phase_frames=0)))
+    m.ready(lib.clips, 0.1)
+    window = np.arange(200 - m.n + 1, 201)
+    seen = bank.features[m.windows.to_bank[window], 3].astype(np.float64)
+    noisy = seen + np.random.default_rng(3).normal(0.0, 3.0 * seen.std(), seen.shape)
+    costs = JumpCosts(layer.graph, lib.clips, anywhere=True)
+    st = m.settings
+    weights = {}
+    for name, performer in (("seen", seen), ("noisy", noisy)):
+        queries = m.queries(performer)
+        assert queries is not None
+        ranked: list = []
+        got = m.windows.index().search(queries, st.band, st.landing.top_windows, None, ranked)
+        target, ok, there = m.lander.targets(40, got, costs, queries)
+        voted = np.zeros(len(got), dtype=bool)
+        voted[int(np.flatnonzero(ok)[0])] = True  # one window shows the voted action
+        fit = per_frame_cost(min(g[2] for g in got), queries[0].shape[0]) / m.reject
+        found = (got, target, ok, there)
+        weights[name] = (
+            fit,
+            m.lander.weak(got, queries[0]),
+            m.lander.gated(40, queries, ranked, costs, found, voted),
+        )
+    fit, weak, (_, _, _, weight, own) = weights["seen"]
+    assert fit < 0.35 and not weak and set(weight.round(6)) == {1.0, 1.2} and own == 1.2
+    fit, weak, (_, _, _, weight, own) = weights["noisy"]
+    # another action's windows at 1 + weak_margin, the avatar's own motion as before
+    assert fit > 0.35 and weak and set(weight.round(6)) == {1.0, 2.0} and own == 1.2
+    with pytest.raises(ValueError, match="weak_fit must be > 0"):
+        ActionSettings(weak_fit=0.0)
