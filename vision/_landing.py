@@ -204,7 +204,7 @@ class Lander:
         if voted is None:
             return got, target, ok, np.ones(len(got)), 1.0
         margin, strict = self.margin(), self.strict()
-        weak = self.weak(got, queries[0])
+        weak = self.weak(got, queries)
         if not (ok & voted).any():
             more = self.voted_windows(frame, queries, ranked, costs, there & voted)
             if strict:
@@ -224,16 +224,18 @@ class Lander:
         other = max(margin, self.settings.action.weak_margin) if weak else margin
         return got, target, ok, np.where(voted, 1.0, 1.0 + other), own
 
-    def weak(self, got: Windows, query: FloatArray) -> bool:
-        """Whether the best of the windows ``got`` fits ``query`` weakly
-        (``ActionSettings.weak_fit``): another action's window must then fit far better
-        to be taken (``weak_margin``)."""
+    def weak(self, got: Windows, queries: list[FloatArray]) -> bool:
+        """Whether the best of the windows ``got`` fits the performer (``queries``, its
+        readings) weakly (``ActionSettings.weak_fit``): another action's window must
+        then fit far better to be taken (``weak_margin``)."""
         st = self.settings
+        if not got or not queries:
+            return False
         reject = self.windows.desc.reject if st.reject is None else st.reject
-        if not got or not math.isfinite(reject) or not math.isfinite(st.action.weak_fit):
+        if not math.isfinite(reject * st.action.weak_fit):
             return False
         best = min(g[2] for g in got)
-        return per_frame_cost(best, query.shape[0]) > st.action.weak_fit * reject
+        return per_frame_cost(best, queries[0].shape[0]) > st.action.weak_fit * reject
 
     def voted_windows(
         self,

@@ -426,7 +426,7 @@ def test_where_the_best_window_fits_weakly_another_action_costs_more(setup) -> N
         found = (got, target, ok, there)
         weights[name] = (
             fit,
-            m.lander.weak(got, queries[0]),
+            m.lander.weak(got, queries),
             m.lander.gated(40, queries, ranked, costs, found, voted),
         )
     fit, weak, (_, _, _, weight, own) = weights["seen"]
