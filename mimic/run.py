@@ -167,6 +167,12 @@ def _say_vote(clips: list[Clip], match: MatchSettings) -> None:
             + (
                 f", or another whose window fits better at {1 + match.action.margin:g} times "
                 "its cost (--vote-margin)"
+                + (
+                    f", {1 + max(match.action.margin, match.action.weak_margin):g} times where "
+                    "the best fits weakly (--weak-fit)"
+                    if math.isfinite(match.action.weak_fit)
+                    else ""
+                )
                 if math.isfinite(match.action.margin)
                 else ""
             )
