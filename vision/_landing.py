@@ -204,7 +204,7 @@ class Lander:
         if voted is None:
             return got, target, ok, np.ones(len(got)), 1.0
         margin, strict = self.margin(), self.strict()
-        weak = self.weak(got, queries)
+        best = got  # (the search's best windows, before any of the voted action's join them)
         if not (ok & voted).any():
             more = self.voted_windows(frame, queries, ranked, costs, there & voted)
             if strict:
@@ -221,7 +221,9 @@ class Lander:
             if away and not self.vote.leaves(frame, frame):
                 own = math.inf
             return got, target, ok & voted, np.ones(len(got)), own
-        other = max(margin, self.settings.action.weak_margin) if weak else margin
+        other = (
+            max(margin, self.settings.action.weak_margin) if self.weak(best, queries) else margin
+        )
         return got, target, ok, np.where(voted, 1.0, 1.0 + other), own
 
     def weak(self, got: Windows, queries: list[FloatArray]) -> bool:
