@@ -25,10 +25,7 @@ RESULTS = HERE / "results"
 PAGES = (HERE.parent / "README.md", HERE / "README.md")
 START, END = "<!-- figures:start -->", "<!-- figures:end -->"
 #: the option of the rows below the defaults' (the filtered vote, steadier and later)
-STEADY = (
-    "the filtered vote (`--vote-switch 0.02 --vote-confidence 0.9 --vote-margin inf "
-    "--vote-temperature 0.2`)"
-)
+STEADY = "the filtered vote (`--steady`)"
 
 
 def _load(name: str) -> dict[str, Any]:

@@ -28,6 +28,7 @@ from silhouette_bank import (
 )
 from vision import (
     INSTALL,
+    ActionSettings,
     MaskFolderSource,
     MatchSettings,
     PerformSettings,
@@ -163,28 +164,31 @@ def _say_vote(clips: list[Clip], match: MatchSettings) -> None:
     else:
         print(
             f"actions: {len(names)} labelled ({', '.join(names)}); the avatar keeps to the "
-            f"one the best windows of the last {match.action.vote} decisions voted for"
-            + (
-                f", or another whose window fits better at {1 + match.action.margin:g} times "
-                "its cost (--vote-margin)"
-                + (
-                    f", {1 + max(match.action.margin, match.action.weak_margin):g} times where "
-                    "the best fits weakly (--weak-fit)"
-                    if math.isfinite(match.action.weak_fit)
-                    else ""
-                )
-                if math.isfinite(match.action.margin)
-                else ""
-            )
-            + (
-                ", each vote settled by an action classifier learned from the library "
-                "(--no-classify: off)"
-                if match.action.classify
-                else ""
-            )
+            + _vote_phrase(match.action)
             + " (--vote 0: off)",
             file=sys.stderr,
         )
+
+
+def _vote_phrase(a: ActionSettings) -> str:
+    """How the voted action is chosen and what else the avatar may jump into, in words."""
+    if a.switch_chance > 0:
+        how = (
+            f"one a hidden Markov filter of the last decisions believes in (a change "
+            f"{a.switch_chance:g} a decision, taken up at a belief of {a.confidence:g})"
+        )
+    else:
+        how = f"one the best windows of the last {a.vote} decisions voted for"
+    if math.isfinite(a.margin):
+        how += f", or another whose window fits better at {1 + a.margin:g} times its cost"
+        how += " (--vote-margin)"
+        if math.isfinite(a.weak_fit):
+            weak = 1 + max(a.margin, a.weak_margin)
+            how += f", {weak:g} times where the best fits weakly (--weak-fit)"
+    if a.classify:
+        how += ", each vote settled by an action classifier learned from the library"
+        how += " (--no-classify: off)"
+    return how
 
 
 def _clips(settings: RunSettings) -> list[Clip]:

@@ -5,6 +5,7 @@ packages see settings objects, never the parsed arguments."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from dataclasses import dataclass
 
 from control.clusters import LayerSettings
@@ -83,6 +84,28 @@ class RunSettings:
     start: str | None
 
 
+def action_settings(args: argparse.Namespace) -> ActionSettings:
+    """The ``ActionSettings`` of the vote's arguments: ``--steady``'s filtered vote or the
+    counted one, with any of the filter's flags given on the command line over either."""
+    base = ActionSettings.steady() if args.steady else ActionSettings()
+    given = {
+        "margin": args.vote_margin,
+        "switch_chance": args.vote_switch,
+        "confidence": args.vote_confidence,
+        "temperature": args.vote_temperature,
+    }
+    return dataclasses.replace(
+        base,
+        vote=args.vote,
+        strict_share=args.vote_strict,
+        weak_fit=args.weak_fit,
+        weak_margin=args.weak_margin,
+        fuse=args.fuse,
+        classify=not args.no_classify,
+        **{k: v for k, v in given.items() if v is not None},
+    )
+
+
 def run_settings(args: argparse.Namespace) -> RunSettings:
     """The ``RunSettings`` of ``add_run_args``'s arguments; a bad value is said now,
     before minutes of building."""
@@ -91,18 +114,7 @@ def run_settings(args: argparse.Namespace) -> RunSettings:
         recency=args.recency,
         paths=PathSettings(lookahead=args.lookahead),
         landing=LandingSettings(jumps=not args.no_jumps, min_play=args.hold, lead=args.lead),
-        action=ActionSettings(
-            vote=args.vote,
-            margin=args.vote_margin,
-            switch_chance=args.vote_switch,
-            confidence=args.vote_confidence,
-            temperature=args.vote_temperature,
-            strict_share=args.vote_strict,
-            weak_fit=args.weak_fit,
-            weak_margin=args.weak_margin,
-            fuse=args.fuse,
-            classify=not args.no_classify,
-        ),
+        action=action_settings(args),
     )
     # the matcher looks no further ahead than the look-ahead: trees that reach that far
     # (the paper's 15 s trees of a dense graph are truncated, and slow to build)
@@ -240,6 +252,7 @@ def _add_jump_args(p: argparse.ArgumentParser) -> None:
         "second), no direct blended jumps into the best-matching windows",
     )
     _add_vote_args(p)
+    _add_filter_args(p)
     p.add_argument(
         "--recency",
         type=number(float, 0, 1000),
@@ -294,10 +307,11 @@ def _add_vote_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--vote-margin",
         type=number(float, 0, 1000, inf=True),
-        default=ActionSettings.margin,
+        default=None,
         help="with the vote, a window of another action is taken when it fits better even "
         "at 1 + M times its cost, and the avatar's own motion of another action costs as "
-        "much more (default %(default)s; inf: only the voted action)",
+        f"much more (default {ActionSettings.margin:g}, with --steady inf; inf: only the "
+        "voted action)",
     )
     p.add_argument(
         "--vote-strict",
@@ -324,28 +338,44 @@ def _add_vote_args(p: argparse.ArgumentParser) -> None:
         default=ActionSettings.weak_margin,
         help="the margin where the best window fits weakly (default %(default)s)",
     )
+
+
+def _add_filter_args(p: argparse.ArgumentParser) -> None:
+    """The filtered vote's options, and ``--steady``, which sets them."""
+    steady = ActionSettings.steady()
+    p.add_argument(
+        "--steady",
+        action="store_true",
+        help=f"a calmer avatar: the filtered vote (--vote-switch {steady.switch_chance:g} "
+        f"--vote-confidence {steady.confidence:g} --vote-margin {steady.margin:g} "
+        f"--vote-temperature {steady.temperature:g}; any of them given too wins). It "
+        "switches action a third to a half less often, with few brief actions, but takes "
+        "a new action up about 0.2 s later",
+    )
     p.add_argument(
         "--vote-switch",
         type=number(float, 0, 0.99),
-        default=ActionSettings.switch_chance,
+        default=None,
         metavar="P",
         help="filter the voted action by a hidden Markov model whose chance of a change "
-        "per decision is P, instead of counting votes (default %(default)s: counting)",
+        f"per decision is P, instead of counting votes (default {ActionSettings.switch_chance:g}"
+        f": counting; with --steady {steady.switch_chance:g})",
     )
     p.add_argument(
         "--vote-confidence",
         type=number(float, 0, 1),
-        default=ActionSettings.confidence,
+        default=None,
         help="with --vote-switch, change the voted action only to one believed at least "
-        "this much (default %(default)s)",
+        f"this much (default {ActionSettings.confidence:g}, with --steady "
+        f"{steady.confidence:g})",
     )
     p.add_argument(
         "--vote-temperature",
         type=number(float, 0, 100, above=True),
-        default=ActionSettings.temperature,
+        default=None,
         help="with --vote-switch, what turns each decision's action scores into evidence: "
         "higher weighs one decision less, so a change needs more decisions that agree "
-        "(default %(default)s)",
+        f"(default {ActionSettings.temperature:g}, with --steady {steady.temperature:g})",
     )
 
 

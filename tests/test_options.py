@@ -5,6 +5,8 @@ anything are refused by argparse, naming the option, before any work."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import math
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -12,6 +14,8 @@ import pytest
 
 from mimic.args import number
 from mimic.cli import build_parser, main
+from mimic.run_args import action_settings
+from vision import ActionSettings
 
 
 def _actions(
@@ -85,3 +89,20 @@ def test_the_issue_s_values_are_refused_by_name(
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert f"argument {option}: must be" in err and "Traceback" not in err
+
+
+def test_steady_sets_the_filtered_vote_and_a_flag_given_too_wins() -> None:
+    """``--steady`` is the filtered vote's four flags in one; without it the vote is
+    counted, as the defaults say; any of the four given beside it wins."""
+    parse = build_parser().parse_args
+    video = ["perform", "--video", "v.mkv"]
+    assert action_settings(parse(video)) == ActionSettings()
+    steady = action_settings(parse([*video, "--steady"]))
+    assert steady == ActionSettings.steady()
+    assert steady.switch_chance > 0 and math.isinf(steady.margin)  # filtered, strict
+    mine = action_settings(parse([*video, "--steady", "--vote-temperature", "0.3"]))
+    assert mine == dataclasses.replace(ActionSettings.steady(), temperature=0.3)
+    # the same settings as the four flags spelt out, and the other vote flags still apply
+    spelt = ["--vote-switch", "0.02", "--vote-confidence", "0.9", "--vote-margin", "inf"]
+    spelt += ["--vote-temperature", "0.2", "--vote", "9"]
+    assert action_settings(parse([*video, *spelt])) == dataclasses.replace(steady, vote=9)
