@@ -38,7 +38,7 @@ from ._facing import Facing
 from ._index import best_of
 from ._landing import Lander
 from ._paths import CandidatePaths
-from ._search import WindowSearch
+from ._search import Windows, WindowSearch
 from ._settings import MatchSettings
 from ._vote import ActionChoice, ActionVote, Partner
 from ._windows import (
@@ -193,26 +193,16 @@ class Matcher:
         blend from ``frame``, or ``None`` when none beats ``jump_ratio`` times the
         avatar's own recent cost (the avatar already follows)."""
         t0 = time.perf_counter()
-        st = self.settings
+        st, land = self.settings, self.lander
         if queries is None:
             queries = self.queries(performer)
             if queries is None:
                 return None
-        ranked: list[tuple[IntArray, IntArray, FloatArray]] = []
-        got = self.windows.ranked(queries, ranked)
         self.last_own = float("inf")
-        if not got or self._rejected(got[0][2], queries[0]):
+        found = self.voted_windows(frame, performer, costs, queries)
+        if found is None:
             return None  # (why says so when the best was rejected)
-        self.why = ""
-        facing, land = self.windows.facing, self.lander
-        if facing is not None:
-            ranked[:] = facing.weigh(ranked, recost=self.windows.plain_cost(queries))
-            got = best_of(ranked, st.landing.top_windows)
-        target, ok, there = land.targets(frame, got, costs, queries)
-        voted = self.vote.cast(target, *self.ballot.choose(self.vote, queries, ranked, performer))
-        at = [g[2] for g, t in zip(got, there, strict=True) if t]
-        gated = land.gated(frame, queries, ranked, costs, (got, target, ok, there), voted)
-        got, target, ok, weight, own_weight = gated
+        got, target, ok, weight, own_weight, at = found
         # (an infinite margin) the avatar leaves an action the performer is not voted to do
         leave = math.isinf(own_weight)
         # the avatar's own cost, however it is taken, weighed alike
@@ -258,6 +248,29 @@ class Matcher:
             jump=Jump(j, float(own), float(blend), bool(leave)),
         )
 
+    def voted_windows(
+        self, frame: int, performer: FloatArray, costs: JumpCosts, queries: list[FloatArray]
+    ) -> tuple[Windows, IntArray, NDArray[np.bool_], FloatArray, float, list[float]] | None:
+        """The search's best windows for the performer's ``queries`` (weighed by the
+        facing), the decision's vote cast on them, and the vote's part in a jump from
+        ``frame`` (``Lander.gated``): ``(got, target, ok, weight, own_weight, at)``,
+        ``at`` the costs of those the avatar is at already; ``None`` where the best
+        window is rejected (``why`` says so)."""
+        ranked: list[tuple[IntArray, IntArray, FloatArray]] = []
+        got = self.windows.ranked(queries, ranked)
+        if not got or self._rejected(got[0][2], queries[0]):
+            return None
+        self.why = ""
+        facing, land = self.windows.facing, self.lander
+        if facing is not None:
+            ranked[:] = facing.weigh(ranked, recost=self.windows.plain_cost(queries))
+            got = best_of(ranked, self.settings.landing.top_windows)
+        target, ok, there = land.targets(frame, got, costs, queries)
+        voted = self.vote.cast(target, *self.ballot.choose(self.vote, queries, ranked, performer))
+        at = [g[2] for g, t in zip(got, there, strict=True) if t]
+        gated = land.gated(frame, queries, ranked, costs, (got, target, ok, there), voted)
+        return (*gated, at)
+
     def classifier(self) -> ActionClassifier | None:
         """The library's action classifier (``ActionChoice.classifier``) of the vote's
         actions; ``None`` without actions or with ``settings.action.classify`` off."""
@@ -288,7 +301,8 @@ class Matcher:
         With the avatar's ``recent`` frames and its ``jump_costs`` (and
         ``settings.landing.jumps``), a direct blended jump (``jump``) when one is clearly better
         than what the avatar is doing, or its frame held still (``held``) when that is
-        better still."""
+        better still, else playing on; the paper's cluster paths (``cluster_path``) where
+        it cannot play on."""
         t0 = time.perf_counter()
         queries = self.queries(performer)
         if queries is None:
@@ -298,22 +312,37 @@ class Matcher:
             if j is None and self.why:  # the best window was rejected: nothing real matches
                 return None
             j = self.lander.held(frame, queries, j, self.last_own) or j  # standing still
+            if j is None:
+                j = self.played_on(frame)
             if j is not None:
                 return dataclasses.replace(j, latency_ms=(time.perf_counter() - t0) * 1e3)
-            on = self.windows.playback(frame)
-            lee = self.settings.paths.after_no_jump and self.layer.forest.tree_of[frame] >= 0
-            if not lee and on.size > 1:
-                return Decision(
-                    frames=on,
-                    edges=np.full(on.size - 1, -1, dtype=np.int64),
-                    cluster_path=np.zeros(0, dtype=np.int64),
-                    cost=self.last_own,
-                    runner_up=float("inf"),
-                    view=-1,  # as before
-                    candidates=1,
-                    latency_ms=(time.perf_counter() - t0) * 1e3,
-                    how="plays_on",
-                )
+        return self.cluster_path(frame, queries, t0)
+
+    def played_on(self, frame: int) -> Decision | None:
+        """The avatar playing its clip on from ``frame`` at its own cost (no jump or hold
+        beat it); ``None`` at its clip's end, or where the paper's paths take over
+        (``paths.after_no_jump``)."""
+        on = self.windows.playback(frame)
+        lee = self.settings.paths.after_no_jump and self.layer.forest.tree_of[frame] >= 0
+        if lee or on.size <= 1:
+            return None
+        return Decision(
+            frames=on,
+            edges=np.full(on.size - 1, -1, dtype=np.int64),
+            cluster_path=np.zeros(0, dtype=np.int64),
+            cost=self.last_own,
+            runner_up=float("inf"),
+            view=-1,  # (the last decision's view goes on)
+            candidates=1,
+            latency_ms=0.0,
+            how="plays_on",
+        )
+
+    def cluster_path(self, frame: int, queries: list[FloatArray], t0: float) -> Decision | None:
+        """Lee et al.'s choice: of the cluster tree's candidate paths from ``frame``, the
+        one whose frames the performer's ``queries`` fit best by DTW (any view; the
+        ``keep_clip_bonus`` prior ranks a path that plays on ahead); ``None`` without a
+        path or where the best is rejected. ``t0``: when the decision began."""
         cands = self.paths.candidates(frame)
         if not cands:
             self.why = "no candidate path"

@@ -31,27 +31,19 @@ from control.avatar import Avatar, JumpCosts
 from control.clusters import HigherLayer
 from control.kernels import one_thread
 from control.motion import Clip
-from silhouette_bank import Bank, silhouette_features
+from silhouette_bank import Bank
 
 from ._decision import Decision
 from ._fallback import FALLBACK_REASONS, UPRIGHT_REASONS, SilhouetteFallback
-from ._landmarks import PoseReader
+from ._frames import FrameReader
 from ._matcher import Matcher
-from ._person import make_segmenter, resolve_segmentation
 from ._search import Bars
-from ._segment import clean_mask_others
 from ._settings import PerformSettings
-from ._sources import Frame, Source
+from ._sources import Source
 from ._video import MaskTape
 
-__all__ = ["MAX_COVER", "PerformResult", "Performance", "perform"]
+__all__ = ["PerformResult", "Performance", "perform"]
 
-#: a silhouette mask covering more of the frame than this is no performer (a white
-#: frame, the lights going on under a background subtractor): treated as no silhouette
-MAX_COVER = 0.6
-#: why a frame has no pose when the pose model found nobody and a person is there all
-#: the same (``PersonSegmenter.unposed``: only part of a body in view, as a rule)
-UNPOSED = "a person in view, no body found in them"
 #: degrees a second the avatar's blended joints may turn in a frame beyond what their
 #: source frames turn (``control.graph.follow_turns``), and the rate of its leg IK's
 #: corrections (``TURN_RATE`` is 300 elsewhere): its blends pile up (a jump every few
@@ -108,10 +100,10 @@ def perform(
 
 
 class Performance:
-    """One performance, a step a method: ``features`` of a frame, ``advance`` the buffer
-    and the avatar's clock to it, ``decide`` at a decision point (``place_avatar`` where
-    the performer is first found, ``relocate`` now and then without jumps), and ``run``
-    the loop."""
+    """One performance, a step a method: its ``reader`` (``FrameReader``) reads a frame's
+    features, ``advance`` takes the buffer and the avatar's clock to it, ``decide`` at a
+    decision point (``place_avatar`` where the performer is first found, ``relocate`` now
+    and then without jumps), and ``run`` the loop."""
 
     def __init__(
         self,
@@ -135,41 +127,21 @@ class Performance:
         fuse = fallback is not None and settings.match.action.fuse
         partner = (lambda v: self.fallback.evidence(v) if self.fallback else None) if fuse else None
         self.matcher = matcher = Matcher(layer, bank, settings.match, partner=partner)
-        # motion matching: relocation at every decision. One set of jump costs for every
-        # avatar of the run, its frame features computed before the first frame
+        # motion matching: relocation at every decision
         self.jumps = jumps = settings.match.landing.jumps
         self.costs = JumpCosts(self.graph, clips, anywhere=jumps)
-        if jumps:  # built now, not at the first decision (a camera would stall there)
-            # the features (numpy on every frame: 1.9 s at 500,000 frames) in a thread
-            # while this one opens the search's index (mostly reading: 0.9 s there)
-            with ThreadPoolExecutor(1) as pool:
-                computing = pool.submit(lambda: self.costs.features)
-                matcher.windows.open(bars)
-                computing.result()
-        self.avatar = self.new_avatar(start)
-        if jumps:
-            avatar = self.avatar
-            matcher.warm_up(avatar.frame, avatar.recent(matcher.recent_frames), self.costs)
-        period = settings.decide_every
-        matcher.ready(clips, period)
-        self.segmenter: Any = None
-        self.landmarks = matcher.desc.kind == "pose"
-        self.reader = PoseReader() if self.landmarks else None
-        if fallback is not None and self.landmarks:
+        self.avatar = self.open_matcher(start, bars)
+        matcher.ready(clips, settings.decide_every)
+        if fallback is not None and matcher.desc.kind == "pose":
+            period = settings.decide_every
             args = (layer, fallback, clips, matcher, self.avatar, self.costs, period, bars)
             self.fallback = SilhouetteFallback(*args)
-        self.why_blank = ""  # why the latest frame has no features
-        #: other people in view in the latest frame's mask, beside the one followed (the
-        #: largest blob: ``clean_mask_others``); the decisions' log says so
-        self.others = 0
+        #: what each frame says of the performer
+        self.reader = FrameReader(source, settings, matcher.desc, self.fallback)
         self.period = 1.0 / self.graph.fps
         #: the performer's features at the library's rate: the last window (``window``)
         #: and before it as many as the matcher's tempos read
         self.history: deque[NDArray[np.float64]] = deque(maxlen=matcher.history_frames)
-        self.blank = np.full(matcher.n_features, np.nan)  # a frame without a silhouette
-        self.latest = self.blank
-        self.latest_mask: NDArray[np.bool_] | None = None
-        self.picture: tuple[Any, Any] = (None, None)  # the latest colour frame, landmarks
         self.next_tick = 0.0
         self.next_decision = settings.decide_every
         self.t_avatar = 0.0
@@ -193,6 +165,23 @@ class Performance:
         self.t_start = 0.0
         self.tape: MaskTape | None = None
 
+    def open_matcher(self, start: int | None, bars: Bars | None) -> Avatar:
+        """With jumps, the search's index opened and the jump costs' frame features
+        computed now, not at the first decision (a camera would stall there), and one
+        throwaway decision made from the new avatar (``Matcher.warm_up``); the avatar."""
+        if self.jumps:
+            # the features (numpy on every frame: 1.9 s at 500,000 frames) in a thread
+            # while this one opens the search's index (mostly reading: 0.9 s there)
+            with ThreadPoolExecutor(1) as pool:
+                computing = pool.submit(lambda: self.costs.features)
+                self.matcher.windows.open(bars)
+                computing.result()
+        avatar = self.new_avatar(start)
+        if self.jumps:
+            recent = avatar.recent(self.matcher.recent_frames)
+            self.matcher.warm_up(avatar.frame, recent, self.costs)
+        return avatar
+
     def new_avatar(self, at: int | None) -> Avatar:
         return Avatar(
             self.graph,
@@ -209,66 +198,6 @@ class Performance:
 
     # --- the steps -------------------------------------------------------------------------
 
-    def features(self, frame: Frame) -> NDArray[np.bool_] | None:
-        """The performer's features of ``frame`` into ``latest`` (NaN, and ``why_blank``
-        says why, when there are none); returns its cleaned mask."""
-        mask: NDArray[np.bool_] | None
-        if frame.landmarks is not None:  # a source that gives landmarks, not pictures
-            if self.reader is None:
-                raise ValueError(
-                    f"{self.source.name}: this source gives body landmarks, and only the "
-                    "pose descriptor reads them (use --descriptor pose)"
-                )
-            self.latest = self.reader.read(frame.landmarks, (1, 1))
-            self.why_blank, self.latest_mask = self.reader.why, None
-            if self.fallback is not None:  # the person's mask, where the source gives
-                # one too, cleaned as a silhouette source's is
-                m = None if frame.mask is None else clean_mask_others(frame.mask)[0]
-                self.fallback.see(m, self.reader.limbs_hidden)
-            return None
-        if frame.mask is not None:
-            if self.landmarks:
-                raise ValueError(
-                    f"{self.source.name}: the pose descriptor needs "
-                    "colour frames, and this source gives silhouettes (use a silhouette "
-                    "descriptor: --descriptor outline)"
-                )
-            mask, others = clean_mask_others(frame.mask)
-        elif frame.image is not None:
-            if self.segmenter is None:
-                method = resolve_segmentation(
-                    self.settings.segmentation,
-                    bool(getattr(self.source, "live", False)),  # a camera
-                    self.landmarks,
-                )
-                self.segmenter = make_segmenter(method, self.settings.learn_frames)
-            mask = self.segmenter.apply(frame.image)
-            others = int(getattr(self.segmenter, "others", 0))
-        else:
-            mask, others = None, 0
-        problem = frame.problem  # e.g. an unreadable mask file: no silhouette, said why
-        cover = float(mask.mean()) if mask is not None and mask.size else 0.0
-        if not self.landmarks and cover > MAX_COVER:
-            # a lighting change, a white frame, a bad mask: no performer looks so
-            mask, problem = None, f"the mask covers {cover:.0%} of the frame"
-        self.others = others if mask is not None else 0
-        if self.reader is not None:
-            lm = getattr(self.segmenter, "landmarks", None) if frame.image is not None else None
-            h_px, w_px = frame.image.shape[:2] if frame.image is not None else (1, 1)
-            self.latest = self.reader.read(lm, (w_px, h_px))
-            self.why_blank = self.reader.why
-            if lm is None and getattr(self.segmenter, "unposed", False):
-                self.why_blank = UNPOSED
-            if self.fallback is not None:
-                self.fallback.see(mask, self.reader.limbs_hidden)
-        elif mask is not None:
-            self.latest = silhouette_features(mask, descriptor=self.matcher.desc)
-        else:
-            self.latest, self.why_blank = self.blank, problem or "no silhouette"
-        self.latest_mask = mask
-        self.picture = (frame.image, getattr(self.segmenter, "landmarks", None))
-        return mask
-
     def window(self) -> NDArray[np.float64]:
         """The performer's last window of features ``(m, F)``, ``m`` up to ``matcher.n``."""
         n = len(self.history)
@@ -277,7 +206,7 @@ class Performance:
     def advance(self, t: float) -> None:
         """The library-rate history, and the avatar's clock, up to media time ``t``."""
         while self.next_tick <= t + 1e-9:
-            self.history.append(self.latest)
+            self.history.append(self.reader.latest)
             if self.fallback is not None:
                 self.fallback.tick()
             self.next_tick += self.period
@@ -285,7 +214,7 @@ class Performance:
             self.avatar.step()
             self.t_avatar += self.period
             if self.tape is not None:
-                self.tape.append(self.latest_mask, *self.picture)
+                self.tape.append(self.reader.mask, *self.reader.picture)
             self.views.append(self.view)
 
     def place_avatar(self, t: float, entry: dict[str, Any]) -> None:
@@ -306,7 +235,7 @@ class Performance:
         self.t_start = t
         if self.tape is not None:  # the avatar restarts: so does its video
             self.tape.reset()
-            self.tape.append(self.latest_mask, *self.picture)
+            self.tape.append(self.reader.mask, *self.reader.picture)
         entry.update(frame=self.avatar.frame, located=round(got[2], 4))
         entry["clip"], entry["clip_frame"] = self.graph.locate(self.avatar.frame)
 
@@ -352,10 +281,11 @@ class Performance:
         entry = {"t": round(t, 3), "frame": self.avatar.frame, "clip": clip, "clip_frame": f}
         if missed:
             entry["skipped"] = missed
-        if self.others:  # the largest is followed, the log says so
-            entry["people_in_view"] = 1 + self.others
-        if self.reader is not None and self.reader.hidden:  # matched all the same
-            entry["hidden"] = list(self.reader.hidden)
+        if self.reader.others:  # the largest is followed, the log says so
+            entry["people_in_view"] = 1 + self.reader.others
+        pose = self.reader.pose
+        if pose is not None and pose.hidden:  # matched all the same
+            entry["hidden"] = list(pose.hidden)
         return entry
 
     def match(self, entry: dict[str, Any]) -> Decision | None:
@@ -379,7 +309,7 @@ class Performance:
                 entry["silhouette_weight"] = round(weight, 2)
             return d
         why = matcher.why.split(" (")[0]
-        upright = self.reader is not None and self.reader.upright
+        upright = self.reader.pose is not None and self.reader.pose.upright
         if why not in FALLBACK_REASONS and not (why in UPRIGHT_REASONS and upright):
             return d
         d = self.fallback.decide(avatar.frame, recent, avatar.jump_costs)
@@ -418,8 +348,8 @@ class Performance:
         if d is None:
             entry["decision"] = None
             entry["reason"] = (
-                self.why_blank  # nothing to match, on the way or not
-                if not np.isfinite(self.latest).all()
+                self.reader.why_blank  # nothing to match, on the way or not
+                if not np.isfinite(self.reader.latest).all()
                 else "en route"
                 if routing
                 else "filling buffer"
@@ -471,7 +401,7 @@ class Performance:
                     t = frame.t
                     if self.settings.seconds is not None and t > self.settings.seconds:
                         break
-                    mask = self.features(frame)
+                    mask = self.reader.read(frame)
                     if (
                         frame.image is not None
                         or frame.mask is not None
@@ -479,7 +409,7 @@ class Performance:
                     ):
                         n_media += 1
                     if on_frame is not None:
-                        on_frame(t, mask, self.avatar, self.picture)
+                        on_frame(t, mask, self.avatar, self.reader.picture)
                     self.advance(t)
                     if self.next_decision <= t + 1e-9:
                         entry = self.decide(t)

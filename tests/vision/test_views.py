@@ -31,7 +31,8 @@ from vision import (
     truth_for,
 )
 from vision._fallback import HIDDEN_FULL
-from vision._perform import UNPOSED, Performance
+from vision._frames import UNPOSED
+from vision._perform import Performance
 
 
 @pytest.fixture(scope="module")
@@ -203,7 +204,7 @@ def _run(
     lib, layer, _ = setup
     st = settings or PerformSettings()
     run = Performance(VideoSource(video), layer, bank, lib.clips, st, seed=1, **kw)
-    run.segmenter = segmenter
+    run.reader.segmenter = segmenter
     return run
 
 
