@@ -34,6 +34,7 @@ import numpy as np
 
 from benchmarks._report import machine, save
 from control.graph import (
+    BlendSettings,
     GraphOptions,
     build_graph,
     joint_jumps,
@@ -165,7 +166,7 @@ def walk(root: Path, seconds: float, options: GraphOptions) -> dict[str, Any]:
     raw = quality_summary([c.motion for c in lib.clips], [c.contacts.states for c in lib.clips])
     per_frame = np.concatenate([sole_speed(c.motion, c.contacts.states) for c in lib.clips])
     raw["foot_slide_visited"] = float(np.nanmean(per_frame[frames]))
-    no_ik = synthesize(g, lib.clips, frames, jumps, edges, ik=False)
+    no_ik = synthesize(g, lib.clips, frames, jumps, edges, BlendSettings(ik=False))
     jj = joint_jumps(syn.motion)
     at = jj[jumps - 1]
     return {

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .graph import (
-    TURN_RATE,
+    BlendSettings,
     FrameFeatures,
     MotionGraph,
     Synthesis,
@@ -34,7 +34,7 @@ from .graph import (
 )
 from .motion import Clip, action_keys
 
-__all__ = ["JUMP", "Avatar", "JumpCosts"]
+__all__ = ["AVATAR_BLENDING", "JUMP", "Avatar", "JumpCosts"]
 
 IntArray = NDArray[np.int64]
 
@@ -84,6 +84,13 @@ class JumpCosts:
         )
 
 
+#: an avatar's blending: ``BlendSettings``' but for planted feet held up to 0.4 m from
+#: where the blend puts them before they slide (a graph walk's 0.2 m): a direct jump's
+#: blend carries the body further than a graph transition's, and planted feet slide
+#: least there (``benchmarks/HISTORY.md``)
+AVATAR_BLENDING = BlendSettings(max_offset=0.4)
+
+
 class Avatar:
     """An avatar moving through ``graph``.
 
@@ -92,22 +99,14 @@ class Avatar:
     graph, clips : the motion graph and the library clips it was built from.
     start : first graph frame (default: drawn from the component with ``seed``).
     seed : seeds the probabilistic moves.
-    blend : blend interval b in seconds; ``ik`` keeps planted feet in place.
     anywhere : direct jumps (and ``start``) may go to any frame of the library, not only
         the graph's component; outside it the avatar plays on, and where its clip ends
         it jumps to the nearest frame (the graph's distance) of the same action with a
         second left to play, else to the component's nearest.
     jump_costs : the ``JumpCosts`` of ``graph`` to use (shared by avatars of one graph,
         so its frame features are computed once); by default its own.
-    max_offset : metres a planted foot is held from where the blend puts it before it
-        slides (``synthesize``'s, there 0.2 m). 0.4: a direct jump's blend carries the
-        body further than a graph transition's, and planted feet slide least there
-        (``benchmarks/HISTORY.md``).
-    feet : ``synthesize``'s: ``"held"`` (default), or ``"floor"`` (planted feet brought
-        to the source's height; the vision interface's avatar, whose blends never end).
-    turn_limit, ik_turn_rate : ``synthesize``'s: degrees a second a blended joint may
-        turn in a frame beyond its source frame's own turn (``None``: no limit), and the
-        leg IK's corrections.
+    blend_settings : how its motion is blended and its feet kept (``synthesize``'s
+        ``BlendSettings``); by default ``AVATAR_BLENDING``.
     """
 
     def __init__(
@@ -116,25 +115,13 @@ class Avatar:
         clips: Sequence[Clip],
         start: int | None = None,
         seed: int = 0,
-        blend: float = 1.0,
-        ik: bool = True,
         anywhere: bool = False,
         jump_costs: JumpCosts | None = None,
-        max_offset: float = 0.4,
-        feet: str = "held",
-        turn_limit: float | None = None,
-        ik_turn_rate: float = TURN_RATE,
+        blend_settings: BlendSettings = AVATAR_BLENDING,
     ) -> None:
-        if not max_offset >= 0:
-            raise ValueError(f"max_offset must be metres >= 0, got {max_offset}")
-        if feet not in ("held", "floor"):
-            raise ValueError(f"feet must be 'held' or 'floor', not {feet!r}")
         self.graph = graph
-        self.max_offset, self.feet = max_offset, feet
-        self.turn_limit, self.ik_turn_rate = turn_limit, ik_turn_rate
+        self.blend_settings = blend_settings
         self.clips = list(clips)
-        self.blend = blend
-        self.ik = ik
         self._rng = np.random.default_rng(seed)
         scc = np.flatnonzero(graph.in_scc)
         if scc.size == 0:
@@ -160,7 +147,7 @@ class Avatar:
         #: landing frames with a second left to play in their clip (with ``_actions``)
         self._lasting = np.zeros(0, dtype=bool)
         self.anywhere = anywhere
-        self._blend_frames = max(1, round(blend * graph.fps))
+        self._blend_frames = max(1, round(blend_settings.seconds * graph.fps))
         if jump_costs is not None and (
             jump_costs.graph is not graph or jump_costs.anywhere != anywhere
         ):
@@ -341,11 +328,6 @@ class Avatar:
             frames,
             jumps,
             edges,
-            blend=self.blend,
-            ik=self.ik,
-            max_offset=self.max_offset,
+            self.blend_settings,
             extra=self.jumps() if self._jump_src else None,
-            feet=self.feet,
-            turn_limit=self.turn_limit,
-            ik_turn_rate=self.ik_turn_rate,
         )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -10,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from control.avatar import Avatar
+from control.avatar import AVATAR_BLENDING, Avatar
 from control.choice import Option, offer
 from control.clusters import DEFAULT_KS, HigherLayer, LayerSettings, cached_higher_layer
 from control.graph import FrameData, MotionGraph
@@ -116,7 +117,8 @@ def run_choice_session(
 ) -> dict[str, Any]:
     data = FrameData(graph, library.clips)
     start = start_frame(graph, args.start)
-    avatar = Avatar(graph, library.clips, start=start, seed=args.seed, blend=blend_seconds(args))
+    blend = dataclasses.replace(AVATAR_BLENDING, seconds=blend_seconds(args))
+    avatar = Avatar(graph, library.clips, start=start, seed=args.seed, blend_settings=blend)
     lookahead = None if args.lookahead <= 0 else (0.0, args.lookahead)
     region = None
     if args.region:

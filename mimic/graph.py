@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from control.graph import (
+    BlendSettings,
     joint_jumps,
     quality_summary,
     random_walk,
@@ -126,9 +127,8 @@ def _graph_walk(args: argparse.Namespace) -> int:
     start = start_frame(graph, args.start)
     n = max(1, round(args.seconds * graph.fps))
     frames, jumps, edges = random_walk(graph, n, seed=args.seed, start=start)
-    syn = synthesize(
-        graph, library.clips, frames, jumps, edges, blend=blend_seconds(args), ik=not args.no_ik
-    )
+    blend = BlendSettings(seconds=blend_seconds(args), ik=not args.no_ik)
+    syn = synthesize(graph, library.clips, frames, jumps, edges, blend)
     write_bvh(syn.motion, args.out)
     minutes = n / graph.fps / 60.0
     summary: dict[str, Any] = {

@@ -8,6 +8,7 @@ import pytest
 
 from control.avatar import JUMP, Avatar
 from control.graph import (
+    BlendSettings,
     FrameData,
     GraphOptions,
     MotionGraph,
@@ -57,18 +58,16 @@ def test_a_jump_is_blended_like_a_transition(graph: MotionGraph, medium_lib: Lib
     lib_jumps = np.concatenate([joint_jumps(c.motion) for c in medium_lib.clips])
     assert joint_jumps(syn.motion)[k - 1] <= np.percentile(lib_jumps, 99.9)
     # the same motion as synthesize given the jump as an extra edge
-    again = synthesize(
-        graph, medium_lib.clips, frames, jumps, edges, extra=a.jumps(), max_offset=a.max_offset
-    )
+    again = synthesize(graph, medium_lib.clips, frames, jumps, edges, a.blend_settings, a.jumps())
     assert np.allclose(again.motion.quats, syn.motion.quats)
     # its planted feet are held up to 0.4 m from where the blend puts them (a graph
     # walk's 0.2): they slide less
     states = np.concatenate([c.contacts.states for c in medium_lib.clips])[frames]
     tight = synthesize(graph, medium_lib.clips, frames, jumps, edges, extra=a.jumps())
     held, loose = foot_slide(syn.motion, states), foot_slide(tight.motion, states)
-    assert a.max_offset == 0.4 and held.mean() < loose.mean()
+    assert a.blend_settings.max_offset == 0.4 and held.mean() < loose.mean()
     with pytest.raises(ValueError, match="max_offset"):
-        Avatar(graph, medium_lib.clips, start=int(scc[10]), max_offset=-0.1)
+        BlendSettings(max_offset=-0.1)
     # the feet stay where the library's feet are
     assert lowest_foot(syn.motion).max() <= max(
         lowest_foot(c.motion).max() for c in medium_lib.clips
@@ -140,16 +139,15 @@ def test_planted_feet_on_the_floor_when_blends_end_mid_contact(mocap) -> None:
     extra = (np.array(src), np.array(dst), np.array(align))
     excess = {}
     for feet in ("held", "floor"):
-        syn = synthesize(g, lib.clips, *path, blend=0.5, max_offset=0.4, extra=extra, feet=feet)
+        st = BlendSettings(seconds=0.5, max_offset=0.4, feet=feet)
+        syn = synthesize(g, lib.clips, *path, st, extra)
         excess[feet] = lowest_foot(syn.motion) - own[path[0]]
     assert excess["held"].max() > 0.12 and (excess["held"] > 0.1).mean() > 0.01
     assert excess["floor"].max() < 0.06
-    a = Avatar(g, lib.clips, feet="floor")
-    assert a.feet == "floor"
+    a = Avatar(g, lib.clips, blend_settings=BlendSettings(feet="floor"))
+    assert a.blend_settings.feet == "floor"
     with pytest.raises(ValueError, match="feet"):
-        Avatar(g, lib.clips, feet="air")
-    with pytest.raises(ValueError, match="feet"):
-        synthesize(g, lib.clips, *path, extra=extra, feet="air")
+        BlendSettings(feet="air")
 
 
 def test_where_its_clip_ends_the_avatar_keeps_the_action(mocap) -> None:

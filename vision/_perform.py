@@ -27,7 +27,7 @@ from typing import IO, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from control.avatar import Avatar, JumpCosts
+from control.avatar import AVATAR_BLENDING, Avatar, JumpCosts
 from control.clusters import HigherLayer
 from control.kernels import one_thread
 from control.motion import Clip
@@ -190,10 +190,13 @@ class Performance:
             seed=self.seed,
             anywhere=self.jumps,
             jump_costs=self.costs,
-            blend=self.settings.blend,
-            feet="floor",  # its blends never end: planted feet on the floor (synthesize)
-            turn_limit=TURN_LIMIT,
-            ik_turn_rate=IK_TURN_RATE,
+            blend_settings=dataclasses.replace(
+                AVATAR_BLENDING,
+                seconds=self.settings.blend,
+                feet="floor",  # its blends never end: planted feet on the floor
+                turn_limit=TURN_LIMIT,
+                ik_turn_rate=IK_TURN_RATE,
+            ),
         )
 
     # --- the steps -------------------------------------------------------------------------

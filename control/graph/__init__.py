@@ -2,6 +2,7 @@
 blended transitions and the random walk."""
 
 from ._artifact import GraphFileError, cached_graph, graph_cache_dir, load_graph, save_graph
+from ._blending import BlendSettings
 from ._distance import (
     pair_distances,
 )
@@ -54,6 +55,7 @@ __all__ = [
     "CONTACT_RULES",
     "COORDS",
     "TURN_RATE",
+    "BlendSettings",
     "CapturedTerrain",
     "FootTrack",
     "FrameData",

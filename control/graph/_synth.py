@@ -40,9 +40,10 @@ from ..motion import (
     qlog,
     qmul,
 )
+from ._blending import BlendSettings
 from ._features import root_scales, rotate_y, yaw_q
 from ._graph import MotionGraph
-from ._ik import TURN_RATE, knee_hinge, leg_chain, solve_leg
+from ._ik import knee_hinge, leg_chain, solve_leg
 from ._quality import lowest_foot
 from ._turns import follow_turns, own_turns
 
@@ -133,15 +134,8 @@ def synthesize(
     frames: IntArray,
     jumps: IntArray,
     edges: IntArray,
-    blend: float = 1.0,
-    ik: bool = True,
-    fade: float = 0.25,
-    max_offset: float = 0.2,
-    anchor: str = "output",
+    settings: BlendSettings | None = None,
     extra: tuple[IntArray, IntArray, FloatArray] | None = None,
-    feet: str = "held",
-    turn_limit: float | None = None,
-    ik_turn_rate: float = TURN_RATE,
 ) -> Synthesis:
     """Turn a path through the graph into motion.
 
@@ -151,59 +145,33 @@ def synthesize(
     frames : (T,) graph frames; consecutive ones play on, hold still or follow a transition.
     jumps : (M,) increasing output frames ``t`` where ``frames[t]`` follows transition
         ``edges[m]`` from ``frames[t - 1]``.
-    blend : the blend interval b in seconds (Lee et al.: 1-2 s).
-    ik : keep planted feet in place with leg IK.
-    fade : seconds over which a foot's correction fades after it lifts.
-    max_offset : metres; a planted foot held further than this from where the blended
-        motion puts it slides along instead (the paper's "allow the foot to slip").
-    anchor : where a planted foot is held: ``"output"`` (default) where it touched down in
-        the blended motion; ``"source"`` where its source frame puts it under the path's
-        alignment (on terrain, the block top the path was checked against).
+    settings : how transitions are blended and planted feet kept (``BlendSettings``;
+        by default its defaults: a 1 s blend, feet held with leg IK).
     extra : ``(src, dst, align)`` of direct jumps that are not graph transitions (the
         vision interface's blended jumps, ``control.Avatar.jump``): edge ``e >=
         graph.n_edges`` is jump ``e - graph.n_edges``, blended like any transition.
-    feet : ``"held"`` (default): a planted foot held where it touched down; ``"floor"``:
-        brought to the source frame's height (the vision avatar, whose blends never end;
-        on terrain, or walks of the graph, ``"held"`` slides less).
-    turn_limit, ik_turn_rate : degrees a second: no blended joint turns in a frame more than
-        this or its source frame does (``follow_turns``; ``None``: no limit); the most the
-        leg IK's corrections turn (``TURN_RATE``).
     """
+    st = settings or BlendSettings()
     data = FrameData(graph, clips)
     frames, jumps, edges, align_of = _checked_path(graph, frames, jumps, edges, extra)
-    _check_options(blend, fade, max_offset, anchor, feet, turn_limit, ik_turn_rate)
-    b = max(1, round(blend * graph.fps))
+    b = max(1, round(st.seconds * graph.fps))
 
     src_p, src_q, out_p, out_q, blended, v1 = _place_and_blend(
         data, graph, frames, jumps, edges, align_of, b
     )
-    if turn_limit is not None and jumps.size:
+    if st.turn_limit is not None and jumps.size:
         own = own_turns(src_q, jumps, v1[1])
-        out_q = follow_turns(out_q, own, turn_limit / graph.fps)
+        out_q = follow_turns(out_q, own, st.turn_limit / graph.fps)
     states = data.states[frames]
     unreachable = 0
     # the root's height over blends: before the leg IK with feet="floor", else after it
-    lift = ik and blended.any()
-    if lift and feet == "floor":
+    lift = st.ik and blended.any()
+    if lift and st.feet == "floor":
         out_p = _lifted(data.skeleton, graph.fps, src_p, src_q, out_p, out_q, blended)
-    if ik and jumps.size:
-        out_q, unreachable = _plant_feet(
-            data.skeleton,
-            graph.fps,
-            out_p,
-            out_q,
-            src_p,
-            src_q,
-            jumps,
-            v1,
-            states,
-            round(fade * graph.fps),
-            max_offset,
-            anchor == "source",
-            b if feet == "floor" else 0,
-            ik_turn_rate,
-        )
-    if lift and feet == "held":  # (planted feet move up or down with the body)
+    if st.ik and jumps.size:
+        source = (src_p, src_q, v1, states)
+        out_q, unreachable = _plant_feet(data.skeleton, graph.fps, out_p, out_q, source, jumps, st)
+    if lift and st.feet == "held":  # (planted feet move up or down with the body)
         out_p = _lifted(data.skeleton, graph.fps, src_p, src_q, out_p, out_q, blended)
     motion = Motion(data.skeleton, out_p, out_q, graph.fps, name="walk", source="graph")
     return Synthesis(motion, frames, jumps, edges, states, blended, unreachable)
@@ -223,25 +191,6 @@ def _checked_path(
     src_of, dst_of, align_of = _edge_tables(graph, extra)
     _check_path(graph, frames, jumps, edges, src_of, dst_of)
     return frames, jumps, edges, align_of
-
-
-def _check_options(
-    blend: float,
-    fade: float,
-    max_offset: float,
-    anchor: str,
-    feet: str,
-    turn_limit: float | None,
-    ik_turn_rate: float,
-) -> None:
-    if not blend > 0 or not fade >= 0 or not max_offset >= 0:
-        raise ValueError("blend must be positive, fade and max_offset not negative")
-    if anchor not in ("output", "source"):
-        raise ValueError(f"anchor must be 'output' or 'source', not {anchor!r}")
-    if feet not in ("held", "floor"):
-        raise ValueError(f"feet must be 'held' or 'floor', not {feet!r}")
-    if not (turn_limit is None or turn_limit > 0) or not ik_turn_rate > 0:
-        raise ValueError("turn_limit and ik_turn_rate must be degrees a second > 0")
 
 
 def _place_and_blend(
@@ -435,17 +384,17 @@ def _plant_feet(
     fps: float,
     out_p: FloatArray,
     out_q: FloatArray,
-    src_p: FloatArray,
-    src_q: FloatArray,
+    source: tuple[FloatArray, FloatArray, tuple[FloatArray, FloatArray], NDArray[np.bool_]],
     jumps: IntArray,
-    virtual: tuple[FloatArray, FloatArray],
-    states: NDArray[np.bool_],
-    fade: int,
-    max_offset: float,
-    from_source: bool = False,
-    floor: int = 0,
-    turn_rate: float = TURN_RATE,
+    st: BlendSettings,
 ) -> tuple[FloatArray, int]:
+    """The output's quaternions with each planted foot kept by leg IK (``_foot_targets``)
+    and the frames where a leg could not reach; ``source``: the source frames' root
+    positions and quaternions, the virtual frames before the jumps and the feet's
+    contact states."""
+    src_p, src_q, virtual, states = source
+    fade, max_offset, from_source = round(st.fade * fps), st.max_offset, st.anchor == "source"
+    floor = max(1, round(st.seconds * fps)) if st.feet == "floor" else 0
     pose = forward_kinematics(Motion(skeleton, out_p, out_q, fps))
     src_pose = forward_kinematics(Motion(skeleton, src_p, src_q, fps))
     v_pose = forward_kinematics(Motion(skeleton, virtual[0], virtual[1], fps))
@@ -473,7 +422,7 @@ def _plant_feet(
             target[todo],
             hinge,
             todo,
-            turn_rate / fps,
+            st.ik_turn_rate / fps,
         )
         out_q[todo[:, None], np.array(chain)[None, :]] = new
         hip = pose.positions[todo, chain[0]]

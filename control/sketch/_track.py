@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 
 from ..clusters import HigherLayer
 from ..graph import (
+    BlendSettings,
     CapturedTerrain,
     FrameData,
     MotionGraph,
@@ -346,9 +347,11 @@ class SketchTracker:
             np.array(self.frames),
             np.array(self.jumps, dtype=np.int64),
             np.array(self.edges, dtype=np.int64),
-            anchor="source" if self.terrain is not None else "output",
-            max_offset=0.45 if self.terrain is not None else 0.2,
-            blend=blend if blend is not None else 0.3 if self.terrain is not None else 1.0,
+            BlendSettings(
+                seconds=blend if blend is not None else 0.3 if self.terrain is not None else 1.0,
+                anchor="source" if self.terrain is not None else "output",
+                max_offset=0.45 if self.terrain is not None else 0.2,
+            ),
         )
         yaw, trans = self._start_map()
         m = syn.motion

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from control.graph import (
+    BlendSettings,
     GraphOptions,
     MotionGraph,
     build_graph,
@@ -67,7 +68,9 @@ def test_blend_matches_pose_and_velocity_then_fades(
     e = int(_edges_with_room(graph, 5, 40)[np.argmax(graph.dist[_edges_with_room(graph, 5, 40)])])
     frames, jumps = _path(graph, [e], 5)
     b = 15
-    syn = synthesize(graph, medium_lib.clips, frames, jumps, np.array([e]), blend=1.0, ik=False)
+    syn = synthesize(
+        graph, medium_lib.clips, frames, jumps, np.array([e]), BlendSettings(seconds=1.0, ik=False)
+    )
     t = int(jumps[0])
     src_q = np.concatenate([c.motion.quats for c in medium_lib.clips])
     d = int(graph.dst[e])
@@ -113,7 +116,12 @@ def test_transition_inside_a_blend_starts_from_the_shown_motion(
     t2 = 6 + int(graph.src[second] - graph.dst[first]) + 1
     jumps = np.array([6, t2])
     syn = synthesize(
-        graph, medium_lib.clips, frames, jumps, np.array([first, second]), blend=1.0, ik=False
+        graph,
+        medium_lib.clips,
+        frames,
+        jumps,
+        np.array([first, second]),
+        BlendSettings(seconds=1.0, ik=False),
     )
     src_q = np.concatenate([c.motion.quats for c in medium_lib.clips])
     d = int(graph.dst[second])
@@ -294,7 +302,7 @@ def test_two_bone_ik_reaches_and_keeps_the_foot(
 def test_planted_feet_slide_less(graph: MotionGraph, medium_lib: Library) -> None:
     frames, jumps, edges = random_walk(graph, 1500, seed=3)
     with_ik = synthesize(graph, medium_lib.clips, frames, jumps, edges)
-    without = synthesize(graph, medium_lib.clips, frames, jumps, edges, ik=False)
+    without = synthesize(graph, medium_lib.clips, frames, jumps, edges, BlendSettings(ik=False))
     slide_ik = foot_slide(with_ik.motion, with_ik.states).mean()
     # the raw capture's own slide on the frames this walk shows
     per_frame = np.concatenate([sole_speed(c.motion, c.contacts.states) for c in medium_lib.clips])
@@ -316,8 +324,8 @@ def test_a_held_frame_stands_still(graph: MotionGraph, medium_lib: Library) -> N
     t = calm[len(calm) // 2]
     held = np.concatenate((frames[: t + 1], np.full(10, frames[t]), frames[t + 1 :]))
     later = np.where(jumps > t, jumps + 10, jumps)
-    plain = synthesize(graph, medium_lib.clips, frames, jumps, edges, ik=False)
-    still = synthesize(graph, medium_lib.clips, held, later, edges, ik=False)
+    plain = synthesize(graph, medium_lib.clips, frames, jumps, edges, BlendSettings(ik=False))
+    still = synthesize(graph, medium_lib.clips, held, later, edges, BlendSettings(ik=False))
     p, q = still.motion.root_pos, still.motion.quats
     np.testing.assert_allclose(p[t : t + 11], np.broadcast_to(p[t], (11, 3)))
     np.testing.assert_allclose(q[t : t + 11], np.broadcast_to(q[t], (11, *q.shape[1:])))
@@ -335,7 +343,7 @@ def test_bad_paths_are_refused(graph: MotionGraph, medium_lib: Library) -> None:
     with pytest.raises(ValueError, match="increasing"):
         synthesize(graph, medium_lib.clips, frames, jumps[::-1], edges[::-1])
     with pytest.raises(ValueError, match="blend"):
-        synthesize(graph, medium_lib.clips, frames, jumps, edges, blend=0.0)
+        synthesize(graph, medium_lib.clips, frames, jumps, edges, BlendSettings(seconds=0.0))
     with pytest.raises(KeyError, match="lacks"):
         synthesize(graph, medium_lib.clips[:3], frames, jumps, edges)
 
@@ -371,7 +379,9 @@ def test_a_blend_near_a_half_turn_does_not_swing_the_limb(
     q[f - 2, joint] = qmul(turn(-179.0), src_q[s - 1, joint])
     clips = list(medium_lib.clips)
     clips[k] = dataclasses.replace(clips[k], motion=dataclasses.replace(clips[k].motion, quats=q))
-    syn = synthesize(graph, clips, frames, jumps, np.array([e]), blend=1.0, ik=False)
+    syn = synthesize(
+        graph, clips, frames, jumps, np.array([e]), BlendSettings(seconds=1.0, ik=False)
+    )
     out = syn.motion.quats[:, joint]
     t = int(jumps[0])
     step = np.degrees(
@@ -433,7 +443,7 @@ def test_follow_turns_lets_a_joint_turn_a_step_beyond_its_source() -> None:
 def test_a_turn_limit_keeps_every_joint_within_its_step_or_its_source(
     graph: MotionGraph, medium_lib: Library
 ) -> None:
-    """``synthesize(turn_limit=...)`` on a path of several transitions (no IK): no joint
+    """``BlendSettings.turn_limit`` on a path of several transitions (no IK): no joint
     turns in a frame by more than the limit's step or its source frame's own turn; a
     limit no blend reaches changes nothing."""
     room = _edges_with_room(graph, 5, 40)
@@ -451,10 +461,17 @@ def test_a_turn_limit_keeps_every_joint_within_its_step_or_its_source(
     assert len(edges) >= 2
     frames, jumps = _path(graph, edges, 5)
     edges_a = np.array(edges)
-    plain = synthesize(graph, medium_lib.clips, frames, jumps, edges_a, blend=0.5, ik=False)
+    plain = synthesize(
+        graph, medium_lib.clips, frames, jumps, edges_a, BlendSettings(seconds=0.5, ik=False)
+    )
     limit = 150.0
     held = synthesize(
-        graph, medium_lib.clips, frames, jumps, edges_a, blend=0.5, ik=False, turn_limit=limit
+        graph,
+        medium_lib.clips,
+        frames,
+        jumps,
+        edges_a,
+        BlendSettings(seconds=0.5, ik=False, turn_limit=limit),
     )
     q = held.motion.quats
     per = np.linalg.norm(qlog(qmul(qconj(q[:-1]), q[1:])), axis=-1)  # (T - 1, J) radians
@@ -465,8 +482,13 @@ def test_a_turn_limit_keeps_every_joint_within_its_step_or_its_source(
     assert (per <= cap).all()
     assert not np.allclose(held.motion.quats, plain.motion.quats)  # the blends were limited
     loose = synthesize(
-        graph, medium_lib.clips, frames, jumps, edges_a, blend=0.5, ik=False, turn_limit=1e9
+        graph,
+        medium_lib.clips,
+        frames,
+        jumps,
+        edges_a,
+        BlendSettings(seconds=0.5, ik=False, turn_limit=1e9),
     )
     np.testing.assert_allclose(loose.motion.quats, plain.motion.quats, atol=1e-12)
     with pytest.raises(ValueError, match="turn_limit"):
-        synthesize(graph, medium_lib.clips, frames, jumps, edges_a, turn_limit=0.0)
+        BlendSettings(turn_limit=0.0)

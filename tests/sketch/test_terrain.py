@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 
 from control.graph import (
+    BlendSettings,
     GraphOptions,
     build_graph,
     captured_terrain,
     compose,
     foot_track,
     rotate_y,
-    synthesize,
     terrain_options,
 )
 from control.motion import Clip, Motion, load_library, read_bvh
@@ -172,7 +172,6 @@ def test_cli_sketch_on_terrain(mocap: Path, tmp_path: Path, capsys) -> None:
     assert read_bvh(out).n_frames > 50
 
 
-def test_synthesis_anchor_is_checked(blocks) -> None:
-    lib, g, _, _ = blocks
+def test_synthesis_anchor_is_checked() -> None:
     with pytest.raises(ValueError, match="anchor must be 'output' or 'source'"):
-        synthesize(g, lib.clips, np.array([0, 1]), np.zeros(0, int), np.zeros(0, int), anchor="x")
+        BlendSettings(anchor="x")
