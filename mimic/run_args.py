@@ -100,6 +100,7 @@ def action_settings(args: argparse.Namespace) -> ActionSettings:
         strict_share=args.vote_strict,
         weak_fit=args.weak_fit,
         weak_margin=args.weak_margin,
+        ballot_jumps=args.ballot_jumps,
         fuse=args.fuse,
         classify=not args.no_classify,
         **{k: v for k, v in given.items() if v is not None},
@@ -360,6 +361,14 @@ def _add_filter_args(p: argparse.ArgumentParser) -> None:
         help="filter the voted action by a hidden Markov model whose chance of a change "
         f"per decision is P, instead of counting votes (default {ActionSettings.switch_chance:g}"
         f": counting; with --steady {steady.switch_chance:g})",
+    )
+    p.add_argument(
+        "--ballot-jumps",
+        action=argparse.BooleanOptionalAction,
+        default=ActionSettings.ballot_jumps,
+        help="with --vote-switch and a finite --vote-margin, a decision whose ballot names "
+        "another action than the voted one may jump into it through the margin before the "
+        "filter believes it (any third action stays shut)",
     )
     p.add_argument(
         "--vote-confidence",

@@ -177,10 +177,22 @@ class Lander:
     def strict(self) -> bool:
         """Whether this decision's jumps go into the voted action alone: with the margin
         infinite, or where the last votes agree on the voted action by ``strict_share``
-        at least. The avatar's own motion and its holds keep the margin: a performer
-        standing still is still mirrored by a held frame of another action."""
+        at least, unless the ballot names another action (``named``). The avatar's own
+        motion and its holds keep the margin: a performer standing still is still
+        mirrored by a held frame of another action."""
+        if self.named() is not None:
+            return False
         share = self.settings.action.strict_share
         return math.isinf(self.margin()) or 0 < share <= self.vote.share()
+
+    def named(self) -> int | None:
+        """With the filter and ``action.ballot_jumps``: the action this decision's ballot
+        names where the filter does not vote for it (yet); ``None`` otherwise, and with
+        the margin infinite (no window of another action is ever taken)."""
+        v, st = self.vote, self.settings.action
+        if not (st.ballot_jumps and v.switch > 0 and math.isfinite(self.margin())):
+            return None
+        return v.named if 0 <= v.named != v.voted else None
 
     def gated(
         self,
@@ -224,6 +236,11 @@ class Lander:
         other = (
             max(margin, self.settings.action.weak_margin) if self.weak(best, queries) else margin
         )
+        named = self.named()
+        if named is not None:  # (the ballot's action, or the voted one: no third)
+            assert self.vote.actions is not None
+            keys = self.vote.actions[np.clip(target, 0, self.vote.actions.size - 1)]
+            ok = ok & (voted | (keys == named))
         return got, target, ok, np.where(voted, 1.0, 1.0 + other), own
 
     def weak(self, got: Windows, queries: list[FloatArray]) -> bool:

@@ -198,6 +198,14 @@ class ActionSettings:
         half (``benchmarks/HISTORY.md``, "Weak fits"). ``inf``: off.
     weak_margin : float
         The margin where the best window fits weakly (``weak_fit``).
+    ballot_jumps : bool
+        With the filter and a finite ``margin``: where a decision's ballot names another
+        action than the voted one, that decision may jump into a window of it through
+        the margin (windows of any third action stay shut), before the filter believes
+        it. The filter takes a change up once the evidence of several decisions outweighs
+        its cost; the performer's pose often shows the new action a decision or two
+        before that (a squat begins), and a window of it then fits far better than any
+        of the voted action.
     fuse : bool
         With landmarks and the silhouette beside them (``vision._fallback``): where the
         pose model's limbs are of low confidence, each decision's ballot weighs both
@@ -227,6 +235,7 @@ class ActionSettings:
     strict_share: float = 0.9
     weak_fit: float = 0.35
     weak_margin: float = 1.0
+    ballot_jumps: bool = False
     fuse: bool = True
     tempos: tuple[float, ...] = ()
 

@@ -82,6 +82,8 @@ class ActionVote:
         self._votes: deque[int] = deque(maxlen=max(1, size))
         #: the action most voted for (-1: none yet)
         self.voted = -1
+        #: the action the latest decision's ballot named (-1: none)
+        self.named = -1
         #: this many votes in a row for one action make it the voted one at once, before
         #: it has the most votes (a third of the vote: 0.5 s of 1.5 s); the older votes
         #: stay, so one vote more for the old action, while it still has the most, takes
@@ -166,6 +168,7 @@ class ActionVote:
         ``quick`` votes are all for another."""
         if self.actions is None or self.size <= 0:
             return None
+        self.named = -1 if choice is None else choice
         if self.switch > 0 and scores is not None:
             self.filter(scores)
             return self.gate(target)

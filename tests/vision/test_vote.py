@@ -3,6 +3,7 @@ performer's action, and the avatar keeps to it."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -400,6 +401,46 @@ def test_where_the_vote_agrees_the_avatar_leaves_its_action_before_playing_out_o
     lander.settings = MatchSettings(action=ActionSettings(vote=10, margin=0.2, strict_share=0))
     _, _, ok, weight, own_weight = lander.gated(8, [], [], None, found, voted)
     assert ok.tolist() == [True, True] and weight.tolist() == [1.0, 1.2] and own_weight == 1.2
+
+
+def test_with_ballot_jumps_the_filter_may_jump_into_the_ballots_action_alone() -> None:
+    """``ActionSettings.ballot_jumps``: with the filter sure of its action (strict), a
+    decision whose ballot names another action may jump into that one through the
+    margin, before the filter believes it; a third action's window stays shut. Without
+    it, or with the margin infinite, the decision stays strict."""
+    from types import SimpleNamespace
+
+    from vision._landing import Lander
+
+    vote = ActionVote(10, 3, switch=0.02, temperature=0.2, confidence=0.9)
+    vote.actions = np.array([0] * 10 + [1] * 10 + [2] * 10, dtype=np.int64)
+    sure = np.array([0.0, 5.0, 5.0])  # the ballot's scores: action 0 far ahead
+    for _ in range(10):
+        vote.cast(np.array([2]), 0, sure)
+    assert vote.voted == 0 and vote.share() > 0.99
+    lander = Lander.__new__(Lander)
+    action = ActionSettings(vote=10, margin=0.2, ballot_jumps=True, switch_chance=0.02)
+    lander.settings, lander.vote, lander.n = MatchSettings(action=action), vote, 4
+    lander.windows = SimpleNamespace(playback=lambda f: np.arange(f, f + 4))
+    # windows of actions 0, 1 and 2, the other two far better than the voted one's
+    got = [(1, 0, 1.0), (13, 0, 0.5), (23, 0, 0.4)]
+    found = (got, np.array([5, 15, 25]), np.array([True, True, True]), np.zeros(3, bool))
+
+    def gated() -> tuple[list[bool], list[float]]:
+        voted = vote.gate(found[1])
+        _, _, ok, weight, _ = lander.gated(2, [], [], None, found, voted)
+        return ok.tolist(), weight.tolist()
+
+    assert lander.named() is None and lander.strict()  # the ballot names the voted one
+    assert gated()[0] == [True, False, False]
+    vote.cast(np.array([2]), 1, np.array([1.02, 1.0, 5.0]))  # one ballot, for action 1
+    assert vote.voted == 0 and vote.named == 1 and vote.share() > 0.9  # the filter: still 0
+    assert lander.named() == 1 and not lander.strict()
+    assert gated() == ([True, True, False], [1.0, 1.2, 1.2])  # action 1 at the margin
+    lander.settings = MatchSettings(action=dataclasses.replace(action, ballot_jumps=False))
+    assert lander.named() is None and lander.strict()
+    lander.settings = MatchSettings(action=dataclasses.replace(action, margin=math.inf))
+    assert lander.named() is None and lander.strict()
 
 
 def test_where_the_best_window_fits_weakly_another_action_costs_more(setup) -> None:
