@@ -693,7 +693,7 @@ def test_the_avatar_blends_over_the_blend_asked_for(setup) -> None:
     lib, layer, bank = setup
     settings = PerformSettings(seconds=1.5, blend=0.4)
     r = perform(VideoSource(RECORDING, silhouette=True), layer, bank, lib.clips, settings)
-    assert r.avatar.blend == 0.4
+    assert r.avatar.blend_settings.seconds == 0.4
     assert r.avatar.motion().motion.n_frames == r.avatar.n_frames
 
 
