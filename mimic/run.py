@@ -149,13 +149,14 @@ def prepare(settings: RunSettings, source: Source) -> Prepared:
         fallback, _, _ = cached_bank(
             clips, BankSettings(), progress=bar("silhouette bank (fallback)", "silhouettes")
         )
-    _say_vote(clips, match)
+    _say_vote(clips, match, bank.settings.features.kind)
     start = start_frame(graph, settings.start)
     return Prepared(descriptor, clips, graph, layer, bank, built, settings.perform, start, fallback)
 
 
-def _say_vote(clips: list[Clip], match: MatchSettings) -> None:
-    """Say on stderr whether the avatar keeps to a voted action, and among which."""
+def _say_vote(clips: list[Clip], match: MatchSettings, kind: str) -> None:
+    """Say on stderr whether the avatar keeps to a voted action, and among which (for a
+    matcher of descriptor ``kind``)."""
     names = sorted({c.label_names[k] for c in clips for k in set(c.labels[c.labels >= 0])})
     if not (match.landing.jumps and match.action.vote > 0):
         print("actions: no vote (the avatar jumps to the best windows alone)", file=sys.stderr)
@@ -164,27 +165,30 @@ def _say_vote(clips: list[Clip], match: MatchSettings) -> None:
     else:
         print(
             f"actions: {len(names)} labelled ({', '.join(names)}); the avatar keeps to the "
-            + _vote_phrase(match.action)
+            + _vote_phrase(match.action, kind)
             + " (--vote 0: off)",
             file=sys.stderr,
         )
 
 
-def _vote_phrase(a: ActionSettings) -> str:
-    """How the voted action is chosen and what else the avatar may jump into, in words."""
-    if a.switch_chance > 0:
+def _vote_phrase(a: ActionSettings, kind: str) -> str:
+    """How the voted action is chosen (for a matcher of descriptor ``kind``) and what
+    else the avatar may jump into, in words."""
+    switch = a.switch_for(kind)
+    if switch > 0:
         how = (
             f"one a hidden Markov filter of the last decisions believes in (a change "
-            f"{a.switch_chance:g} a decision, taken up at a belief of {a.confidence:g})"
+            f"{switch:g} a decision, taken up at a belief of {a.confidence:g}; --vote-switch)"
         )
     else:
         how = f"one the best windows of the last {a.vote} decisions voted for"
     if math.isfinite(a.margin):
-        how += f", or another whose window fits better at {1 + a.margin:g} times its cost"
-        how += " (--vote-margin)"
+        other = "the one its latest ballot names" if switch > 0 and a.ballot_jumps else "another"
+        how += f", or {other} where its window fits better at {1 + a.margin:g} times its cost"
         if math.isfinite(a.weak_fit):
             weak = 1 + max(a.margin, a.weak_margin)
-            how += f", {weak:g} times where the best fits weakly (--weak-fit)"
+            how += f" ({weak:g} times where the best fits weakly, --weak-fit)"
+        how += " (--vote-margin)"
     if a.classify:
         how += ", each vote settled by an action classifier learned from the library"
         how += " (--no-classify: off)"

@@ -12,6 +12,7 @@ from control.clusters import LayerSettings
 from control.graph import GraphOptions
 from silhouette_bank import DEFAULT_DESCRIPTOR, DESCRIPTORS
 from vision import (
+    FILTER_SWITCH,
     FLOOR_ABOVE,
     FLOOR_SECONDS,
     METHODS,
@@ -85,15 +86,11 @@ class RunSettings:
 
 
 def action_settings(args: argparse.Namespace) -> ActionSettings:
-    """The ``ActionSettings`` of the vote's arguments: ``--steady``'s filtered vote or the
-    counted one, with any of the filter's flags given on the command line over either."""
+    """The ``ActionSettings`` of the vote's arguments: ``--steady``'s or the defaults
+    (the filter with landmarks, the counted vote with silhouettes), with ``--vote-switch``
+    and ``--vote-margin``, where given, over either."""
     base = ActionSettings.steady() if args.steady else ActionSettings()
-    given = {
-        "margin": args.vote_margin,
-        "switch_chance": args.vote_switch,
-        "confidence": args.vote_confidence,
-        "temperature": args.vote_temperature,
-    }
+    given = {"margin": args.vote_margin, "switch_chance": args.vote_switch}
     return dataclasses.replace(
         base,
         vote=args.vote,
@@ -101,6 +98,8 @@ def action_settings(args: argparse.Namespace) -> ActionSettings:
         weak_fit=args.weak_fit,
         weak_margin=args.weak_margin,
         ballot_jumps=args.ballot_jumps,
+        confidence=args.vote_confidence,
+        temperature=args.vote_temperature,
         fuse=args.fuse,
         classify=not args.no_classify,
         **{k: v for k, v in given.items() if v is not None},
@@ -347,11 +346,10 @@ def _add_filter_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--steady",
         action="store_true",
-        help=f"a calmer avatar: the filtered vote (--vote-switch {steady.switch_chance:g} "
-        f"--vote-confidence {steady.confidence:g} --vote-margin {steady.margin:g} "
-        f"--vote-temperature {steady.temperature:g}; any of them given too wins). It "
-        "switches action a third to a half less often, with few brief actions, but takes "
-        "a new action up about 0.2 s later",
+        help=f"a calmer avatar still: the filtered vote, jumping only into the action it "
+        f"believes in (--vote-switch {steady.switch_chance:g} --vote-margin {steady.margin:g}; "
+        "either given too wins). It switches action less often, with few brief actions, but "
+        "takes a new action up about 0.2 s later and follows the pose less closely",
     )
     p.add_argument(
         "--vote-switch",
@@ -359,32 +357,32 @@ def _add_filter_args(p: argparse.ArgumentParser) -> None:
         default=None,
         metavar="P",
         help="filter the voted action by a hidden Markov model whose chance of a change "
-        f"per decision is P, instead of counting votes (default {ActionSettings.switch_chance:g}"
-        f": counting; with --steady {steady.switch_chance:g})",
+        "per decision is P; 0: count the votes instead (default: "
+        f"{FILTER_SWITCH:g} with landmarks, 0 with silhouettes; with --steady "
+        f"{steady.switch_chance:g})",
     )
     p.add_argument(
         "--ballot-jumps",
         action=argparse.BooleanOptionalAction,
         default=ActionSettings.ballot_jumps,
-        help="with --vote-switch and a finite --vote-margin, a decision whose ballot names "
+        help="with the filter and a finite --vote-margin, a decision whose ballot names "
         "another action than the voted one may jump into it through the margin before the "
-        "filter believes it (any third action stays shut)",
+        "filter believes it, and into no third action (default on)",
     )
     p.add_argument(
         "--vote-confidence",
         type=number(float, 0, 1),
-        default=None,
-        help="with --vote-switch, change the voted action only to one believed at least "
-        f"this much (default {ActionSettings.confidence:g}, with --steady "
-        f"{steady.confidence:g})",
+        default=ActionSettings.confidence,
+        help="with the filter, change the voted action only to one believed at least "
+        "this much (default %(default)s)",
     )
     p.add_argument(
         "--vote-temperature",
         type=number(float, 0, 100, above=True),
-        default=None,
-        help="with --vote-switch, what turns each decision's action scores into evidence: "
+        default=ActionSettings.temperature,
+        help="with the filter, what turns each decision's action scores into evidence: "
         "higher weighs one decision less, so a change needs more decisions that agree "
-        f"(default {ActionSettings.temperature:g}, with --steady {steady.temperature:g})",
+        "(default %(default)s)",
     )
 
 

@@ -65,6 +65,7 @@ from ._segment import (
     clean_mask,
 )
 from ._settings import (
+    FILTER_SWITCH,
     ActionSettings,
     LandingSettings,
     MatchSettings,
@@ -114,6 +115,7 @@ from ._windows import (
 )
 
 __all__ = [
+    "FILTER_SWITCH",
     "FLOOR_ABOVE",
     "FLOOR_SECONDS",
     "INSTALL",

@@ -109,7 +109,8 @@ class Matcher:
         d_max = layer.graph.report.get("max_distance") if layer.graph.report else None
         self.d_max = float(d_max) if d_max else 1.0
         if vote is None:
-            vote = ActionVote.of(self.settings.action, self.n // 2, actions, names)
+            kind = self.desc.kind
+            vote = ActionVote.of(self.settings.action, self.n // 2, actions, names, kind)
         #: where a jump lands and what it must beat; it holds the action vote
         self.lander = Lander(self.windows, self.settings, vote, self.n, self.recent_frames)
 
@@ -283,7 +284,8 @@ class Matcher:
         It votes in a vote of its own, over no actions, which it then drops."""
         if self.bank.features.shape[0] >= self.n:
             probe = np.asarray(self.bank.features[: self.n, 0], dtype=np.float64)
-            vote, self.lander.vote = self.vote, ActionVote.of(self.settings.action, self.n // 2)
+            own = ActionVote.of(self.settings.action, self.n // 2, descriptor=self.desc.kind)
+            vote, self.lander.vote = self.vote, own
             try:
                 self.decide(frame, probe, recent, jump_costs)
             finally:

@@ -20,6 +20,7 @@ import math
 from dataclasses import dataclass, field
 
 __all__ = [
+    "FILTER_SWITCH",
     "ActionSettings",
     "LandingSettings",
     "MatchSettings",
@@ -142,6 +143,11 @@ class LandingSettings:
             raise ValueError(f"phase_frames must be >= 0 (0: off), got {self.phase_frames}")
 
 
+#: the filtered vote's chance of a change per decision, by default with landmarks
+#: (``ActionSettings.switch_for``)
+FILTER_SWITCH = 0.02
+
+
 @dataclass(frozen=True)
 class ActionSettings:
     """Which action the avatar keeps to, on a library whose clips are labelled (each
@@ -161,10 +167,14 @@ class ActionSettings:
         The library's labels are coarser than its poses: a window of another action is
         sometimes far nearer the performer's pose; a margin trades label agreement for
         the pose score and flicker.
-    switch_chance : float
+    switch_chance : float or None
         > 0: the voted action is filtered online by a hidden Markov model over the
         actions (``ActionVote.filter``) rather than counted: the chance per decision
-        that the performer changes action (0: the counted vote).
+        that the performer changes action (0: the counted vote). ``None``: the
+        descriptor's own (``switch_for``): the filter (0.02) for landmarks, whose
+        ballots it follows steadier and as soon, with ``ballot_jumps``; the counted vote
+        for silhouettes, whose ballots are less sure and which the filter follows late
+        (``benchmarks/HISTORY.md``, "Ballot jumps").
     temperature : float
         With the filter: what turns each decision's action scores into evidence.
     min_points : int
@@ -227,15 +237,15 @@ class ActionSettings:
 
     vote: int = 15
     margin: float = 0.2
-    switch_chance: float = 0.0
-    temperature: float = 0.1
+    switch_chance: float | None = None
+    temperature: float = 0.2
     min_points: int = 1
-    confidence: float = 0.0
+    confidence: float = 0.9
     classify: bool = True
     strict_share: float = 0.9
     weak_fit: float = 0.35
     weak_margin: float = 1.0
-    ballot_jumps: bool = False
+    ballot_jumps: bool = True
     fuse: bool = True
     tempos: tuple[float, ...] = ()
 
@@ -249,14 +259,21 @@ class ActionSettings:
         more; but it takes a change up about 0.2 s later, follows the pose a little less
         closely and lost one of the real squat clip's 39 labelled decisions, so it is an
         option, not the default (``benchmarks/HISTORY.md``, "Steadiness")."""
-        return cls(switch_chance=0.02, confidence=0.9, margin=math.inf, temperature=0.2)
+        return cls(switch_chance=FILTER_SWITCH, confidence=0.9, margin=math.inf, temperature=0.2)
+
+    def switch_for(self, descriptor: str) -> float:
+        """``switch_chance`` for a matcher of ``descriptor`` (a ``Descriptor.kind``): as
+        set, or by default ``FILTER_SWITCH`` for landmarks and 0 (counted) otherwise."""
+        if self.switch_chance is not None:
+            return self.switch_chance
+        return FILTER_SWITCH if descriptor == "pose" else 0.0
 
     def __post_init__(self) -> None:
         if self.vote < 0:
             raise ValueError(f"vote must be a number of decisions >= 0 (0: off), got {self.vote}")
         if not self.margin >= 0:
             raise ValueError(f"margin must be >= 0 (inf: strict), got {self.margin}")
-        if not 0.0 <= self.switch_chance < 1.0:
+        if not (self.switch_chance is None or 0.0 <= self.switch_chance < 1.0):
             raise ValueError(f"switch_chance must lie in [0, 1), got {self.switch_chance}")
         if not 0.0 <= self.strict_share <= 1.0:
             raise ValueError(f"strict_share must lie in [0, 1], got {self.strict_share}")

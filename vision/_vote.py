@@ -102,10 +102,13 @@ class ActionVote:
         span: int,
         actions: IntArray | None = None,
         names: Sequence[str] = (),
+        descriptor: str = "",
     ) -> ActionVote:
-        """The vote ``settings`` ask for, over ``actions`` named ``names``."""
+        """The vote ``settings`` ask for, over ``actions`` named ``names``, for a matcher
+        of ``descriptor`` (``ActionSettings.switch_for``)."""
         st = settings
-        vote = cls(st.vote, span, st.switch_chance, st.temperature, st.min_points, st.confidence)
+        switch = st.switch_for(descriptor)
+        vote = cls(st.vote, span, switch, st.temperature, st.min_points, st.confidence)
         vote.actions, vote.names = actions, list(names)
         return vote
 
