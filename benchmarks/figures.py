@@ -24,8 +24,8 @@ HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
 PAGES = (HERE.parent / "README.md", HERE / "README.md")
 START, END = "<!-- figures:start -->", "<!-- figures:end -->"
-#: the option of the rows below the defaults' (the filtered vote, steadier and later)
-STEADY = "the filtered vote (`--steady`)"
+#: the option of the rows below the defaults' (the filter alone, steadier and later)
+STEADY = "`--steady` (the filter alone)"
 
 
 def _load(name: str) -> dict[str, Any]:
