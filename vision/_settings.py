@@ -160,6 +160,8 @@ class ActionSettings:
         the avatar keeps to the action most voted for (0: no vote; 15: 1.5 s of
         decisions). It leaves another action when it shows one or will have played on
         into one within half a window, unless another fits far better (``margin``).
+        With the filter (``switch_chance``) every decision weighs in and this only turns
+        the vote on (> 0).
     margin : float
         Windows of another action than the voted one may be jumped into at ``1 + margin``
         times their cost, and the avatar's own motion, when it shows another action,
