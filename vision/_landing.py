@@ -205,13 +205,15 @@ class Lander:
     ) -> tuple[Windows, IntArray, NDArray[np.bool_], FloatArray, float]:
         """The action vote's part in a jump from ``frame``: the best windows ``found``
         (``(got, target, ok, there)``; ``voted``: which show the voted action), with those
-        of the voted action added when none does (``_voted_windows``), and ``(got,
+        of the voted action added when none does (``voted_windows``), and ``(got,
         target, ok, weight, own_weight)``: each window's cost is times ``weight`` (1 + the
         settings' ``action.margin`` for another action, ``weak_margin`` where the best
         fits weakly: ``weak``), the avatar's own times
         ``own_weight`` (the same, where it shows another action). Where the decision is
-        ``strict``, windows of another action are not ``ok``; with the margin infinite,
-        ``own_weight`` is infinite where the avatar must leave its action."""
+        ``strict``, windows of another action are not ``ok``; where the ballot names
+        another action (``named``), only its windows and the voted action's are; with the
+        margin infinite, ``own_weight`` is infinite where the avatar must leave its
+        action."""
         got, target, ok, there = found
         if voted is None:
             return got, target, ok, np.ones(len(got)), 1.0
