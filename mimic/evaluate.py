@@ -93,12 +93,16 @@ def _evaluate(args: argparse.Namespace) -> int:
     warn_own_take(args.video, ready.clips)
     warn_source(source)
     report = evaluation(result.decisions, ready.clips, truth, result.media_seconds)
+    match = dataclasses.asdict(ready.settings.match)
+    # the vote the run used (the default is the descriptor's own: ``switch_for``)
+    action = ready.settings.match.action
+    match["action"]["switch_chance"] = action.switch_for(ready.bank.settings.features.kind)
     report = {
         "video": str(args.video),
         "library": [c.name for c in ready.clips],
         "descriptor": ready.descriptor,
         "graph": {"coords": ready.graph.options.coords, "frames": ready.graph.n_frames},
-        "match": dataclasses.asdict(ready.settings.match),
+        "match": match,
         **report,
     }
     with outputs:  # the report and its plot replaced together, or neither

@@ -229,7 +229,9 @@ def test_the_hold_is_a_flag_and_a_bad_one_is_refused(mocap: Path, tmp_path: Path
     out = tmp_path / "r.json"
     argv = ["evaluate", str(RECORDING), str(mocap), "--clips", "13_30", "--seconds", "2"]
     assert main([*argv, "--hold", "0.5", "--json", str(out)]) == 0
-    assert json.loads(out.read_text())["match"]["landing"]["min_play"] == 0.5
+    match = json.loads(out.read_text())["match"]
+    assert match["landing"]["min_play"] == 0.5
+    assert match["action"]["switch_chance"] == 0.0  # (silhouettes: the counted vote)
 
 
 def test_a_negative_vote_is_refused(mocap: Path, capsys) -> None:
