@@ -147,7 +147,7 @@ class Avatar:
         #: landing frames with a second left to play in their clip (with ``_actions``)
         self._lasting = np.zeros(0, dtype=bool)
         self.anywhere = anywhere
-        self._blend_frames = max(1, round(blend_settings.seconds * graph.fps))
+        self._blend_frames = blend_settings.frames(graph.fps)
         if jump_costs is not None and (
             jump_costs.graph is not graph or jump_costs.anywhere != anywhere
         ):

@@ -319,7 +319,7 @@ def _add_vote_args(p: argparse.ArgumentParser) -> None:
         default=ActionSettings.strict_share,
         metavar="SHARE",
         help="a decision where at least this share of the last votes went to the voted "
-        "action (with --vote-switch: where it is believed at least this much) jumps only into "
+        "action (with the filter: where it is believed at least this much) jumps only into "
         "that action (its own motion and holds keep the margin); 0: off (default %(default)s)",
     )
     p.add_argument(

@@ -127,7 +127,8 @@ class Performance:
         fuse = fallback is not None and settings.match.action.fuse
         partner = (lambda v: self.fallback.evidence(v) if self.fallback else None) if fuse else None
         self.matcher = matcher = Matcher(layer, bank, settings.match, partner=partner)
-        # motion matching: relocation at every decision
+        # motion matching: relocation at every decision. One set of jump costs for every
+        # avatar of the run (``open_matcher`` computes its frame features before the first frame)
         self.jumps = jumps = settings.match.landing.jumps
         self.costs = JumpCosts(self.graph, clips, anywhere=jumps)
         self.avatar = self.open_matcher(start, bars)

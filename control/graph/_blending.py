@@ -50,6 +50,10 @@ class BlendSettings:
     turn_limit: float | None = None
     ik_turn_rate: float = TURN_RATE
 
+    def frames(self, fps: float) -> int:
+        """The blend interval in frames at ``fps`` (at least one)."""
+        return max(1, round(self.seconds * fps))
+
     def __post_init__(self) -> None:
         if not self.seconds > 0 or not self.fade >= 0 or not self.max_offset >= 0:
             raise ValueError(

@@ -154,7 +154,7 @@ def synthesize(
     st = settings or BlendSettings()
     data = FrameData(graph, clips)
     frames, jumps, edges, align_of = _checked_path(graph, frames, jumps, edges, extra)
-    b = max(1, round(st.seconds * graph.fps))
+    b = st.frames(graph.fps)
 
     src_p, src_q, out_p, out_q, blended, v1 = _place_and_blend(
         data, graph, frames, jumps, edges, align_of, b
@@ -394,7 +394,7 @@ def _plant_feet(
     contact states."""
     src_p, src_q, virtual, states = source
     fade, max_offset, from_source = round(st.fade * fps), st.max_offset, st.anchor == "source"
-    floor = max(1, round(st.seconds * fps)) if st.feet == "floor" else 0
+    floor = st.frames(fps) if st.feet == "floor" else 0
     pose = forward_kinematics(Motion(skeleton, out_p, out_q, fps))
     src_pose = forward_kinematics(Motion(skeleton, src_p, src_q, fps))
     v_pose = forward_kinematics(Motion(skeleton, virtual[0], virtual[1], fps))
