@@ -23,9 +23,10 @@ them too, so that the vote spans the same time at any frame rate.
 
 With ``ActionSettings.switch_chance`` the voted action is not counted but filtered
 (``ActionVote.filter``): a hidden (semi-)Markov model over the actions, each decision's
-action scores its evidence. It is off by default: it made the avatar steadier on every
-fold but cost the pose score, the lag and the one real squat clip
-(``benchmarks/HISTORY.md``, "Steadiness").
+action scores its evidence. It is the default with landmarks, whose ballots it follows
+steadier and as soon once a decision may jump into its own ballot's action
+(``ActionSettings.ballot_jumps``); silhouettes keep the counted vote, whose ballots are
+less sure and which the filter follows late (``ActionSettings.switch_for``).
 """
 
 from __future__ import annotations
