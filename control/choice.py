@@ -78,6 +78,19 @@ def _candidates(
     return list(first.values()), len({int(tree.cluster[x]) for x in leaves})
 
 
+def _most_distinct(
+    pool: list[int], picked: list[int], cluster: NDArray[np.int64], means: NDArray[np.float64]
+) -> int:
+    """The node of ``pool`` whose cluster's mean is farthest from every picked node's
+    (the first of ``pool`` before any is picked): offered actions that differ."""
+    if not picked:
+        return pool[0]
+    pm = means[[cluster[p] for p in picked]]
+    cm = means[[cluster[c] for c in pool]]
+    gap = np.min(((cm[:, None, :] - pm[None]) ** 2).sum(-1), axis=1)
+    return pool[int(np.argmax(gap))]
+
+
 def offer(
     layer: HigherLayer,
     avatar: Avatar,
@@ -112,18 +125,11 @@ def offer(
         selected = (t >= t_min) & (t <= t_max)
         bound = int(np.floor(t_max * fps + 1e-9))
     candidates, n_leaf = _candidates(tree, selected, t)
-    means = layer.clustering.means
     chosen: list[Option] = []
     picked: list[int] = []
     while candidates and len(chosen) < n:
         pool = candidates[: max(n_leaf - len(picked), 0)] or candidates
-        if not picked:
-            nxt = pool[0]
-        else:
-            pm = means[[tree.cluster[p] for p in picked]]
-            cm = means[[tree.cluster[c] for c in pool]]
-            gap = np.min(((cm[:, None, :] - pm[None]) ** 2).sum(-1), axis=1)
-            nxt = pool[int(np.argmax(gap))]
+        nxt = _most_distinct(pool, picked, tree.cluster, layer.clustering.means)
         candidates.remove(nxt)
         motion = layer.motion_to(frame, nxt, bound)
         if motion is None:

@@ -7,6 +7,7 @@ import argparse
 import dataclasses
 import json
 from pathlib import Path
+from typing import Any
 
 from control.artifacts import atomic_write
 from control.progress import bar
@@ -112,6 +113,14 @@ def _evaluate(args: argparse.Namespace) -> int:
             outputs.write(outputs.outputs[1], lambda p: plot_evaluation(report, p, title=title))
         outputs.commit()
     print_actions(result.decisions, ready.clips)
+    _print_figures(report)
+    print(f"wrote {args.json}" + (f" and {args.png}" if args.png else ""))
+    return 0
+
+
+def _print_figures(report: dict[str, Any]) -> None:
+    """The run's agreement, switches and decision points, as ``mimic evaluate`` prints
+    them."""
     best = report["best_at_lag_le_1s"]
     sw = report["switches_per_minute"]
     print(
@@ -132,5 +141,3 @@ def _evaluate(args: argparse.Namespace) -> int:
         f"{points['person_in_view_undecided']} undecided with a person in view"
         + "".join(f"; {why}: {n}" for why, n in points["undecided_by_reason"].items())
     )
-    print(f"wrote {args.json}" + (f" and {args.png}" if args.png else ""))
-    return 0

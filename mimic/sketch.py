@@ -14,6 +14,7 @@ from control.graph import CapturedTerrain, MotionGraph, terrain_options
 from control.motion import Library, write_bvh
 from control.progress import step
 from control.sketch import (
+    Environment,
     SketchSettings,
     SketchTracker,
     draw_top_down,
@@ -104,9 +105,10 @@ def add_sketch_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
     p.set_defaults(func=_sketch)
 
 
-def _sketch(args: argparse.Namespace) -> int:
-    outputs = check_outputs(args, ["--out", "--png", "--video"], ["--path", "--env"])
-    sketch = read_sketch(args.path)  # bad input is reported before any work
+def _inputs(args: argparse.Namespace) -> tuple[np.ndarray, Environment | None, float]:
+    """The sketch, its environment and the seconds to track it for, each checked before
+    any work (a bad file named)."""
+    sketch = read_sketch(args.path)
     env = read_environment(args.env) if args.env else None
     if env is not None and np.any(env.clearance(sketch[:1]) < 0):
         raise ValueError(f"{args.path}: the sketch starts inside an obstacle of {args.env}")
@@ -116,6 +118,12 @@ def _sketch(args: argparse.Namespace) -> int:
     seconds = args.seconds if args.seconds is not None else 10.0 + length / 0.3
     if not seconds > 0:
         raise ValueError("--seconds must be positive")
+    return sketch, env, seconds
+
+
+def _sketch(args: argparse.Namespace) -> int:
+    outputs = check_outputs(args, ["--out", "--png", "--video"], ["--path", "--env"])
+    sketch, env, seconds = _inputs(args)
     captured: CapturedTerrain | None = None
     if env is not None and env.terrain is not None:
         library, graph, captured = _terrain_graph(args, env.terrain.block)

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..artifacts import (
     atomic_write,
@@ -141,20 +142,7 @@ def load_layer(path: str | Path, graph: MotionGraph) -> HigherLayer:
         raise LayerFileError(path, "built on another graph")
     lazy = manifest.get("lazy") is True
     _check_arrays(a, graph.n_frames, path, lazy)
-    off = a["t_offset"].astype(np.int64)
-    n_trees = 0 if lazy else a["t_root_frame"].size
     labels = a["c_labels"].astype(np.int64)
-    trees = tuple(
-        ClusterTree(
-            root_frame=int(a["t_root_frame"][i]),
-            parent=a["t_parent"][off[i] : off[i + 1]].astype(np.int64),
-            cluster=a["t_cluster"][off[i] : off[i + 1]].astype(np.int64),
-            arrival=a["t_arrival"][off[i] : off[i + 1]].astype(np.int64),
-            truncated=bool(a["t_truncated"][i]),
-            horizon=int(a["t_horizon"][i]),
-        )
-        for i in range(n_trees)
-    )
     clustering = Clustering(
         labels=labels,
         posterior=a["c_posterior"].astype(np.float64),
@@ -167,17 +155,7 @@ def load_layer(path: str | Path, graph: MotionGraph) -> HigherLayer:
         seeding=str(manifest["seeding"]),
         seeds=a["c_seeds"].astype(np.int64),
     )
-    report = dict(manifest.get("report", {}))
-    if lazy:
-        try:
-            caps = int(report["max_nodes"]), int(report["max_states"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise LayerFileError(path, f"a lazy forest without its caps ({exc!r})") from None
-        roots, tree_of = a["t_root_frame"].astype(np.int64), a["tree_of"].astype(np.int64)
-        bound = int(manifest["bound"])
-        forest = lazy_forest(graph, labels, roots, tree_of, bound, *caps, report)
-    else:
-        forest = ClusterForest(trees, a["tree_of"].astype(np.int64), int(manifest["bound"]), report)
+    forest = _read_forest(a, manifest, graph, labels, path)
     return HigherLayer(
         graph,
         a["states"].astype(np.float64),
@@ -188,6 +166,39 @@ def load_layer(path: str | Path, graph: MotionGraph) -> HigherLayer:
         forest,
         transition_log_probs(graph),
     )
+
+
+def _read_forest(
+    a: dict[str, np.ndarray],
+    manifest: dict[str, Any],
+    graph: MotionGraph,
+    labels: NDArray[np.int64],
+    path: Path,
+) -> ClusterForest:
+    """The forest of a layer file's checked arrays ``a``: its trees, or a lazy forest's
+    roots, whose trees are grown when asked for (``lazy_forest``)."""
+    report = dict(manifest.get("report", {}))
+    tree_of, bound = a["tree_of"].astype(np.int64), int(manifest["bound"])
+    if manifest.get("lazy") is True:
+        try:
+            caps = int(report["max_nodes"]), int(report["max_states"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise LayerFileError(path, f"a lazy forest without its caps ({exc!r})") from None
+        roots = a["t_root_frame"].astype(np.int64)
+        return lazy_forest(graph, labels, roots, tree_of, bound, *caps, report)
+    off = a["t_offset"].astype(np.int64)
+    trees = tuple(
+        ClusterTree(
+            root_frame=int(a["t_root_frame"][i]),
+            parent=a["t_parent"][off[i] : off[i + 1]].astype(np.int64),
+            cluster=a["t_cluster"][off[i] : off[i + 1]].astype(np.int64),
+            arrival=a["t_arrival"][off[i] : off[i + 1]].astype(np.int64),
+            truncated=bool(a["t_truncated"][i]),
+            horizon=int(a["t_horizon"][i]),
+        )
+        for i in range(a["t_root_frame"].size)
+    )
+    return ClusterForest(trees, tree_of, bound, report)
 
 
 def _check_arrays(a: dict[str, np.ndarray], n: int, path: Path, lazy: bool) -> None:

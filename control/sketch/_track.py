@@ -121,6 +121,29 @@ class SketchTracker:
             if self.terrain is not None
             else None
         )
+        start = self._place_start(start, place)
+        self._yaw, self._trans = self._start
+        self.frames = [start]
+        self.jumps: list[int] = []
+        self.edges: list[int] = []
+        self.expansions: list[int] = []
+        self.step_seconds: list[float] = []  # compute time of each planning step
+        self.search_seconds = 0.0
+        self.stuck = False
+        self.backtracks = 0
+        # before each committed step: (frames, jumps, yaw, trans, goal) and the step ends
+        # found to lead nowhere from there
+        self._undo: list[tuple[tuple[int, int, float, FloatArray, int], set[int]]] = []
+        self._banned: set[int] = set()
+        self._best: tuple[int, list[int], list[int], list[int], float, FloatArray, int] | None
+        self._best = None
+
+    def _place_start(self, start: int | None, place: tuple[float, FloatArray] | None) -> int:
+        """The avatar's first frame, and where it stands (``_start``: the yaw and the
+        translation into the sketch's world): on the blocks' grid on terrain, at
+        ``place``, or by the sketch's first segment (from the best start frame when none
+        is given)."""
+        graph = self.graph
         if start is not None and not (0 <= start < graph.n_frames and graph.in_scc[start]):
             raise ValueError(f"start frame {start} is not in the graph's component")
         if place is not None and self.blocks is not None:
@@ -137,21 +160,7 @@ class SketchTracker:
             if start is None:
                 start = self._default_start()
             self._start = start_map(self._root, self._heading, start, *self.sketch[:2])
-        self._yaw, self._trans = self._start
-        self.frames = [int(start)]
-        self.jumps: list[int] = []
-        self.edges: list[int] = []
-        self.expansions: list[int] = []
-        self.step_seconds: list[float] = []  # compute time of each planning step
-        self.search_seconds = 0.0
-        self.stuck = False
-        self.backtracks = 0
-        # before each committed step: (frames, jumps, yaw, trans, goal) and the step ends
-        # found to lead nowhere from there
-        self._undo: list[tuple[tuple[int, int, float, FloatArray, int], set[int]]] = []
-        self._banned: set[int] = set()
-        self._best: tuple[int, list[int], list[int], list[int], float, FloatArray, int] | None
-        self._best = None
+        return int(start)
 
     # --- the sketch ------------------------------------------------------------------------
 
