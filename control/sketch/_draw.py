@@ -3,14 +3,14 @@ environment as a mesh for rendered videos."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..artifacts import atomic_write
-from ._files import Environment
+from ._files import Environment, TerrainMap
 
 __all__ = ["draw_top_down", "environment_mesh"]
 
@@ -57,27 +57,7 @@ def draw_top_down(
 
     img = np.full((h, w, 3), 255, dtype=np.uint8)
     if env is not None and env.terrain is not None:
-        t = env.terrain
-        top = max(1, int(t.levels.max()))
-        for (r, c), level in np.ndenumerate(t.levels):
-            x0, z0 = t.corner[0] + c * t.block, t.corner[1] + r * t.block
-            cell = np.array(
-                [[x0, z0], [x0 + t.block, z0], [x0 + t.block, z0 + t.block], [x0, z0 + t.block]]
-            )
-            shade = int(245 - 130 * level / top)
-            cv2.fillPoly(img, [px(cell)], (shade, shade, shade))
-            cv2.polylines(img, [px(cell)], True, (200, 200, 200), 1)
-            if level:
-                at = px(np.array([x0 + 0.4 * t.block, z0 + 0.35 * t.block]))[0]
-                cv2.putText(
-                    img,
-                    str(level),
-                    (int(at[0]), int(at[1])),
-                    cv2.FONT_HERSHEY_SIMPLEX,
-                    0.4,
-                    (60, 60, 60),
-                    1,
-                )
+        _draw_terrain(img, env.terrain, px)
     if env is not None:
         for poly in env.obstacles:
             cv2.fillPoly(img, [px(poly)], (170, 170, 170))
@@ -99,6 +79,35 @@ def draw_top_down(
         raise OSError(f"{path}: could not encode the picture")
     with atomic_write(path, "wb") as fh:
         fh.write(buf.tobytes())
+
+
+def _draw_terrain(
+    img: NDArray[np.uint8], t: TerrainMap, px: Callable[[FloatArray], NDArray[np.int32]]
+) -> None:
+    """Terrain blocks on ``img``, shaded by level (darker is higher), each raised block's
+    level written on it; ``px`` maps metres (x, z) to pixels."""
+    import cv2
+
+    top = max(1, int(t.levels.max()))
+    for (r, c), level in np.ndenumerate(t.levels):
+        x0, z0 = t.corner[0] + c * t.block, t.corner[1] + r * t.block
+        cell = np.array(
+            [[x0, z0], [x0 + t.block, z0], [x0 + t.block, z0 + t.block], [x0, z0 + t.block]]
+        )
+        shade = int(245 - 130 * level / top)
+        cv2.fillPoly(img, [px(cell)], (shade, shade, shade))
+        cv2.polylines(img, [px(cell)], True, (200, 200, 200), 1)
+        if level:
+            at = px(np.array([x0 + 0.4 * t.block, z0 + 0.35 * t.block]))[0]
+            cv2.putText(
+                img,
+                str(level),
+                (int(at[0]), int(at[1])),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.4,
+                (60, 60, 60),
+                1,
+            )
 
 
 def _prism(poly: FloatArray, y0: float, y1: float) -> tuple[FloatArray, NDArray[np.int64]]:
