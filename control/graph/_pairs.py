@@ -150,6 +150,22 @@ def _from_part(part: dict[str, np.ndarray]) -> tuple[list[_Pairs], int]:
     return [(a, b, part["d"], part["align"])], int(part["candidates"])
 
 
+def _kept_jobs(
+    work: Path | None, dmax: float, n: int, jobs: list[tuple[int, int, int]]
+) -> tuple[JobStore | None, dict[int, tuple[list[_Pairs], int]]]:
+    """The store of a build's finished jobs in ``work`` (``None`` without), named by
+    what the jobs are, and the jobs it already holds (a stopped build's)."""
+    if work is None:
+        return None, {}
+    table = json.dumps({"dmax": repr(dmax), "n": n, "jobs": jobs})
+    store = JobStore(work, hashlib.sha256(table.encode()).hexdigest()[:24])
+    results = {i: _from_part(p) for i, p in store.done(len(jobs), _PART_KEYS).items()}
+    if results:
+        kept = len(results)
+        log.info("resuming the frame pairs: %d of %d jobs kept in %s", kept, len(jobs), work)
+    return store, results
+
+
 def likely_pairs(
     feat: FrameFeatures,
     options: GraphOptions,
@@ -179,16 +195,7 @@ def likely_pairs(
         n_contact += rows.size * cols.size - np.intersect1d(rows, cols, assume_unique=True).size
     x, norms = lower_bound_features(feat, options.nu)
     jobs = _jobs(groups)
-    store = None
-    results: dict[int, tuple[list[_Pairs], int]] = {}
-    if work is not None:
-        table = json.dumps({"dmax": repr(dmax), "n": feat.n, "jobs": jobs})
-        store = JobStore(work, hashlib.sha256(table.encode()).hexdigest()[:24])
-        results = {i: _from_part(p) for i, p in store.done(len(jobs), _PART_KEYS).items()}
-        if results:
-            log.info(
-                "resuming the frame pairs: %d of %d jobs kept in %s", len(results), len(jobs), work
-            )
+    store, results = _kept_jobs(work, dmax, feat.n, jobs)
     resumed = len(results)
     todo = [i for i in range(len(jobs)) if i not in results]
     if progress:

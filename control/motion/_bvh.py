@@ -85,6 +85,28 @@ class _Tokens:
         return parse_floats(self.path, [t for t, _ in toks], toks[0][1], what)
 
 
+def _read_channels(path: str | Path, tk: _Tokens, name: str, root: bool) -> tuple[str, ...]:
+    """A joint's ``CHANNELS`` line: its count, then each channel's name (position channels
+    on the root alone)."""
+    tk.expect("CHANNELS")
+    count_tok, cn = tk.next("channel count")
+    if not is_int(count_tok) or not 0 <= int(count_tok) <= 6:
+        raise MotionFormatError(path, f"bad channel count {count_tok!r}", cn)
+    chans = []
+    for _ in range(int(count_tok)):
+        c, cl = tk.next("a channel name")
+        if c.lower() not in _CHANNELS:
+            raise MotionFormatError(path, f"unknown channel {c!r}", cl)
+        chans.append(_CHANNELS[c.lower()])
+    if len(set(chans)) != len(chans):
+        raise MotionFormatError(path, f"joint {name!r} repeats a channel", cn)
+    if not root and any(c.endswith("position") for c in chans):
+        raise MotionFormatError(
+            path, f"position channels on non-root joint {name!r} are not supported", cn
+        )
+    return tuple(chans)
+
+
 def _parse_hierarchy(path: str | Path, tk: _Tokens) -> tuple[Skeleton, list[int]]:
     """Skeleton in file units, and per-joint the number of channels."""
     tk.expect("HIERARCHY")
@@ -110,25 +132,9 @@ def _parse_hierarchy(path: str | Path, tk: _Tokens) -> tuple[Skeleton, list[int]
             tk.expect("{")
             tk.expect("OFFSET")
             offsets.append(tk.floats(3, f"OFFSET of {name!r}"))
-            tk.expect("CHANNELS")
-            count_tok, cn = tk.next("channel count")
-            if not is_int(count_tok) or not 0 <= int(count_tok) <= 6:
-                raise MotionFormatError(path, f"bad channel count {count_tok!r}", cn)
-            chans = []
-            for _ in range(int(count_tok)):
-                c, cl = tk.next("a channel name")
-                if c.lower() not in _CHANNELS:
-                    raise MotionFormatError(path, f"unknown channel {c!r}", cl)
-                chans.append(_CHANNELS[c.lower()])
-            if len(set(chans)) != len(chans):
-                raise MotionFormatError(path, f"joint {name!r} repeats a channel", cn)
-            if parent >= 0 and any(c.endswith("position") for c in chans):
-                raise MotionFormatError(
-                    path, f"position channels on non-root joint {name!r} are not supported", cn
-                )
+            channels.append(_read_channels(path, tk, name, root=parent < 0))
             names.append(name)
             parents.append(parent)
-            channels.append(tuple(chans))
             stack.append(len(names) - 1)
             continue
         tok, n = tk.next("JOINT, End Site or '}'")

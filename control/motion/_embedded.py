@@ -86,38 +86,7 @@ def embed_library(
                     fh.write("first_frame,last_frame,action\n")
                     fh.writelines(f"{a},{b},{name}\n" for a, b, name in rows)
             table.append(f"| {c.name} | {m.n_frames} | {c.description} |")
-        readme = "\n".join(
-            [
-                "# The embedded default motion library",
-                "",
-                "A handful of clips of the CMU Graphics Lab Motion Capture Database",
-                "(mocap.cs.cmu.edu), shipped so that mimic runs where no other library is",
-                f"found. Motion arrays (`*{ARRAYS_SUFFIX}`, float32) at {fps:g} frames/s, every",
-                "4th frame of the 120 frames/s captures; action labels (the MoCap6 benchmark's,",
-                "Fox, Hughes, Sudderth, Jordan) in `labels/`, 1-based frames at that rate.",
-                "",
-                "Regenerate from the full library with:",
-                "",
-                "```sh",
-                "mimic library embed ../shared/mocap --out control/motion/default_library",
-                "```",
-                "",
-                "## Terms",
-                "",
-                "The CMU database is free for all uses; it may be redistributed and included",
-                "in products, but not resold as data.",
-                "",
-                ACKNOWLEDGEMENT,
-                "",
-                "## Clips",
-                "",
-                f"| clip | frames @{fps:g} | description |",
-                "|---|---|---|",
-                *table,
-                "",
-            ]
-        )
-        (tmp / "README.md").write_text(readme, encoding="utf-8")
+        (tmp / "README.md").write_text(_readme(fps, table), encoding="utf-8")
         old = out.with_name(f".{out.name}.old")
         if old.exists():
             shutil.rmtree(old)
@@ -130,3 +99,39 @@ def embed_library(
         raise
     files = sorted(p for p in out.rglob("*") if p.is_file())
     return {str(p.relative_to(out)): p.stat().st_size for p in files}
+
+
+def _readme(fps: float, table: list[str]) -> str:
+    """The embedded library's README: what it is, how to make it again, the CMU terms,
+    and its clips (``table``'s rows)."""
+    return "\n".join(
+        [
+            "# The embedded default motion library",
+            "",
+            "A handful of clips of the CMU Graphics Lab Motion Capture Database",
+            "(mocap.cs.cmu.edu), shipped so that mimic runs where no other library is",
+            f"found. Motion arrays (`*{ARRAYS_SUFFIX}`, float32) at {fps:g} frames/s, every",
+            "4th frame of the 120 frames/s captures; action labels (the MoCap6 benchmark's,",
+            "Fox, Hughes, Sudderth, Jordan) in `labels/`, 1-based frames at that rate.",
+            "",
+            "Regenerate from the full library with:",
+            "",
+            "```sh",
+            "mimic library embed ../shared/mocap --out control/motion/default_library",
+            "```",
+            "",
+            "## Terms",
+            "",
+            "The CMU database is free for all uses; it may be redistributed and included",
+            "in products, but not resold as data.",
+            "",
+            ACKNOWLEDGEMENT,
+            "",
+            "## Clips",
+            "",
+            f"| clip | frames @{fps:g} | description |",
+            "|---|---|---|",
+            *table,
+            "",
+        ]
+    )
