@@ -332,6 +332,22 @@ def write_bvh(
         if not nm or any(ch.isspace() for ch in nm) or nm in "{}":
             raise ValueError(f"joint name {nm!r} cannot be written to BVH")
     rot_names = " ".join(f"{a}rotation" for a in order)
+    out, written = _hierarchy(sk, scale, rot_names)
+    out.append("MOTION")
+    out.append(f"Frames: {motion.n_frames}")
+    out.append(f"Frame Time: {1.0 / motion.fps:.9g}")
+    eul = np.rad2deg(q_to_euler(motion.quats[:, written], order))
+    table = np.concatenate((motion.root_pos / scale, eul.reshape(motion.n_frames, -1)), axis=1)
+    with atomic_write(path) as fh:
+        fh.write("\n".join(out) + "\n")
+        for row in table:
+            fh.write(_fmt(row) + "\n")
+
+
+def _hierarchy(sk: Skeleton, scale: float, rot_names: str) -> tuple[list[str], list[int]]:
+    """A BVH's ``HIERARCHY`` lines for ``sk`` (offsets divided by ``scale``, every joint
+    with the rotation channels ``rot_names``), and the joints in the order written: the
+    order of the channel data."""
     out: list[str] = ["HIERARCHY"]
     written: list[int] = []  # joints in file order; the channel data follows it
     ends: dict[int, list[int]] = {}
@@ -367,12 +383,4 @@ def write_bvh(
             out.append(f"{pad}    OFFSET {_fmt(sk.end_offsets[e] / scale)}")
             out.append(f"{pad}  }}")
         out.append(f"{pad}}}")
-    out.append("MOTION")
-    out.append(f"Frames: {motion.n_frames}")
-    out.append(f"Frame Time: {1.0 / motion.fps:.9g}")
-    eul = np.rad2deg(q_to_euler(motion.quats[:, written], order))
-    table = np.concatenate((motion.root_pos / scale, eul.reshape(motion.n_frames, -1)), axis=1)
-    with atomic_write(path) as fh:
-        fh.write("\n".join(out) + "\n")
-        for row in table:
-            fh.write(_fmt(row) + "\n")
+    return out, written
