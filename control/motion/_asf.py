@@ -91,6 +91,32 @@ def _axis_q(
 MAX_BONE_M = 10.0
 
 
+def _bonedata_line(
+    path: str | Path,
+    tokens: list[str],
+    n: int,
+    current: _Bone | None,
+    bones: dict[str, _Bone],
+    degrees: bool,
+) -> _Bone | None:
+    """One line ``n`` of the ``:bonedata`` section: a bone begun, ended (into ``bones``)
+    or given a field; the bone open after it."""
+    key = tokens[0].lower()
+    if key == "begin":
+        if current is not None:
+            raise MotionFormatError(path, "'begin' inside a bone that has no 'end'", n)
+        return _Bone(name="", line=n)
+    if key == "end":
+        if current is None:
+            raise MotionFormatError(path, "'end' without 'begin'", n)
+        _finish_bone(path, current, bones)
+        return None
+    if current is None:
+        raise MotionFormatError(path, f"{tokens[0]!r} outside a bone's begin/end", n)
+    _bone_field(path, current, tokens, n, degrees)
+    return current
+
+
 def read_asf(path: str | Path, metres_per_unit: float | None = None) -> AsfSkeleton:
     """Read an Acclaim ASF skeleton.
 
@@ -133,19 +159,7 @@ def read_asf(path: str | Path, metres_per_unit: float | None = None) -> AsfSkele
         elif section == ":root":
             _root_field(path, head, tokens, n)
         elif section == ":bonedata":
-            if key == "begin":
-                if current is not None:
-                    raise MotionFormatError(path, "'begin' inside a bone that has no 'end'", n)
-                current = _Bone(name="", line=n)
-            elif key == "end":
-                if current is None:
-                    raise MotionFormatError(path, "'end' without 'begin'", n)
-                _finish_bone(path, current, bones)
-                current = None
-            elif current is None:
-                raise MotionFormatError(path, f"{tokens[0]!r} outside a bone's begin/end", n)
-            else:
-                _bone_field(path, current, tokens, n, head.degrees)
+            current = _bonedata_line(path, tokens, n, current, bones, head.degrees)
         elif section == ":hierarchy":
             if key == "begin":
                 in_hierarchy_block = True
