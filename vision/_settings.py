@@ -254,14 +254,14 @@ class ActionSettings:
     @classmethod
     def steady(cls) -> ActionSettings:
         """The filter alone (``mimic perform --steady``): the voted action filtered by a
-        hidden Markov model (a change 0.02 a decision, evidence at temperature 0.2,
-        taken up at a belief of 0.9), and jumps only into it, whatever the descriptor.
+        hidden Markov model (a change 0.02 a decision, at the defaults' ``temperature``
+        and ``confidence``), and jumps only into it, whatever the descriptor.
         Calmer than the defaults (on our simulated takes with landmarks 17 action
         switches a minute against 23, 1 brief against 6), but it takes a change up
         about 0.2 s later, follows the pose less closely and lost one of the real squat
         clip's 39 labelled decisions, so it is an option (``benchmarks/HISTORY.md``,
         "Steadiness" and "Ballot jumps")."""
-        return cls(switch_chance=FILTER_SWITCH, confidence=0.9, margin=math.inf, temperature=0.2)
+        return cls(switch_chance=FILTER_SWITCH, margin=math.inf)
 
     def switch_for(self, descriptor: str) -> float:
         """``switch_chance`` for a matcher of ``descriptor`` (a ``Descriptor.kind``): as
