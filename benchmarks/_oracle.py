@@ -56,13 +56,16 @@ def pose_oracle(
     pose_dist: Callable[[np.ndarray, np.ndarray], np.ndarray],
     vote: int = 15,
     band: int = 4,
+    motion_labels: Sequence[str | None] | None = None,
 ) -> dict[str, Any]:
     """Label agreement (best at lags <= 1 s) of the true-pose nearest window, alone and
     voted. ``lib_q``, ``truth_q``: weighted joints' rotations ``(F, K, 4)`` at ``fps``;
     ``lib_actions`` each library frame's action (its label, else its clip's name, as
     ``control.motion.action_keys`` tells them apart), ``truth_labels`` the performer's. Also
     ``pose_error``: the mean pose distance of each best window's last frame to the
-    performer's frame at the decision (what an avatar showing it at once would score)."""
+    performer's frame at the decision (what an avatar showing it at once would score).
+    ``motion_labels``: the performer's cleaned labels (where the motion changes action),
+    for the lag counted from there too."""
     n = max(2, round(fps))
     d = np.stack([pose_dist(lib_q, q[None].repeat(lib_q.shape[0], 0)) for q in truth_q])
     w = lib_q.shape[0] - n + 1
@@ -98,6 +101,10 @@ def pose_oracle(
     k = np.clip(np.round(times * fps).astype(int), 0, len(truth_labels) - 1)
     performer = [truth_labels[i] for i in k]
     voted = _voted(best, vote)
+    moved = None
+    if motion_labels is not None:
+        at = [motion_labels[i] for i in np.clip(k, 0, len(motion_labels) - 1)]
+        moved = switch_delays(best, at, times.tolist(), labelled)
     return {
         "decisions": int(times.size),
         "pose_error": float(np.mean(err)),
@@ -107,4 +114,5 @@ def pose_oracle(
         f"voted_{vote}_switch_followed_after_s": switch_delays(
             voted, performer, times.tolist(), labelled
         ),
+        "switch_followed_after_motion_s": moved,
     }

@@ -71,7 +71,7 @@ from control.graph import (
     select_clips,
     weighted_joints,
 )
-from control.motion import default_library_path, load_library, mirror, qconj, qlog, qmul
+from control.motion import Clip, default_library_path, load_library, mirror, qconj, qlog, qmul
 from silhouette_bank import (
     DEFAULT_DESCRIPTOR,
     DESCRIPTORS,
@@ -242,6 +242,7 @@ def _run_figures(
     train: list[Any],
     lib_q_mirror: np.ndarray | None = None,
     holds: np.ndarray | None = None,
+    motion_labels: list[str | None] | None = None,
 ) -> dict[str, Any]:
     """Agreement, pose score, coherence, latency and physical checks of one perform run.
     With ``lib_q_mirror`` (the library's rotations, each clip mirrored), also the pose
@@ -273,6 +274,12 @@ def _run_figures(
             hit = [g == t for g, t in pairs if t == action]
             per_action[action] = round(float(np.mean(hit)), 3)
         kn = [g == t for g, t in pairs if t in known]
+        # the same against where the performer's motion changes action (cleaned labels)
+        moved = None
+        if motion_labels is not None:
+            at = [motion_labels[i] for i in k[ok]]
+            hits = [g == t for g, t in zip(got, at, strict=True) if t in known]
+            moved = float(np.mean(hits)) if hits else None
         curve.append(
             {
                 "lag": lag,
@@ -281,6 +288,7 @@ def _run_figures(
                 "score_either_side": None if either is None else float(either),
                 "label_agreement": float(np.mean([g == t for g, t in pairs])) if pairs else None,
                 "label_agreement_known_actions": float(np.mean(kn)) if kn else None,
+                "label_agreement_known_actions_from_motion": moved,
                 "random_walk_agreement_known_actions": float(
                     np.mean([share[t] for _, t in pairs if t in known])
                 )
@@ -351,6 +359,11 @@ def _run_figures(
         "switch_followed_after_s": switch_delays(
             avatar_labels, [x or None for x in performer_labels], times.tolist(), known
         ),
+        # the same from where the performer's motion changes action (the take's cleaned
+        # labels: the label files' boundaries lie up to a second off it either way)
+        "switch_followed_after_motion_s": None
+        if motion_labels is None
+        else switch_delays(avatar_labels, [motion_labels[i] for i in k], times.tolist(), known),
         "latency_ms": {
             "p50": float(np.percentile(lat, 50)),
             "p99": float(np.percentile(lat, 99)),
@@ -474,6 +487,9 @@ def fold(
     )
     perf_clip = takes.clip(test)
     other_side = next((c for c in takes.clips if c.mirrored), None)
+    # where the performer's motion changes action: the take's cleaned labels
+    # (``control.motion.clean_labels``), for the lag counted from the motion
+    cleaned = load_library(root, fps=30, clips=[test]).clip(test)
     truth_q = perf_clip.motion.quats[:, joints]
     # nearest library pose of every performer frame (the best any avatar could do)
     nearest = np.array(
@@ -507,6 +523,7 @@ def fold(
         [[c.label_at(i) or f"clip {c.name}" for i in range(c.motion.n_frames)] for c in train]
     )
     at_lib = load_library(root, fps=g.fps, clips=[test], clean_labels=False).clip(test)
+    at_motion = load_library(root, fps=g.fps, clips=[test]).clip(test)
     out["pose_oracle"] = pose_oracle(
         lib_q,
         actions,
@@ -516,6 +533,7 @@ def fold(
         g.fps,
         _pose_dist,
         with_values(MatchSettings(), match or {}).action.vote or 15,
+        motion_labels=[at_motion.label_at(i) for i in range(at_motion.motion.n_frames)],
     )
     # its windows' last frames shown at once, as a pose score (the avatar's ceiling)
     out["pose_oracle"]["pose_score"] = round(
@@ -541,7 +559,7 @@ def fold(
             q = other.motion.quats[:, joints]
             ctx = (other, layer, bank, train, lib_labels, lib_q, q, walk_frames, lib_qm)
         recognition, ceiling, runs = _recorded_runs(
-            rec, ctx, settings, stay, match, random_err, float(nearest.mean()), holds
+            rec, ctx, settings, stay, match, random_err, float(nearest.mean()), holds, cleaned
         )
         out["recordings"][rec] = {"settings": RECORDINGS[rec].to_dict(), "recognition": recognition}
         out.setdefault("recognition", recognition)  # the first recording's
@@ -560,6 +578,20 @@ def _masks(video: Path) -> tuple[list[np.ndarray], float]:
     return out, src.fps
 
 
+def _motion_labels(side: dict[str, Any], cleaned: Clip) -> list[str | None]:
+    """Each frame of a recording (its ``side``car) labelled where the performer's motion
+    changes action: the cleaned label of the take's frame nearest its source frame; a
+    frame the sidecar leaves unlabelled (a pause) stays so."""
+    src = np.asarray(cleaned.source_frames, dtype=np.float64)
+    at = np.asarray(side["source_frames"], dtype=np.float64)
+    i = np.clip(np.searchsorted(src, at), 1, src.size - 1)
+    i -= (at - src[i - 1]) < (src[i] - at)
+    return [
+        None if lab is None else cleaned.label_at(int(j))
+        for lab, j in zip(side["labels"], i, strict=True)
+    ]
+
+
 def _recorded_runs(
     rec: str,
     ctx: tuple[Any, ...],
@@ -569,9 +601,11 @@ def _recorded_runs(
     random_err: float,
     nearest: float,
     holds: np.ndarray | None = None,
+    cleaned: Clip | None = None,
 ) -> tuple[dict[str, Any], float, list[dict[str, Any]]]:
     """The held-out take filmed as recording ``rec`` (``RECORDINGS``): recognition alone,
-    the label ceiling, and a run of ``perform`` per match setting."""
+    the label ceiling, and a run of ``perform`` per match setting. ``cleaned``: the take
+    with its cleaned labels, for the lag counted from where the motion changes."""
     perf_clip, layer, bank, train, lib_labels, lib_q, truth_q, walk_frames, lib_qm = ctx
     runs = []
     fallback = None
@@ -579,6 +613,7 @@ def _recorded_runs(
         video = Path(tmp) / f"{perf_clip.name}_{rec}.mkv"
         side = record_clip(perf_clip, video, RECORDINGS[rec])
         perf_labels = side["labels"]
+        motion_labels = None if cleaned is None else _motion_labels(side, cleaned)
         known = set(lib_labels) - {""}
         labelled = [lab_i for lab_i in perf_labels if lab_i is not None]
         # actions the library lacks can never agree: the best any avatar could do
@@ -642,6 +677,7 @@ def _recorded_runs(
                 train,
                 lib_qm,
                 holds,
+                motion_labels,
             )
             fig["recording"] = rec
             fig["evaluate"] = {

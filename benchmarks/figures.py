@@ -40,12 +40,14 @@ def _runs(name: str) -> dict[str, float]:
     """Means over a ``bench_accuracy`` result's runs: agreement (actions the library
     has, the best lag within 1 s), pose score, the avatar's and the performers' action
     switches a minute, and the brief ones; and the median delay with which the avatar
-    took up the performers' changes of action, over every run's."""
-    agree, pose, avatar, brief, performer, after = [], [], [], [], [], []
+    took up the performers' changes of action, over every run's: from where the label
+    files put them, and from where the motion changes (the takes' cleaned labels)."""
+    agree, pose, avatar, brief, performer, after, moved = [], [], [], [], [], [], []
     try:
         for fold in _load(name)["folds"]:
             for run in fold["runs"]:
                 after += run.get("switch_followed_after_s", {}).get("each_s", [])
+                moved += (run.get("switch_followed_after_motion_s") or {}).get("each_s", [])
                 curve = [c for c in run["curve"] if c["lag"] <= 1.0]
                 agree.append(max(c["label_agreement_known_actions"] or 0.0 for c in curve))
                 pose.append(max(c["score"] for c in curve))
@@ -66,7 +68,14 @@ def _runs(name: str) -> dict[str, float]:
         "performer": float(np.mean(performer)),
         # how long after the performer's changes of action the avatar took them up
         "followed": float(np.median(after)) if after else float("nan"),
+        "followed_motion": float(np.median(moved)) if moved else float("nan"),
     }
+
+
+def _from_motion(runs: dict[str, float]) -> str:
+    """`` (X s after the motion changes)`` where the result has that figure, else ``""``."""
+    x = runs["followed_motion"]
+    return "" if np.isnan(x) else f" ({x:.1f} s after the motion changes)"
 
 
 def _views(name: str = "views.json") -> tuple[str, float, float, float]:
@@ -112,8 +121,8 @@ def table() -> str:
             f"{takes['agreement']:.3f}",
             f"pose score {takes['pose']:.3f}; {takes['switches']:.0f} action switches a "
             f"minute ({takes['brief']:.0f} brief) against the performer's "
-            f"{takes['performer']:.0f}; a new action taken up {takes['followed']:.1f} s after "
-            "the performer (median)",
+            f"{takes['performer']:.0f}; a new action taken up a median "
+            f"{takes['followed']:.1f} s after the performer's label changes{_from_motion(takes)}",
         ),
         (
             f"the same, silhouette videos ({sil['runs']} runs)",
@@ -124,7 +133,7 @@ def table() -> str:
             f"another person, simulated landmarks ({person['runs']} runs)",
             f"{person['agreement']:.3f}",
             f"{person['switches']:.0f} switches a minute against {person['performer']:.0f}; "
-            f"new actions taken up after {person['followed']:.1f} s",
+            f"new actions taken up after {person['followed']:.1f} s{_from_motion(person)}",
         ),
         (
             f"another person, silhouettes ({sil_person['runs']} runs)",
@@ -151,7 +160,8 @@ def table() -> str:
             f"{STEADY}: other takes, simulated landmarks ({steady['runs']} runs)",
             f"{steady['agreement']:.3f}",
             f"pose score {steady['pose']:.3f}; {steady['switches']:.0f} switches a minute "
-            f"({steady['brief']:.0f} brief); taken up after {steady['followed']:.1f} s",
+            f"({steady['brief']:.0f} brief); taken up after {steady['followed']:.1f} s"
+            f"{_from_motion(steady)}",
         ),
         (
             f"{STEADY}: another person read by MediaPipe",

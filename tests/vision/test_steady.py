@@ -68,3 +68,23 @@ def test_a_clean_switch_is_followed_once(setup: Any, pose_bank: Any, mocap: Path
     twist = next(t for a, t in runs if a == "twist" and t > jacks)
     assert jacks <= 2.0 and switch - 0.5 <= twist <= switch + 1.5, runs
     assert [a for a, t in runs if t >= jacks] == ["jumpjack", "twist"], runs
+
+
+def test_the_lag_from_the_motion_reads_each_recorded_frame_at_its_source_frame(
+    mocap: Path,
+) -> None:
+    """``bench_accuracy``'s lag counted from where the motion changes labels each frame of
+    a recording by the take's cleaned labels at its source frame (a retimed take's frames
+    fall between the take's), and leaves a pause unlabelled."""
+    from benchmarks.bench_accuracy import _motion_labels
+
+    clean = load_library(mocap, fps=30, clips=["13_29"]).clip("13_29")
+    src = clean.source_frames
+    k = int(np.flatnonzero(clean.labels[1:] != clean.labels[:-1])[0]) + 1  # a cleaned boundary
+    side = {
+        "source_frames": [src[k - 1] + 0.4 * (src[k] - src[k - 1]), src[k] - 0.4, src[k], src[k]],
+        "labels": ["X", "X", "X", None],
+    }
+    want = [clean.label_at(k - 1), clean.label_at(k), clean.label_at(k), None]
+    assert _motion_labels(side, clean) == want
+    assert want[0] != want[1]
