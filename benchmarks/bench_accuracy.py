@@ -36,7 +36,12 @@ performer did ``lag`` seconds earlier):
 - recognition: the matcher's global window search alone (no avatar), the fraction of
   windows whose best library window has the performer's label: over the graph's
   component (what the avatar can reach), and over every window of the library's clips
-  (``whole_take``: issue 9's baseline measure, 73%).
+  (``whole_take``: issue 9's baseline measure, 73%);
+- the lag a viewer sees: how long after each change of the performer's action the avatar
+  first shows the new one (``switch_followed_after_s``), counted from the label file's
+  boundary (the performer's truth) and from where the motion changes, the take's
+  cleaned labels (``switch_followed_after_motion_s``; the curve's agreement against them
+  beside each lag): the label files' boundaries lie up to a second off the motion.
 
 Targets (issue 6) at a lag of 1 s or less: score >= 0.7, agreement >= 80%.
 """
