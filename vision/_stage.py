@@ -7,7 +7,9 @@ in its own thread and publishes to the stage, so a server with one thread a conn
 fits it without an event loop to share. Each page gets the library skeleton once, then
 the newest avatar pose, state and performer picture as they come (a slow page gets the
 newest, never a backlog). With ``camera=True`` the first page is also the camera: its
-frames go to ``BrowserCamera``, the source the loop reads; a second page only watches.
+frames go to ``BrowserCamera``, the source the loop reads; a second page only watches,
+but one that opened within the camera's grace before the camera page closed (a reload
+the server saw the old page leave only after) takes over as the camera.
 
 Limits: bound to 127.0.0.1, and a request naming another host (a DNS-rebinding page) or
 a WebSocket from another origin is refused; at most ``max_clients`` pages at once, and
@@ -23,6 +25,7 @@ import json
 import socket
 import sys
 import threading
+import time
 from collections.abc import Callable
 from http import HTTPStatus
 from pathlib import Path
@@ -63,6 +66,7 @@ class _Client:
         self.conn = conn
         self.number = number
         self.camera = False
+        self.opened = time.monotonic()
         self.cond = threading.Condition()
         self.latest: dict[str, Any] = {}  # "pose", "state", "picture": newest only
         self.notes: list[str] = []  # JSON notices, all sent, in order
@@ -250,6 +254,27 @@ class Stage:
                 client.cond.notify()
             if camera is not None and client.camera:
                 camera.detach(client.number, why)
+                self._take_over(camera)
+
+    def _take_over(self, camera: BrowserCamera) -> None:
+        """A page that opened while the camera page was still open becomes the camera
+        once that one has gone: the newest that opened within the camera's grace. A
+        reloaded page can open before the server sees the old one close, and would
+        otherwise only show the run while the run waits for a camera; a page opened
+        longer ago is someone watching, and stays so."""
+        now = time.monotonic()
+        with self._lock:
+            waiting = [
+                c for c in self._clients.values() if not c.camera and now - c.opened <= camera.grace
+            ]
+        for client in sorted(waiting, key=lambda c: -c.number):
+            if camera.attach(client.number):
+                client.camera = True
+                hello = {"type": "hello", "role": "camera", "controls": self.on_command is not None}
+                hello["note"] = "the camera page before this one closed: this page is the camera"
+                client.post("note", json.dumps(hello))
+                self.say("the page that opened last took over as the camera")
+            return
 
     def _frame(self, client: _Client, message: bytes) -> None:
         if self.camera is None or not client.camera:

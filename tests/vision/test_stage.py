@@ -216,12 +216,51 @@ def test_a_page_that_comes_back_goes_on_where_the_last_stopped() -> None:
             time.sleep(0.2)
         assert (f := camera.read()) is not None and f.t == 0.0
         with _page(stage) as ws:  # a reload: its clock starts again near 0
-            assert _until(ws, "hello")["role"] == "camera"
+            # (the camera at once, or once the server has seen the old page go)
+            assert _camera_hello(ws)
             ws.send(_frame(10.0))
             ws.send(_frame(110.0))
             time.sleep(0.2)
         got = [f for _ in range(3) if (f := camera.read()) is not None and f.image is not None]
         assert got and 0.0 <= got[-1].t < 1.0
+
+
+def _camera_hello(ws: ClientConnection) -> bool:
+    """Whether the page is told it is the camera within 5 s."""
+    with contextlib.suppress(TimeoutError):
+        while _until(ws, "hello")["role"] != "camera":
+            pass
+        return True
+    return False
+
+
+def test_a_reload_that_opens_before_the_old_page_closes_takes_over_as_the_camera() -> None:
+    said = Said()
+    with Stage(port=0, camera=True, say=said) as stage:
+        camera = stage.camera
+        assert camera is not None
+        camera.grace = 0.5
+        camera.read()  # (the run reads it: frames are taken from here on)
+        with _page(stage) as first, _page(stage) as old:
+            assert _until(first, "hello")["role"] == "camera"
+            assert _until(old, "hello")["role"] == "viewer"
+            time.sleep(0.7)  # opened beyond the grace before the camera goes: someone watching
+            with _page(stage) as new:
+                hello = _until(new, "hello")
+                assert hello["role"] == "viewer" and "another page" in hello["note"]
+                first.close()  # the camera page goes: the page opened last takes over
+                got = _until(new, "hello")
+                assert got["role"] == "camera" and "before this one closed" in got["note"]
+                new.send(_frame(10.0))
+                new.send(_frame(110.0))
+                time.sleep(0.2)
+                got = [
+                    f for _ in range(3) if (f := camera.read()) is not None and f.image is not None
+                ]
+                assert got  # its frames drive the run
+            with pytest.raises(TimeoutError):
+                _until(old, "hello", timeout=0.5)
+        assert any("took over as the camera" in s for s in said)
 
 
 def test_pages_beyond_the_cap_get_503_and_close_frees_the_port() -> None:
