@@ -10,9 +10,11 @@ from pathlib import Path
 from typing import Any
 
 from control.artifacts import atomic_write
+from control.motion import default_library_path
 from control.progress import bar
 from vision import (
     evaluation,
+    motion_truth,
     open_source,
     perform,
     plot_evaluation,
@@ -93,7 +95,10 @@ def _evaluate(args: argparse.Namespace) -> int:
         source.close()
     warn_own_take(args.video, ready.clips)
     warn_source(source)
-    report = evaluation(result.decisions, ready.clips, truth, result.media_seconds)
+    # a recording of a library take: the lag from where the motion changes too
+    root = settings.library.folder or default_library_path()
+    motion = motion_truth(args.video, root) if args.labels is None else None
+    report = evaluation(result.decisions, ready.clips, truth, result.media_seconds, motion=motion)
     match = dataclasses.asdict(ready.settings.match)
     # the vote the run used (the default is the descriptor's own: ``switch_for``)
     action = ready.settings.match.action
@@ -131,6 +136,15 @@ def _print_figures(report: dict[str, Any]) -> None:
         + f"; switches a minute: avatar {sw['avatar']} (actions shown under 0.5 s: "
         f"{sw['avatar_brief_actions_under_0.5s']} a minute), performer {sw['performer']}"
     )
+    after = report["switch_followed_after_s"]
+    if "switch_followed_after_motion_s" in report and after["median_s"] is not None:
+        moved = report["switch_followed_after_motion_s"]
+        at = report["best_lag_from_motion_s"]
+        print(
+            f"a new action taken up a median {after['median_s']:g} s after the label file's "
+            f"change, {moved['median_s']:g} s after the performer's motion changes "
+            f"(the take's cleaned labels; agreement against them best at lag {at:g} s)"
+        )
     points = report["decision_points"]
     print(
         f"decision points: {points['points']}, {points['decided']} decided"

@@ -96,6 +96,7 @@ from ._truth import (
     agreement,
     avatar_labels,
     library_actions,
+    motion_truth,
     read_span_labels,
     truth_for,
 )
@@ -172,6 +173,7 @@ __all__ = [
     "floor_level",
     "library_actions",
     "looks_like_silhouettes",
+    "motion_truth",
     "on_the_floor",
     "open_source",
     "per_frame_cost",

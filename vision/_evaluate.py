@@ -6,7 +6,8 @@ a lag of at most 1 s, the confusion matrix and per-action agreement at that lag,
 (the avatar at a random library frame), the avatar's and the performer's action switches
 a minute, the avatar's brief actions a minute (flicker: ``brief_actions_per_minute``),
 how long after each of the performer's switches the avatar took the new action up
-(``switch_delays``: the lag as a viewer sees it, to the decision),
+(``switch_delays``: the lag as a viewer sees it, to the decision), for a recording of a
+library take also against where the performer's motion changes (``motion_truth``),
 the decision points without a decision, per reason (``decision_points``), and the
 decision latency. ``plot_evaluation`` draws agreement against lag beside
 the confusion matrix (matplotlib, headless).
@@ -139,8 +140,11 @@ def evaluation(
     truth: Truth,
     media_seconds: float,
     lags: Sequence[float] = LAGS,
+    motion: Truth | None = None,
 ) -> dict[str, Any]:
-    """The figures of a performance against its ``truth`` (see the module)."""
+    """The figures of a performance against its ``truth`` (see the module); with
+    ``motion`` (``motion_truth``: where the performer's motion changes action), the
+    agreement by lag and the lag of each change against it too."""
     known = library_actions(clips)
     every = agreement(decisions, clips, truth, lags)
     have = agreement(decisions, clips, truth, lags, known=known)
@@ -159,6 +163,18 @@ def evaluation(
     mine = avatar_labels(decisions, clips)
     theirs = [truth.label_at(float(d["t"])) for d in decisions]
     at = [float(d["t"]) for d in decisions]
+    from_motion: dict[str, Any] = {}
+    if motion is not None:
+        moved = agreement(decisions, clips, motion, lags, known=known)
+        from_motion = {
+            "motion_truth": motion.source,
+            "agreement_known_actions_by_lag_from_motion_s": moved["by_lag_s"],
+            "best_at_lag_le_1s_from_motion": moved["best_at_lag_le_1s"],
+            "best_lag_from_motion_s": moved["best_lag_s"],
+            "switch_followed_after_motion_s": switch_delays(
+                mine, [motion.label_at(t) for t in at], at, known
+            ),
+        }
     return {
         "truth": truth.source,
         "decisions": len(decisions),
@@ -182,6 +198,7 @@ def evaluation(
             ),
         },
         "switch_followed_after_s": switch_delays(mine, theirs, at, known),
+        **from_motion,
         "decision_points": decision_points(decisions),
         # what a viewer compares: the performer's action and the avatar's, on one time axis
         "timeline": {"t": [round(x, 3) for x in at], "performer": theirs, "avatar": mine},

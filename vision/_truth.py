@@ -3,9 +3,12 @@
 Two sources of truth: the JSON sidecar ``mimic record`` writes beside a recording
 (``<video>.json``: a label per video frame), and a labels CSV for any video
 (``file,start,end,label``, times in seconds, ``file`` matched by name; the format of
-``benchmarks/videos/shared_labels.csv``). Label names are the library's (case does not
-matter). Agreement at a lag compares the avatar's label at each decision with the
-performer's label ``lag`` seconds earlier: the avatar follows, so it may be late.
+``benchmarks/videos/shared_labels.csv``). A recording of a library take also has the
+take's cleaned labels (``motion_truth``): where the performer's motion changes action,
+which the label files' boundaries miss by up to a second either way. Label names are
+the library's (case does not matter). Agreement at a lag compares the avatar's label at
+each decision with the performer's label ``lag`` seconds earlier: the avatar follows, so
+it may be late.
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from control.motion import Clip
+from control.motion import Clip, MotionFormatError, load_library
 
 __all__ = [
     "LAGS",
@@ -30,6 +33,7 @@ __all__ = [
     "agreement",
     "avatar_labels",
     "library_actions",
+    "motion_truth",
     "read_span_labels",
     "truth_for",
 ]
@@ -94,7 +98,8 @@ class Truth:
         return None
 
 
-def _sidecar_truth(path: Path) -> Truth:
+def _read_sidecar(path: Path) -> tuple[dict[str, Any], float, list[Any]]:
+    """A recording sidecar: its JSON, frame rate and labels (one per video frame)."""
     try:
         side = json.loads(path.read_text(encoding="utf-8"))
         fps = float(side["fps"])
@@ -105,6 +110,16 @@ def _sidecar_truth(path: Path) -> Truth:
         raise LabelFileError(f"{path}: no such file") from None
     except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError) as exc:
         raise LabelFileError(f"{path}: not a recording sidecar ({exc})") from None
+    return side, fps, labels
+
+
+def _sidecar_truth(path: Path) -> Truth:
+    _, fps, labels = _read_sidecar(path)
+    return _spans(labels, fps, str(path))
+
+
+def _spans(labels: Sequence[Any], fps: float, source: str) -> Truth:
+    """The truth of one label per frame at ``fps`` (``None`` or ``""``: unlabelled)."""
     spans = []
     i = 0
     while i < len(labels):
@@ -114,7 +129,38 @@ def _sidecar_truth(path: Path) -> Truth:
         if labels[i]:
             spans.append((i / fps, (j + 1) / fps, str(labels[i]).lower()))
         i = j + 1
-    return Truth(tuple(spans), str(path))
+    return Truth(tuple(spans), source)
+
+
+def motion_truth(video: str | Path, library: str | Path) -> Truth | None:
+    """Where the performer of a recording of a library take changes action: each video
+    frame labelled by the take's cleaned labels (``control.motion.clean_labels``) at the
+    source frame its sidecar names; a frame the sidecar leaves unlabelled (a pause)
+    stays so. ``None`` when the video has no sidecar, its sidecar names no take, or the
+    take is not in ``library`` (or cannot be read there)."""
+    path = Path(video).with_name(Path(video).name + ".json")
+    if not path.is_file():
+        return None
+    side, fps, labels = _read_sidecar(path)
+    try:
+        at = np.asarray(side["source_frames"], dtype=np.float64)
+        name = str(side["clip"])
+    except KeyError:  # a sidecar that names no take
+        return None
+    except (ValueError, TypeError) as exc:
+        raise LabelFileError(f"{path}: not a recording sidecar ({exc})") from None
+    if at.shape != (len(labels),):
+        raise LabelFileError(f"{path}: {at.size} source frames for {len(labels)} labels")
+    try:
+        take = load_library(library, fps=fps, clips=[name]).clip(name)
+    except (MotionFormatError, KeyError):  # the take is not in this library
+        return None
+    src = np.asarray(take.source_frames, dtype=np.float64)
+    j = np.clip(np.searchsorted(src, at), 0, src.size - 1)
+    before = np.clip(j - 1, 0, src.size - 1)
+    i = np.where(np.abs(src[before] - at) <= np.abs(src[j] - at), before, j)
+    cleaned = [take.label_at(int(k)) if lab else None for lab, k in zip(labels, i, strict=True)]
+    return _spans(cleaned, fps, f"{path} (the cleaned labels of {take.name})")
 
 
 def truth_for(video: str | Path, labels: str | Path | None = None) -> Truth | None:

@@ -16,6 +16,7 @@ from vision import (
     action_runs,
     agreement,
     brief_actions_per_minute,
+    motion_truth,
     plot_timeline,
     switch_delays,
     truth_for,
@@ -42,6 +43,30 @@ def test_a_labels_csv_needs_rows_for_the_video(tmp_path: Path) -> None:
     with pytest.raises(LabelFileError, match=r"v\.mkv\.json: not a recording sidecar"):
         truth_for(bad)
     assert truth_for(tmp_path / "plain.mp4") is None
+
+
+def test_a_recording_of_a_library_take_has_the_takes_cleaned_labels_too(
+    mocap: Path, tmp_path: Path
+) -> None:
+    """Where the performer's motion changes action: the take's cleaned labels at each
+    frame's source frame; the label file's boundaries stay the sidecar truth's."""
+    truth, moved = truth_for(RECORDING), motion_truth(RECORDING, mocap)
+    assert truth is not None and moved is not None and "cleaned labels of 13_29" in moved.source
+    assert [s[2] for s in moved.spans] == [s[2] for s in truth.spans]
+    shifts = [m[0] - t[0] for m, t in zip(moved.spans[1:], truth.spans[1:], strict=True)]
+    assert all(0.05 < abs(x) < 1.0 for x in shifts)  # each boundary moved, by under a second
+    side = RECORDING.with_name(RECORDING.name + ".json").read_text()
+    for name, text in (
+        ("other.mkv", side.replace('"clip": "13_29"', '"clip": "99_99"')),  # another library's
+        ("old.mkv", side.replace('"source_frames"', '"frames_then"')),  # names no source
+    ):
+        (tmp_path / f"{name}.json").write_text(text)
+        assert motion_truth(tmp_path / name, mocap) is None
+    assert motion_truth(tmp_path / "plain.mp4", mocap) is None
+    one_more = side.replace('"source_frames": [', '"source_frames": [0, ')
+    (tmp_path / "cut.mkv.json").write_text(one_more)
+    with pytest.raises(LabelFileError, match=r"cut\.mkv\.json: \d+ source frames for \d+ labels"):
+        motion_truth(tmp_path / "cut.mkv", mocap)
 
 
 def _decisions(clip, frames, times):
