@@ -106,6 +106,7 @@ from vision import (
     switch_delays,
     truth_for,
 )
+from vision._truth import labels_at_source_frames
 
 LAGS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0)
 #: delays (s) from a frame to the avatar on screen, as a live camera has them
@@ -583,20 +584,6 @@ def _masks(video: Path) -> tuple[list[np.ndarray], float]:
     return out, src.fps
 
 
-def _motion_labels(side: dict[str, Any], cleaned: Clip) -> list[str | None]:
-    """Each frame of a recording (its ``side``car) labelled where the performer's motion
-    changes action: the cleaned label of the take's frame nearest its source frame; a
-    frame the sidecar leaves unlabelled (a pause) stays so."""
-    src = np.asarray(cleaned.source_frames, dtype=np.float64)
-    at = np.asarray(side["source_frames"], dtype=np.float64)
-    i = np.clip(np.searchsorted(src, at), 1, src.size - 1)
-    i -= (at - src[i - 1]) < (src[i] - at)
-    return [
-        None if lab is None else cleaned.label_at(int(j))
-        for lab, j in zip(side["labels"], i, strict=True)
-    ]
-
-
 def _recorded_runs(
     rec: str,
     ctx: tuple[Any, ...],
@@ -618,7 +605,11 @@ def _recorded_runs(
         video = Path(tmp) / f"{perf_clip.name}_{rec}.mkv"
         side = record_clip(perf_clip, video, RECORDINGS[rec])
         perf_labels = side["labels"]
-        motion_labels = None if cleaned is None else _motion_labels(side, cleaned)
+        motion_labels = (
+            None
+            if cleaned is None
+            else labels_at_source_frames(cleaned, side["source_frames"], side["labels"])
+        )
         known = set(lib_labels) - {""}
         labelled = [lab_i for lab_i in perf_labels if lab_i is not None]
         # actions the library lacks can never agree: the best any avatar could do

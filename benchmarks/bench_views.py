@@ -15,7 +15,10 @@ of the library (14_20 against subject 13's takes and the rest, 13_29 against 14_
 the rest); ``take`` leaves out only the take itself.
 
 Per run: agreement at a lag of at most 1 s over the actions the library has (the
-issue's figure), per action, the avatar's and the performer's switches a minute, and
+issue's figure), and the same against where the performer's motion changes action (the
+take's cleaned labels: ``vision.motion_truth``), per action, the avatar's and the
+performer's switches a minute, how long after the performer's changes of action the
+avatar took them up (from the label file and from the motion), and
 the decision points without a decision, per reason (``vision.decision_points``: a person
 in view and no decision is the failure this benchmark watches). Summaries per azimuth
 and per take. The JSON goes to ``benchmarks/results/views.json``.
@@ -82,6 +85,10 @@ def run_one(
         "left_out": leave,
         "agreement": r["best_at_lag_le_1s"],
         "best_lag_s": r["best_lag_s"],
+        "agreement_from_motion": r.get("best_at_lag_le_1s_from_motion"),
+        "best_lag_from_motion_s": r.get("best_lag_from_motion_s"),
+        "switch_followed_after_s": r["switch_followed_after_s"],
+        "switch_followed_after_motion_s": r.get("switch_followed_after_motion_s"),
         "per_action": r["per_action_at_best_lag"],
         "switches_per_minute": r["switches_per_minute"],
         "decision_points": r["decision_points"],
@@ -95,10 +102,12 @@ def _summary(runs: list[dict[str, Any]], key: str) -> dict[str, Any]:
     for value in sorted({r[key] for r in runs}):
         mine = [r for r in runs if r[key] == value]
         agree = [r["agreement"] for r in mine if r["agreement"] is not None]
+        moved = [r["agreement_from_motion"] for r in mine if r.get("agreement_from_motion")]
         shares = [r["decision_points"]["person_in_view_undecided_share"] for r in mine]
         out[str(value)] = {
             "agreement_mean": round(float(np.mean(agree)), 3) if agree else None,
             "agreement_min": round(float(np.min(agree)), 3) if agree else None,
+            "agreement_from_motion_mean": round(float(np.mean(moved)), 3) if moved else None,
             "person_in_view_undecided_share_max": round(float(np.max(shares)), 4),
         }
     return out

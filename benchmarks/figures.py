@@ -78,13 +78,16 @@ def _from_motion(runs: dict[str, float]) -> str:
     return "" if np.isnan(x) else f" ({x:.1f} s after the motion changes)"
 
 
-def _views(name: str = "views.json") -> tuple[str, float, float, float]:
+def _views(name: str = "views.json") -> tuple[str, float, float, float, str]:
     """Agreement by azimuth (a ``bench_views`` result), and the avatar's action switches
-    a minute, its brief ones and the performers' switches."""
+    a minute, its brief ones and the performers' switches; and the agreement by azimuth
+    against where the motion changes, where the result has it (else ``""``)."""
     data = _load(name)
     try:
         by = sorted(data["by_azimuth"].items(), key=lambda kv: float(kv[0]))
         cells = " / ".join(f"{v['agreement_mean']:.2f}" for _, v in by)
+        moved = [v.get("agreement_from_motion_mean") for _, v in by]
+        from_motion = " / ".join(f"{x:.2f}" for x in moved) if None not in moved else ""
         azimuths = " / ".join(f"{float(k):g}" for k, _ in by)
         sw = [r["switches_per_minute"] for r in data["runs"]]
         avatar = float(np.mean([s["avatar"] for s in sw]))
@@ -92,7 +95,7 @@ def _views(name: str = "views.json") -> tuple[str, float, float, float]:
         performer = float(np.mean([s["performer"] for s in sw]))
     except (KeyError, TypeError) as exc:
         raise ValueError(f"{RESULTS / name}: not a bench_views result ({exc})") from None
-    return f"{cells} (azimuth {azimuths} degrees)", avatar, brief, performer
+    return f"{cells} (azimuth {azimuths} degrees)", avatar, brief, performer, from_motion
 
 
 def _squats() -> tuple[float, float]:
@@ -111,7 +114,7 @@ def table() -> str:
     """The headline table (Markdown)."""
     takes, sil = _runs("accuracy_pose_recordings.json"), _runs("accuracy_recordings.json")
     person, sil_person = _runs("accuracy_pose_person.json"), _runs("accuracy_person.json")
-    views, v_avatar, v_brief, v_performer = _views()
+    views, v_avatar, v_brief, v_performer, v_motion = _views()
     squats, squat_lag = _squats()
     page = _load("page.json")["pose_squats"]
     steady, s_views = _runs("accuracy_pose_recordings_steady.json"), _views("views_steady.json")
@@ -143,7 +146,8 @@ def table() -> str:
         (
             "another person read by MediaPipe, by camera azimuth",
             views,
-            f"{v_avatar:.0f} switches a minute ({v_brief:.0f} brief) against {v_performer:.0f}",
+            f"{v_avatar:.0f} switches a minute ({v_brief:.0f} brief) against {v_performer:.0f}"
+            + (f"; against where the motion changes {v_motion}" if v_motion else ""),
         ),
         (
             "a real person squatting (`../shared/video/pose_squats.mp4`)",

@@ -155,12 +155,23 @@ def motion_truth(video: str | Path, library: str | Path) -> Truth | None:
         take = load_library(library, fps=fps, clips=[name]).clip(name)
     except (MotionFormatError, KeyError):  # the take is not in this library
         return None
+    cleaned = labels_at_source_frames(take, at, labels)
+    return _spans(cleaned, fps, f"{path} (the cleaned labels of {take.name})")
+
+
+def labels_at_source_frames(
+    take: Clip, source_frames: Sequence[float] | np.ndarray, labels: Sequence[Any]
+) -> list[str | None]:
+    """``take``'s label (as its clip names it) at each of ``source_frames`` (frames of
+    the take's source file: a recording's frames, retimed or held), from the frame of
+    ``take`` nearest each; ``None`` where ``labels`` (the recording's own) has none, as
+    in a pause."""
     src = np.asarray(take.source_frames, dtype=np.float64)
+    at = np.asarray(source_frames, dtype=np.float64)
     j = np.clip(np.searchsorted(src, at), 0, src.size - 1)
     before = np.clip(j - 1, 0, src.size - 1)
-    i = np.where(np.abs(src[before] - at) <= np.abs(src[j] - at), before, j)
-    cleaned = [take.label_at(int(k)) if lab else None for lab, k in zip(labels, i, strict=True)]
-    return _spans(cleaned, fps, f"{path} (the cleaned labels of {take.name})")
+    nearest = np.where(np.abs(src[before] - at) <= np.abs(src[j] - at), before, j)
+    return [take.label_at(int(k)) if lab else None for lab, k in zip(labels, nearest, strict=True)]
 
 
 def truth_for(video: str | Path, labels: str | Path | None = None) -> Truth | None:

@@ -73,18 +73,15 @@ def test_a_clean_switch_is_followed_once(setup: Any, pose_bank: Any, mocap: Path
 def test_the_lag_from_the_motion_reads_each_recorded_frame_at_its_source_frame(
     mocap: Path,
 ) -> None:
-    """``bench_accuracy``'s lag counted from where the motion changes labels each frame of
-    a recording by the take's cleaned labels at its source frame (a retimed take's frames
-    fall between the take's), and leaves a pause unlabelled."""
-    from benchmarks.bench_accuracy import _motion_labels
+    """The lag counted from where the motion changes labels each frame of a recording by
+    the take's cleaned labels at its source frame (a retimed take's frames fall between
+    the take's), and leaves a pause unlabelled."""
+    from vision._truth import labels_at_source_frames
 
     clean = load_library(mocap, fps=30, clips=["13_29"]).clip("13_29")
     src = clean.source_frames
     k = int(np.flatnonzero(clean.labels[1:] != clean.labels[:-1])[0]) + 1  # a cleaned boundary
-    side = {
-        "source_frames": [src[k - 1] + 0.4 * (src[k] - src[k - 1]), src[k] - 0.4, src[k], src[k]],
-        "labels": ["X", "X", "X", None],
-    }
+    at = [src[k - 1] + 0.4 * (src[k] - src[k - 1]), src[k] - 0.4, src[k], src[k]]
     want = [clean.label_at(k - 1), clean.label_at(k), clean.label_at(k), None]
-    assert _motion_labels(side, clean) == want
+    assert labels_at_source_frames(clean, at, ["X", "X", "X", None]) == want
     assert want[0] != want[1]
