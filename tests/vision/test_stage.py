@@ -12,6 +12,7 @@ import threading
 import time
 import urllib.error
 import urllib.request
+from collections.abc import Iterator
 from typing import Any
 
 import cv2
@@ -20,7 +21,7 @@ import pytest
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
-from vision import Stage
+from vision import BrowserCamera, Stage
 
 SKELETON = {"names": ["hips", "head"], "parents": [-1, 0], "offsets": [[0, 0, 0], [0, 0.5, 0]]}
 
@@ -183,13 +184,21 @@ def test_bad_frames_are_refused_with_a_message_and_the_run_goes_on() -> None:
         assert any("closed" in s and "1009" in s for s in said)
 
 
-def test_the_camera_page_closing_ends_the_source_after_its_grace() -> None:
-    said = Said()
+@contextlib.contextmanager
+def _read_camera(said: Said, grace: float = 0.5) -> Iterator[tuple[Stage, BrowserCamera]]:
+    """A stage whose camera the run has begun to read (frames are taken from then on),
+    with a camera page awaited ``grace`` seconds once it closes."""
     with Stage(port=0, camera=True, say=said) as stage:
         camera = stage.camera
         assert camera is not None
-        camera.grace = 0.5
+        camera.grace = grace
         camera.read()
+        yield stage, camera
+
+
+def test_the_camera_page_closing_ends_the_source_after_its_grace() -> None:
+    said = Said()
+    with _read_camera(said) as (stage, camera):
         with _page(stage) as ws:
             _until(ws, "hello")
             ws.send(_frame(0.0))
@@ -236,11 +245,7 @@ def _camera_hello(ws: ClientConnection) -> bool:
 
 def test_a_reload_that_opens_before_the_old_page_closes_takes_over_as_the_camera() -> None:
     said = Said()
-    with Stage(port=0, camera=True, say=said) as stage:
-        camera = stage.camera
-        assert camera is not None
-        camera.grace = 0.5
-        camera.read()  # (the run reads it: frames are taken from here on)
+    with _read_camera(said) as (stage, camera):
         with _page(stage) as first, _page(stage) as old:
             assert _until(first, "hello")["role"] == "camera"
             assert _until(old, "hello")["role"] == "viewer"
