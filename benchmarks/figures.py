@@ -170,7 +170,8 @@ def table() -> str:
         (
             f"{STEADY}: another person read by MediaPipe",
             s_views[0],
-            f"{s_views[1]:.0f} switches a minute ({s_views[2]:.0f} brief)",
+            f"{s_views[1]:.0f} switches a minute ({s_views[2]:.0f} brief)"
+            + (f"; against where the motion changes {s_views[4]}" if s_views[4] else ""),
         ),
     ]
     lines = ["| performer | agreement | note |", "|---|---|---|"]
