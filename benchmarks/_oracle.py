@@ -103,7 +103,7 @@ def pose_oracle(
     voted = _voted(best, vote)
     moved = None
     if motion_labels is not None:
-        at = [motion_labels[i] for i in np.clip(k, 0, len(motion_labels) - 1)]
+        at = [motion_labels[i] for i in k]  # (the same take's frames as ``truth_labels``)
         moved = switch_delays(best, at, times.tolist(), labelled)
     return {
         "decisions": int(times.size),

@@ -66,6 +66,10 @@ def _evaluate(args: argparse.Namespace) -> int:
             "give --labels CSV"
         )
     settings = run_settings(args)  # a bad setting is said before any work
+    # a recording of a library take: the lag from where the motion changes too (a bad
+    # sidecar is said before any work)
+    root = settings.library.folder or default_library_path()
+    motion = motion_truth(args.video, root) if args.labels is None else None
     outputs = OutputSet(  # a clash or an unwritable place: said before any work
         [
             Output("--json", Path(args.json)),
@@ -95,9 +99,6 @@ def _evaluate(args: argparse.Namespace) -> int:
         source.close()
     warn_own_take(args.video, ready.clips)
     warn_source(source)
-    # a recording of a library take: the lag from where the motion changes too
-    root = settings.library.folder or default_library_path()
-    motion = motion_truth(args.video, root) if args.labels is None else None
     report = evaluation(result.decisions, ready.clips, truth, result.media_seconds, motion=motion)
     match = dataclasses.asdict(ready.settings.match)
     # the vote the run used (the default is the descriptor's own: ``switch_for``)

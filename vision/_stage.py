@@ -267,14 +267,13 @@ class Stage:
             waiting = [
                 c for c in self._clients.values() if not c.camera and now - c.opened <= camera.grace
             ]
-        for client in sorted(waiting, key=lambda c: -c.number):
-            if camera.attach(client.number):
-                client.camera = True
-                hello = {"type": "hello", "role": "camera", "controls": self.on_command is not None}
-                hello["note"] = "the camera page before this one closed: this page is the camera"
-                client.post("note", json.dumps(hello))
-                self.say("the page that opened last took over as the camera")
-            return
+        newest = max(waiting, key=lambda c: c.number, default=None)
+        if newest is not None and camera.attach(newest.number):
+            newest.camera = True
+            hello = {"type": "hello", "role": "camera", "controls": self.on_command is not None}
+            hello["note"] = "the camera page before this one closed: this page is the camera"
+            newest.post("note", json.dumps(hello))
+            self.say("the page that opened last took over as the camera")
 
     def _frame(self, client: _Client, message: bytes) -> None:
         if self.camera is None or not client.camera:

@@ -155,7 +155,7 @@ def load_layer(path: str | Path, graph: MotionGraph) -> HigherLayer:
         seeding=str(manifest["seeding"]),
         seeds=a["c_seeds"].astype(np.int64),
     )
-    forest = _read_forest(a, manifest, graph, labels, path)
+    forest = _read_forest(a, manifest, graph, labels, path, lazy)
     return HigherLayer(
         graph,
         a["states"].astype(np.float64),
@@ -174,12 +174,13 @@ def _read_forest(
     graph: MotionGraph,
     labels: NDArray[np.int64],
     path: Path,
+    lazy: bool,
 ) -> ClusterForest:
     """The forest of a layer file's checked arrays ``a``: its trees, or a lazy forest's
     roots, whose trees are grown when asked for (``lazy_forest``)."""
     report = dict(manifest.get("report", {}))
     tree_of, bound = a["tree_of"].astype(np.int64), int(manifest["bound"])
-    if manifest.get("lazy") is True:
+    if lazy:
         try:
             caps = int(report["max_nodes"]), int(report["max_states"])
         except (KeyError, TypeError, ValueError) as exc:
