@@ -164,16 +164,17 @@ def evaluation(
     theirs = [truth.label_at(float(d["t"])) for d in decisions]
     at = [float(d["t"]) for d in decisions]
     from_motion: dict[str, Any] = {}
+    # what a viewer compares: the performer's action and the avatar's, on one time axis
+    timeline: dict[str, list[Any]] = {"t": [round(x, 3) for x in at], "performer": theirs}
     if motion is not None:
         moved = agreement(decisions, clips, motion, lags, known=known)
+        timeline["motion"] = [motion.label_at(t) for t in at]
         from_motion = {
             "motion_truth": motion.source,
             "agreement_known_actions_by_lag_from_motion_s": moved["by_lag_s"],
             "best_at_lag_le_1s_from_motion": moved["best_at_lag_le_1s"],
             "best_lag_from_motion_s": moved["best_lag_s"],
-            "switch_followed_after_motion_s": switch_delays(
-                mine, [motion.label_at(t) for t in at], at, known
-            ),
+            "switch_followed_after_motion_s": switch_delays(mine, timeline["motion"], at, known),
         }
     return {
         "truth": truth.source,
@@ -200,8 +201,7 @@ def evaluation(
         "switch_followed_after_s": switch_delays(mine, theirs, at, known),
         **from_motion,
         "decision_points": decision_points(decisions),
-        # what a viewer compares: the performer's action and the avatar's, on one time axis
-        "timeline": {"t": [round(x, 3) for x in at], "performer": theirs, "avatar": mine},
+        "timeline": {**timeline, "avatar": mine},
         "latency_ms": {
             "p50": round(float(np.percentile(lat, 50)), 3) if lat.size else None,
             "p99": round(float(np.percentile(lat, 99)), 3) if lat.size else None,
@@ -211,23 +211,33 @@ def evaluation(
     }
 
 
+#: the timeline's rows, top to bottom, and what each is called on the plot
+TIMELINE_ROWS = {
+    "performer": "performer",
+    "motion": "performer's motion",  # (a recording of a library take: ``motion_truth``)
+    "avatar": "avatar",
+}
+
+
 def _timeline(ax: Any, timeline: dict[str, list[Any]] | None) -> None:
-    """Two rows of coloured spans, the performer's actions over the avatar's, one colour
-    an action: where they differ, and for how long, shows at a glance."""
+    """Rows of coloured spans, the performer's actions (by the labels, and where a
+    recording of a library take has them, by where its motion changes) over the avatar's,
+    one colour an action: where they differ, and for how long, shows at a glance."""
     if not timeline or not timeline["t"]:
         ax.set_axis_off()
         return
     t = timeline["t"]
     step = float(np.median(np.diff(t))) if len(t) > 1 else 0.1
-    names = sorted({x for k in ("performer", "avatar") for x in timeline[k] if x})
+    keys = [k for k in TIMELINE_ROWS if k in timeline][::-1]  # bottom row first
+    names = sorted({x for k in keys for x in timeline[k] if x})
     colours = {n: _colour(i) for i, n in enumerate(names)}
-    for row, key in ((1, "performer"), (0, "avatar")):
+    for row, key in enumerate(keys):
         for label, group in itertools.groupby(zip(t, timeline[key], strict=True), lambda p: p[1]):
             span = list(group)
             if label:
                 start, end = span[0][0], span[-1][0] + step
                 ax.broken_barh([(start, end - start)], (row - 0.4, 0.8), color=colours[label])
-    ax.set_yticks([0, 1], ["avatar", "performer"])
+    ax.set_yticks(range(len(keys)), [TIMELINE_ROWS[k] for k in keys])
     ax.set(xlabel="media time (s)", xlim=(t[0], t[-1] + step), title="actions over time")
     handles = [_patch(colours[n], n) for n in names]
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=7)
@@ -248,8 +258,8 @@ def _patch(colour: Any, name: str) -> Any:
 
 def plot_timeline(timeline: dict[str, list[Any]], path: str | Path, title: str = "") -> None:
     """The performer's actions over the avatar's on one time axis (``timeline``: ``t``,
-    ``performer`` and ``avatar``, one entry a decision point), as a PNG written through a
-    temporary file."""
+    ``performer``, ``avatar`` and optionally ``motion``, one entry a decision point), as a
+    PNG written through a temporary file."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -289,9 +299,10 @@ def plot_evaluation(report: dict[str, Any], path: str | Path, title: str = "") -
     _timeline(fig.add_subplot(grid[1, :]), report.get("timeline"))
     for key, name in (
         ("agreement_known_actions_by_lag_s", "actions the library has"),
+        ("agreement_known_actions_by_lag_from_motion_s", "the same, from the motion"),
         ("agreement_by_lag_s", "every labelled decision"),
     ):
-        pts = [(float(k), v) for k, v in report[key].items() if v is not None]
+        pts = [(float(k), v) for k, v in report.get(key, {}).items() if v is not None]
         if pts:
             ax.plot(*zip(*pts, strict=True), marker="o", label=name)
     if report.get("chance") is not None:

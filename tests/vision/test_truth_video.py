@@ -200,14 +200,21 @@ def test_a_timeline_is_drawn_with_a_row_for_each(tmp_path: Path) -> None:
         "avatar": [None] * 5 + ["jumpjack"] * 52 + ["twist"] * 43,
     }
     path = tmp_path / "timeline.png"
+
+    def bands() -> int:
+        """Runs of coloured rows a third of the way across the plot."""
+        img = cv2.imread(str(path))
+        assert img is not None and img.shape[1] == 1200
+        coloured = (img.max(axis=2).astype(int) - img.min(axis=2)) > 60
+        rows = coloured[:, img.shape[1] // 3].astype(int)
+        return int((np.diff(rows) == 1).sum() + rows[0])
+
     plot_timeline(timeline, path, "a title")
-    img = cv2.imread(str(path))
-    assert img is not None and img.shape[1] == 1200
-    # two rows of colour: the performer's above, the avatar's below
-    coloured = (img.max(axis=2).astype(int) - img.min(axis=2)) > 60
-    rows = np.flatnonzero(coloured[:, img.shape[1] // 3])
-    assert rows.size and rows.max() - rows.min() > img.shape[0] // 4
+    assert bands() == 2  # the performer's actions above, the avatar's below
     assert not list(tmp_path.glob(".*"))  # (written through a temporary file)
+    # a recording of a library take: where the motion changes, between the two
+    plot_timeline({**timeline, "motion": ["jumpjack"] * 45 + ["twist"] * 55}, path)
+    assert bands() == 3
 
 
 def test_the_video_marks_jumps_and_starts() -> None:
