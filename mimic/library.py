@@ -34,8 +34,15 @@ __all__ = ["add_library_commands", "library_summary"]
 
 
 def add_library_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """``mimic library``: ``info``, ``labels`` and ``embed``."""
     lib = sub.add_parser("library", help="inspect a motion library")
     lib_sub = lib.add_subparsers(dest="library_command", required=True)
+    _add_info(lib_sub)
+    _add_labels(lib_sub)
+    _add_embed(lib_sub)
+
+
+def _add_info(lib_sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     info = lib_sub.add_parser(
         "info",
         help="clips, frames, duration, rate, joints and contact statistics",
@@ -65,6 +72,9 @@ def add_library_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
         "this machine's cores, at most 4, as a bank build takes them)",
     )
     info.set_defaults(func=_info)
+
+
+def _add_labels(lib_sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     labels = lib_sub.add_parser(
         "labels",
         help="write the library's cleaned action labels (boundaries where the motion changes)",
@@ -84,6 +94,9 @@ def add_library_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser
         help="the rate the boundaries are found at (default 15, the library's)",
     )
     labels.set_defaults(func=_labels)
+
+
+def _add_embed(lib_sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     embed = lib_sub.add_parser(
         "embed",
         help="convert a few clips into the package's embedded default library",

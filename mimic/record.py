@@ -44,6 +44,13 @@ def add_record_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
         type=number(float, 0, MOST_SECONDS, above=True),
         help="end, seconds (default: clip end)",
     )
+    _add_filming_args(r)
+    r.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=0)
+    r.set_defaults(func=_record)
+
+
+def _add_filming_args(r: argparse.ArgumentParser) -> None:
+    """The video, the performer's body and the camera (``RecordSettings``'s defaults)."""
     d = RecordSettings()
     r.add_argument("--fps", type=number(float, 0, 240, above=True), default=30.0)
     r.add_argument("--size", default=f"{d.width}x{d.height}", help="WIDTHxHEIGHT")
@@ -83,8 +90,6 @@ def add_record_command(sub: argparse._SubParsersAction[argparse.ArgumentParser])
         help="a colour video of the shaded body (for the pose model's landmarks) instead "
         "of silhouettes",
     )
-    r.add_argument("--seed", type=number(int, 0, 2**32 - 1), default=0)
-    r.set_defaults(func=_record)
 
 
 def _record(args: argparse.Namespace) -> int:

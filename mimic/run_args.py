@@ -172,7 +172,8 @@ def add_run_args(p: argparse.ArgumentParser) -> None:
 
 
 def _add_vision_args(p: argparse.ArgumentParser) -> None:
-    """The matcher's window, the segmentation, the descriptor and its bank."""
+    """The matcher's window, the segmentation, then the descriptor and its bank
+    (``_add_descriptor_args``)."""
     p.add_argument(
         "--seconds",
         type=number(float, 0, MOST_SECONDS, above=True),
@@ -204,6 +205,11 @@ def _add_vision_args(p: argparse.ArgumentParser) -> None:
         default=30,
         help="frames to learn the background",
     )
+    _add_descriptor_args(p)
+
+
+def _add_descriptor_args(p: argparse.ArgumentParser) -> None:
+    """The descriptor, its bank, and the silhouette where the landmarks fail."""
     p.add_argument(
         "--variants",
         action="store_true",

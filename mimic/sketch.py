@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from control.clusters import HigherLayer, LayerSettings, cached_higher_layer
-from control.graph import CapturedTerrain, MotionGraph, terrain_options
+from control.graph import CapturedTerrain, MotionGraph, Synthesis, terrain_options
 from control.motion import Library, write_bvh
 from control.progress import step
 from control.sketch import (
@@ -34,7 +34,7 @@ from .args import (
     number,
     start_frame,
 )
-from .outputs import check_outputs
+from .outputs import OutputSet, check_outputs
 
 __all__ = ["add_sketch_command"]
 
@@ -170,7 +170,27 @@ def _sketch(args: argparse.Namespace) -> int:
     syn = main.motion(blend=blend_seconds(args) if args.blend is not None else None)
     if captured is not None:
         summary[first]["terrain"] = main.terrain_report(syn)
-    with outputs:  # the BVH, its picture and its video replaced together, or none
+    _write(outputs, syn, runs, first, sketch, env)
+    if args.json:
+        print(json.dumps({"out": str(args.out), **summary}, indent=2))
+    else:
+        _print_summary(summary)
+        print(f"wrote {args.out}" + "".join(f", {p}" for p in (args.png, args.video) if p))
+    return 0 if main.goal >= len(main.goals) else 1
+
+
+def _write(
+    outputs: OutputSet,
+    syn: Synthesis,
+    runs: dict[str, SketchTracker],
+    first: str,
+    sketch: np.ndarray,
+    env: Environment | None,
+) -> None:
+    """The BVH of the ``first`` run's motion ``syn``, and where asked the picture of every
+    run's path and the video, replaced together or none."""
+    main = runs[first]
+    with outputs:
         out, png, video = (outputs.find(o) for o in ("--out", "--png", "--video"))
         assert out is not None
         outputs.write(out, lambda p: write_bvh(syn.motion, p))
@@ -184,12 +204,6 @@ def _sketch(args: argparse.Namespace) -> int:
             scenery = environment_mesh(env, rise) if env is not None else None
             outputs.write(video, lambda p: render_motion_video(syn.motion, p, scenery=scenery))
         outputs.commit()
-    if args.json:
-        print(json.dumps({"out": str(args.out), **summary}, indent=2))
-    else:
-        _print_summary(summary)
-        print(f"wrote {args.out}" + "".join(f", {p}" for p in (args.png, args.video) if p))
-    return 0 if main.goal >= len(main.goals) else 1
 
 
 def _print_summary(summary: dict[str, Any]) -> None:

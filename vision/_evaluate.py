@@ -148,34 +148,19 @@ def evaluation(
     known = library_actions(clips)
     every = agreement(decisions, clips, truth, lags)
     have = agreement(decisions, clips, truth, lags, known=known)
-    lag = have["best_lag_s"] if have["best_lag_s"] is not None else 0.0
     conf = have["confusion_at_best_lag"]
     per_action = {
         a: round(row.get(a, 0) / max(sum(row.values()), 1), 3) for a, row in sorted(conf.items())
     }
-    # chance: the avatar at a random library frame, against the performer's actions
-    lib = np.array([(c.label_at(i) or "").lower() for c in clips for i in range(c.motion.n_frames)])
-    truths = [truth.label_at(float(d["t"]) - lag) for d in decisions]
-    truths = [t for t in truths if t is not None and t in known]
-    chance = float(np.mean([np.mean(lib == t) for t in truths])) if truths else None
-    made = [d for d in decisions if d.get("decision") is not None and "latency_ms" in d]
-    lat = np.array([d["latency_ms"] for d in made], dtype=np.float64)
     mine = avatar_labels(decisions, clips)
     theirs = [truth.label_at(float(d["t"])) for d in decisions]
     at = [float(d["t"]) for d in decisions]
-    from_motion: dict[str, Any] = {}
     # what a viewer compares: the performer's action and the avatar's, on one time axis
     timeline: dict[str, list[Any]] = {"t": [round(x, 3) for x in at], "performer": theirs}
+    from_motion: dict[str, Any] = {}
     if motion is not None:
-        moved = agreement(decisions, clips, motion, lags, known=known)
         timeline["motion"] = [motion.label_at(t) for t in at]
-        from_motion = {
-            "motion_truth": motion.source,
-            "agreement_known_actions_by_lag_from_motion_s": moved["by_lag_s"],
-            "best_at_lag_le_1s_from_motion": moved["best_at_lag_le_1s"],
-            "best_lag_from_motion_s": moved["best_lag_s"],
-            "switch_followed_after_motion_s": switch_delays(mine, timeline["motion"], at, known),
-        }
+        from_motion = _from_motion(decisions, clips, motion, lags, mine, timeline["motion"])
     return {
         "truth": truth.source,
         "decisions": len(decisions),
@@ -190,7 +175,7 @@ def evaluation(
         "best_lag_s": have["best_lag_s"],
         "per_action_at_best_lag": per_action,
         "confusion_at_best_lag": conf,
-        "chance": round(chance, 3) if chance is not None else None,
+        "chance": _chance(decisions, clips, truth, have["best_lag_s"] or 0.0),
         "switches_per_minute": {
             "avatar": _switches_per_minute(mine, media_seconds),
             "performer": _switches_per_minute(theirs, media_seconds),
@@ -202,12 +187,54 @@ def evaluation(
         **from_motion,
         "decision_points": decision_points(decisions),
         "timeline": {**timeline, "avatar": mine},
-        "latency_ms": {
-            "p50": round(float(np.percentile(lat, 50)), 3) if lat.size else None,
-            "p99": round(float(np.percentile(lat, 99)), 3) if lat.size else None,
-            "max": round(float(lat.max()), 3) if lat.size else None,
-            "over_100ms": int((lat > 100.0).sum()),
-        },
+        "latency_ms": _latency(decisions),
+    }
+
+
+def _chance(
+    decisions: Sequence[dict[str, Any]], clips: Sequence[Clip], truth: Truth, lag: float
+) -> float | None:
+    """The agreement of an avatar at a random library frame with the performer's actions
+    the library has, at ``lag``."""
+    known = library_actions(clips)
+    lib = np.array([(c.label_at(i) or "").lower() for c in clips for i in range(c.motion.n_frames)])
+    truths = [truth.label_at(float(d["t"]) - lag) for d in decisions]
+    truths = [t for t in truths if t is not None and t in known]
+    return round(float(np.mean([np.mean(lib == t) for t in truths])), 3) if truths else None
+
+
+def _from_motion(
+    decisions: Sequence[dict[str, Any]],
+    clips: Sequence[Clip],
+    motion: Truth,
+    lags: Sequence[float],
+    mine: Sequence[str | None],
+    theirs: Sequence[str | None],
+) -> dict[str, Any]:
+    """The agreement by lag and the lag of each change against where the performer's
+    motion changes action (``theirs``: its action at each decision point)."""
+    known = library_actions(clips)
+    moved = agreement(decisions, clips, motion, lags, known=known)
+    at = [float(d["t"]) for d in decisions]
+    return {
+        "motion_truth": motion.source,
+        "agreement_known_actions_by_lag_from_motion_s": moved["by_lag_s"],
+        "best_at_lag_le_1s_from_motion": moved["best_at_lag_le_1s"],
+        "best_lag_from_motion_s": moved["best_lag_s"],
+        "switch_followed_after_motion_s": switch_delays(mine, theirs, at, known),
+    }
+
+
+def _latency(decisions: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """The decisions' latency: p50, p99 and the slowest (ms), and how many took over
+    0.1 s, the decision interval."""
+    made = [d for d in decisions if d.get("decision") is not None and "latency_ms" in d]
+    lat = np.array([d["latency_ms"] for d in made], dtype=np.float64)
+    return {
+        "p50": round(float(np.percentile(lat, 50)), 3) if lat.size else None,
+        "p99": round(float(np.percentile(lat, 99)), 3) if lat.size else None,
+        "max": round(float(lat.max()), 3) if lat.size else None,
+        "over_100ms": int((lat > 100.0).sum()),
     }
 
 

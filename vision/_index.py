@@ -154,7 +154,23 @@ class WindowIndex:
         self.seconds: dict[str, float] = {}
         if built is not None:  # (mean, basis, faiss index, nprobe) of the same build
             self.mean, self.basis, self.index, self.nprobe = built
-            return
+        else:
+            self._build(dims, seed, flat_below, progress, work, cluster)
+
+    def _build(
+        self,
+        dims: int,
+        seed: int,
+        flat_below: int,
+        progress: Progress | None,
+        work: Path | None,
+        cluster: str | None,
+    ) -> None:
+        """Make the index (``dims``, ``seed``, ``flat_below``, ``progress``, ``work``,
+        ``cluster``: the class's)."""
+        import faiss
+
+        starts = self.starts
         v = self.n_views  # row r of the index: start r // V, view r % V
         rows = starts.size * v
         rng = np.random.default_rng(seed)
@@ -422,23 +438,9 @@ def cached_window_index(
     path = Path(folder) / f"index-{f'{key[:24]}-' if key else ''}{digest[:24]}.npz"
 
     def load() -> WindowIndex | None:
-        if not path.is_file():
+        built = _read_index(path)
+        if built is None:
             return None
-        try:
-            keys = ("mean", "basis", "index", "nprobe")
-            d = read_checked_npz(path, keys, IndexFileError, "window index")
-            with contextlib.suppress(OSError):
-                os.utime(path)  # (used: the last of its tables' to be pruned)
-            index: Any = faiss.deserialize_index(np.ascontiguousarray(d["index"], dtype=np.uint8))
-        except IndexFileError as exc:  # (its message names the file)
-            log.warning("building the window index again: %s", exc)
-            return None
-        except RuntimeError as exc:  # faiss could not read the index it wrote
-            log.warning("building the window index again: %s: %s", path, exc)
-            return None
-        if int(d["nprobe"]):  # (an inverted-file index: its lists searched)
-            index.nprobe = int(d["nprobe"])
-        built = (d["mean"], d["basis"], index, int(d["nprobe"]))
         return WindowIndex(shape, centre, starts, length, **options, built=built)
 
     def build(parts: Path) -> WindowIndex:
@@ -466,6 +468,31 @@ def cached_window_index(
 
     # (a second builder beside the first would find the first one's parts gone)
     return cached_in_parts(path, load, build, save)[0]
+
+
+def _read_index(path: Path) -> tuple[Any, Any, Any, int] | None:
+    """The parts of the window index stored at ``path`` (its mean, basis, faiss index and
+    lists searched), or ``None`` where there is none, or one that cannot be used (with a
+    warning naming the file: it is built again)."""
+    import faiss
+
+    if not path.is_file():
+        return None
+    try:
+        keys = ("mean", "basis", "index", "nprobe")
+        d = read_checked_npz(path, keys, IndexFileError, "window index")
+        with contextlib.suppress(OSError):
+            os.utime(path)  # (used: the last of its tables' to be pruned)
+        index: Any = faiss.deserialize_index(np.ascontiguousarray(d["index"], dtype=np.uint8))
+    except IndexFileError as exc:  # (its message names the file)
+        log.warning("building the window index again: %s", exc)
+        return None
+    except RuntimeError as exc:  # faiss could not read the index it wrote
+        log.warning("building the window index again: %s: %s", path, exc)
+        return None
+    if int(d["nprobe"]):  # (an inverted-file index: its lists searched)
+        index.nprobe = int(d["nprobe"])
+    return d["mean"], d["basis"], index, int(d["nprobe"])
 
 
 class IndexFileError(ValueError):

@@ -228,13 +228,33 @@ class Matcher:
         # the blend only adds to a match's cost: no (slower) distances when the best cannot win
         if (not settled or not match.min() < st.landing.jump_ratio * own) and np.isfinite(own):
             return None
+        picked = [got[i] for i in idx]
+        return self._blended_jump(frame, costs, picked, target[idx], match, own, leave, t0)
+
+    def _blended_jump(
+        self,
+        frame: int,
+        costs: JumpCosts,
+        got: Windows,
+        target: IntArray,
+        match: FloatArray,
+        own: float,
+        leave: bool,
+        t0: float,
+    ) -> Decision | None:
+        """The jump from ``frame`` into the best of the windows ``got`` (landing at
+        ``target``, at weighed costs ``match``) once the blend from ``frame`` is counted,
+        or ``None`` when it does not beat ``jump_ratio`` times the avatar's ``own`` cost
+        (infinite: any window; ``leave``: the avatar leaves an action the performer is
+        not voted to do)."""
+        st = self.settings
         w = st.landing.blend_weight  # the blend's share saturates: a far jump costs at most w more
-        dist = costs(frame, target[idx])[0] if w > 0 else None  # (else the chosen one's only)
+        dist = costs(frame, target)[0] if w > 0 else None  # (else the chosen one's only)
         score = match if dist is None else match * (1.0 + w * dist / (dist + self.d_max))
         b = int(np.argmin(score))
         if not score[b] < st.landing.jump_ratio * own:
             return None
-        i, j = int(idx[b]), int(target[idx[b]])
+        j = int(target[b])
         frames = np.concatenate(([frame], self.windows.playback(j)))
         blend = dist[b] if dist is not None else costs(frame, frames[1:2])[0][0]
         return Decision(
@@ -243,10 +263,10 @@ class Matcher:
             cluster_path=np.zeros(0, dtype=np.int64),
             cost=float(match[b]),
             runner_up=float(np.sort(score)[1]) if score.size > 1 else float("inf"),
-            view=int(got[i][1]) % self.windows.ring_views,
-            candidates=int(idx.size),
+            view=int(got[b][1]) % self.windows.ring_views,
+            candidates=int(target.size),
             latency_ms=(time.perf_counter() - t0) * 1e3,
-            jump=Jump(j, float(own), float(blend), bool(leave)),
+            jump=Jump(j, float(own), float(blend), leave),
         )
 
     def voted_windows(
