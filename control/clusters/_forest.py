@@ -274,6 +274,32 @@ LAZY_SECONDS = 120.0
 _SAMPLE = 48
 
 
+def _check_forest(
+    graph: MotionGraph, labels: IntArray, bound_seconds: float, max_nodes: int
+) -> None:
+    """``build_forest``'s arguments are ones it can build trees of (``ValueError``)."""
+    if labels.shape != (graph.n_frames,):
+        raise ValueError(f"labels must have one cluster per graph frame ({graph.n_frames})")
+    if not bound_seconds > 0 or not 1 <= max_nodes <= MAX_TREE_NODES:
+        raise ValueError(
+            f"bound_seconds must be positive and max_nodes in 1..{MAX_TREE_NODES}, "
+            f"not {bound_seconds} and {max_nodes}"
+        )
+    if bound_seconds * graph.fps >= 1 << (63 - T_SHIFT) or graph.n_frames >= 1 << 28:
+        raise ValueError("trees of over 2^19 frames, or graphs of over 2^28, are not built")
+
+
+def _tree_of(graph: MotionGraph, branching: IntArray, plays: NDArray[np.bool_]) -> IntArray:
+    """Each graph frame's tree: a branching frame's own; a single-exit frame (one that
+    ``plays`` on) the tree of the first branching frame it plays into; -1: none."""
+    tree_of = np.full(graph.n_frames, -1, dtype=np.int64)
+    tree_of[branching] = np.arange(branching.size)
+    for f in range(graph.n_frames - 1, -1, -1):
+        if graph.in_scc[f] and tree_of[f] < 0 and plays[f]:
+            tree_of[f] = tree_of[f + 1]
+    return tree_of
+
+
 def build_forest(
     graph: MotionGraph,
     labels: IntArray,
@@ -295,15 +321,7 @@ def build_forest(
     are not built again (``_eager_trees``); ``progress(done, total)`` counts an eager
     build's trees as their jobs finish."""
     labels = np.asarray(labels, dtype=np.int64)
-    if labels.shape != (graph.n_frames,):
-        raise ValueError(f"labels must have one cluster per graph frame ({graph.n_frames})")
-    if not bound_seconds > 0 or not 1 <= max_nodes <= MAX_TREE_NODES:
-        raise ValueError(
-            f"bound_seconds must be positive and max_nodes in 1..{MAX_TREE_NODES}, "
-            f"not {bound_seconds} and {max_nodes}"
-        )
-    if bound_seconds * graph.fps >= 1 << (63 - T_SHIFT) or graph.n_frames >= 1 << 28:
-        raise ValueError("trees of over 2^19 frames, or graphs of over 2^28, are not built")
+    _check_forest(graph, labels, bound_seconds, max_nodes)
     t0 = time.perf_counter()
     bound = max(1, round(bound_seconds * graph.fps))
     runs, shared = _tree_args(graph, labels, bound, max_nodes, max_states)
@@ -328,12 +346,7 @@ def build_forest(
             forest_of.built[int(np.searchsorted(branching, f))] = tree
     else:
         trees = _eager_trees(branching, shared, address, threads, sampled, store, progress)
-    tree_of = np.full(graph.n_frames, -1, dtype=np.int64)
-    tree_of[branching] = np.arange(branching.size)
-    # single-exit frames: the tree of the first branching frame they play into
-    for f in range(graph.n_frames - 1, -1, -1):
-        if graph.in_scc[f] and tree_of[f] < 0 and runs.plays[f]:
-            tree_of[f] = tree_of[f + 1]
+    tree_of = _tree_of(graph, branching, runs.plays)
     report = _report(trees or sample, graph, tree_of, bound, max_nodes, max_states)
     # (a lazy forest's figures are its sample's)
     lazy_now = forest_of is not None

@@ -13,6 +13,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -121,37 +122,21 @@ def fit_mixture(
     if not 1 <= k <= n:
         raise ValueError(f"k must lie in 1..{n}, not {k}")
     seeds = np.zeros(0, dtype=np.int64)
+    common: dict[str, Any] = {
+        "covariance_type": "spherical",
+        "max_iter": max_iter,
+        "random_state": seed,
+        "reg_covar": 1e-6,
+    }
     if means_init is not None:
         if means_init.shape != (k, x.shape[1]):
             raise ValueError(f"means_init must be ({k}, {x.shape[1]}), not {means_init.shape}")
-        gm = GaussianMixture(
-            k,
-            covariance_type="spherical",
-            means_init=means_init,
-            max_iter=max_iter,
-            random_state=seed,
-            reg_covar=1e-6,
-        )
+        gm = GaussianMixture(k, means_init=means_init, **common)
     elif seeding == "keyframes":
         seeds = keyframe_seeds(x, k, seed)
-        gm = GaussianMixture(
-            k,
-            covariance_type="spherical",
-            means_init=x[seeds],
-            max_iter=max_iter,
-            random_state=seed,
-            reg_covar=1e-6,
-        )
+        gm = GaussianMixture(k, means_init=x[seeds], **common)
     else:
-        gm = GaussianMixture(
-            k,
-            covariance_type="spherical",
-            init_params="random_from_data",
-            n_init=restarts,
-            max_iter=max_iter,
-            random_state=seed,
-            reg_covar=1e-6,
-        )
+        gm = GaussianMixture(k, init_params="random_from_data", n_init=restarts, **common)
     gm.fit(x)
     resp = gm.predict_proba(x)
     labels = np.argmax(resp, axis=1).astype(np.int64)
@@ -280,6 +265,17 @@ def select_by_bic(
         jobs = [ks[i] for i in todo]
         run_jobs(_fit_job, jobs, take, cluster=address, shared=(x, seeding, seed))
     fits = [got[i] for i in range(len(ks))]
+    best, curve = _by_bic(x, fits, clip_start, n_eff)
+    return best, fits, curve
+
+
+def _by_bic(
+    x: FloatArray,
+    fits: list[Clustering],
+    clip_start: NDArray[np.int64] | None,
+    n_eff: float | None,
+) -> tuple[Clustering, dict[str, object]]:
+    """The best of the ``fits`` of ``x`` and the curve (``select_by_bic``)."""
     n = x.shape[0]
     curve: dict[str, object] = {
         "k": [f.k for f in fits],
@@ -301,4 +297,4 @@ def select_by_bic(
         curve["bic_effective"] = eff
         curve["decorrelation_frames"] = d
     curve["chosen_k"] = best.k
-    return best, fits, curve
+    return best, curve

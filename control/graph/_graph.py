@@ -295,6 +295,29 @@ def _one_rate(clips: Sequence[Clip]) -> float:
     return rates.pop()
 
 
+def _chosen(clips: Sequence[Clip]) -> tuple[list[Clip], list[str], float]:
+    """The clips a graph is built of (those with the first clip's joints; the names of
+    the others, left out with a warning) and their one frame rate."""
+    chosen, excluded = select_clips(list(clips))
+    fps = _one_rate(chosen)
+    if excluded:
+        log.warning("left out %d clips with other joints: %s", len(excluded), ", ".join(excluded))
+    return chosen, excluded, fps
+
+
+def _in_largest_component(
+    feat: FrameFeatures, a: IntArray, b: IntArray, d: NDArray[np.float64], align: NDArray[Any]
+) -> tuple[tuple[Any, Any, Any, Any], NDArray[np.bool_], int]:
+    """The transitions ``a`` to ``b + 1`` (distance ``d``, alignment ``align``) within
+    the largest strongly connected component, ordered by source then target; which
+    frames the component holds; how many components there are."""
+    in_scc, n_comp = largest_scc(feat.n, a, b + 1, feat.clip_start)
+    keep = in_scc[a] & in_scc[b + 1]
+    a, b, d, align = a[keep], b[keep], d[keep], align[keep]
+    order = np.lexsort((b, a))
+    return (a[order], b[order], d[order], align[order]), in_scc, n_comp
+
+
 def build_graph(
     clips: Sequence[Clip],
     options: GraphOptions | None = None,
@@ -319,10 +342,7 @@ def build_graph(
     """
     options = options or GraphOptions()
     t0 = time.perf_counter()
-    chosen, excluded = select_clips(list(clips))
-    fps = _one_rate(chosen)
-    if excluded:
-        log.warning("left out %d clips with other joints: %s", len(excluded), ", ".join(excluded))
+    chosen, excluded, fps = _chosen(clips)
     feat = frame_features(chosen, options.coords)
     n = feat.n
     sigma = graph_sigma(feat, fps, options)
@@ -337,10 +357,7 @@ def build_graph(
         progress(f"{n_likely} transitions under the likelihood threshold")
     (a, b, d, align), n_similar, n_case4 = _prune_rules(feat, options, fps, a, b, d, align)
     t_prune = time.perf_counter()
-    in_scc, n_comp = largest_scc(n, a, b + 1, feat.clip_start)
-    keep = in_scc[a] & in_scc[b + 1]
-    a, b, d, align = a[keep], b[keep], d[keep], align[keep]
-    order = np.lexsort((b, a))
+    (a, b, d, align), in_scc, n_comp = _in_largest_component(feat, a, b, d, align)
     t_end = time.perf_counter()
     report: dict[str, Any] = {
         "clips": len(chosen),
@@ -366,10 +383,10 @@ def build_graph(
         clip_start=feat.clip_start,
         fps=float(fps),
         sigma=sigma,
-        src=a[order],
-        dst=(b + 1)[order],
-        dist=d[order].astype(np.float32),
-        align=align[order].astype(np.float32),
+        src=a,
+        dst=b + 1,
+        dist=d.astype(np.float32),
+        align=align.astype(np.float32),
         in_scc=in_scc,
         library_digest=clips_digest(chosen),
         report=report,

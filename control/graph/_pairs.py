@@ -9,7 +9,7 @@ import hashlib
 import json
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -166,6 +166,15 @@ def _kept_jobs(
     return store, results
 
 
+def _pair_count(groups: Sequence[tuple[IntArray, IntArray]]) -> int:
+    """How many frame pairs the contact rule allows: each group's rows by its columns,
+    less a frame with itself."""
+    n = 0
+    for rows, cols in groups:
+        n += rows.size * cols.size - np.intersect1d(rows, cols, assume_unique=True).size
+    return int(n)
+
+
 def likely_pairs(
     feat: FrameFeatures,
     options: GraphOptions,
@@ -190,9 +199,6 @@ def likely_pairs(
     ``contact``, ``candidates``, ``jobs``, ``resumed`` (jobs kept from before) and the
     seconds of the ``search`` (the lower bound and the exact distances)."""
     groups = contact_groups(feat.states, feat.clip_start, options.contact)
-    n_contact = 0
-    for rows, cols in groups:
-        n_contact += rows.size * cols.size - np.intersect1d(rows, cols, assume_unique=True).size
     x, norms = lower_bound_features(feat, options.nu)
     jobs = _jobs(groups)
     store, results = _kept_jobs(work, dmax, feat.n, jobs)
@@ -221,16 +227,11 @@ def likely_pairs(
         # in this process the kernels use every core already: no worker processes
         run_jobs(_pairs_job, [jobs[i] for i in todo], finished, 1, cluster, shared)
     t_search = time.perf_counter() - t0
-    parts: list[_Pairs] = []
-    n_candidates = 0
-    for i in range(len(jobs)):
-        got, n = results.pop(i)
-        parts += got
-        n_candidates += n
-    pairs = _joined(parts)
+    # (in the jobs' order, whichever finished first)
+    pairs = _joined([part for i in range(len(jobs)) for part in results[i][0]])
     counts = {
-        "contact": int(n_contact),
-        "candidates": int(n_candidates),
+        "contact": _pair_count(groups),
+        "candidates": sum(results[i][1] for i in range(len(jobs))),
         "jobs": len(jobs),
         "resumed": resumed,
         "search": t_search,

@@ -132,7 +132,6 @@ def _amc_slow(
     it are read already (``done``, by ``scan_amc_prefix``); an error names its line."""
     names = asf.skeleton.names
     expected = {names[j]: len(asf.dofs[j]) for j in moving}
-    all_bones = set(names)
     col_start, width = dof_columns(asf, moving)
     frames: list[list[float]] = []
     seen: set[str] = set()
@@ -177,27 +176,38 @@ def _amc_slow(
         if frame_no is None:
             raise MotionFormatError(path, f"expected a frame number, got {line[:40]!r}", n)
         bone = tokens[0]
-        if bone not in all_bones:
-            raise MotionFormatError(path, f"bone {bone!r} is not in the skeleton {asf.path}", n)
-        if bone not in expected:
-            if len(tokens) > 1:
-                raise MotionFormatError(path, f"bone {bone!r} has no dofs in {asf.path}", n)
-            continue
         if bone in seen:
             raise MotionFormatError(path, f"bone {bone!r} appears twice in frame {frame_no}", n)
-        want = expected[bone]
-        if len(tokens) - 1 != want:
-            dofs = " ".join(asf.dofs[asf.skeleton.index(bone)])
-            raise MotionFormatError(
-                path, f"bone {bone!r} expects {want} values ({dofs}), got {len(tokens) - 1}", n
-            )
-        vals = parse_floats(path, tokens[1:], n, f"bone {bone!r}")
-        s = col_start[bone]
-        frames[-1][s : s + want] = vals
-        seen.add(bone)
+        vals = _bone_values(path, tokens, n, asf, expected)
+        if vals is not None:
+            s = col_start[bone]
+            frames[-1][s : s + len(vals)] = vals
+            seen.add(bone)
     if frame_no is not None:
         close_frame(header_lines + len(lines))
     return np.concatenate([done, np.array(frames, dtype=np.float64).reshape(-1, width)])
+
+
+def _bone_values(
+    path: str | Path, tokens: list[str], n: int, asf: AsfSkeleton, expected: dict[str, int]
+) -> list[float] | None:
+    """The values of a bone's line ``tokens`` (line ``n``), checked against the skeleton
+    (``expected``: each moving bone's count of values); ``None`` for a bone without
+    dofs, whose line holds its name alone."""
+    bone = tokens[0]
+    if bone not in asf.skeleton.names:
+        raise MotionFormatError(path, f"bone {bone!r} is not in the skeleton {asf.path}", n)
+    if bone not in expected:
+        if len(tokens) > 1:
+            raise MotionFormatError(path, f"bone {bone!r} has no dofs in {asf.path}", n)
+        return None
+    want = expected[bone]
+    if len(tokens) - 1 != want:
+        dofs = " ".join(asf.dofs[asf.skeleton.index(bone)])
+        raise MotionFormatError(
+            path, f"bone {bone!r} expects {want} values ({dofs}), got {len(tokens) - 1}", n
+        )
+    return parse_floats(path, tokens[1:], n, f"bone {bone!r}")
 
 
 def _to_motion(

@@ -175,15 +175,26 @@ def read_asf(path: str | Path, metres_per_unit: float | None = None) -> AsfSkele
             raise MotionFormatError(path, f"text before the first section: {line!r}", n)
         # Unknown sections (vendor extensions) are skipped.
 
+    _check_ended(path, current, seen_sections, hierarchy, len(lines))
+    metres = INCH / head.length_unit if metres_per_unit is None else float(metres_per_unit)
+    return _assemble(path, bones, hierarchy, head.root_order, head.root_axis, head.degrees, metres)
+
+
+def _check_ended(
+    path: str | Path,
+    current: _Bone | None,
+    sections: set[str],
+    hierarchy: list[tuple[int, list[str]]],
+    n_lines: int,
+) -> None:
+    """At the file's end: no bone left open, and a bone section and a hierarchy read."""
     if current is not None:
-        raise MotionFormatError(path, f"bone begun on line {current.line} has no 'end'", len(lines))
+        raise MotionFormatError(path, f"bone begun on line {current.line} has no 'end'", n_lines)
     for required in (":bonedata", ":hierarchy"):
-        if required not in seen_sections:
+        if required not in sections:
             raise MotionFormatError(path, f"no {required} section")
     if not hierarchy:
         raise MotionFormatError(path, "the hierarchy is empty")
-    metres = INCH / head.length_unit if metres_per_unit is None else float(metres_per_unit)
-    return _assemble(path, bones, hierarchy, head.root_order, head.root_axis, head.degrees, metres)
 
 
 @dataclass
@@ -286,15 +297,12 @@ def _finish_bone(path: str | Path, bone: _Bone, bones: dict[str, _Bone]) -> None
     bones[bone.name] = bone
 
 
-def _assemble(
-    path: str | Path,
-    bones: dict[str, _Bone],
-    hierarchy: list[tuple[int, list[str]]],
-    root_order: tuple[str, ...],
-    root_axis: str,
-    degrees: bool,
-    metres: float,
-) -> AsfSkeleton:
+def _tree(
+    path: str | Path, bones: dict[str, _Bone], hierarchy: list[tuple[int, list[str]]]
+) -> tuple[list[str], dict[str, list[str]], dict[str, str]]:
+    """The ``:hierarchy`` lines (line number, tokens) checked against ``bones``: the
+    joints parents first (depth-first pre-order, as BVH lists them, from ``root``),
+    each bone's children, and each bone's parent."""
     children: dict[str, list[str]] = {}
     parent_of: dict[str, str] = {}
     for n, tokens in hierarchy:
@@ -308,7 +316,6 @@ def _assemble(
                 raise MotionFormatError(path, f"bone {child!r} has two parents", n)
             parent_of[child] = parent
             children.setdefault(parent, []).append(child)
-    # Depth-first pre-order (as BVH lists joints) is parents-first.
     order: list[str] = []
     stack = ["root"]
     while stack:
@@ -318,6 +325,19 @@ def _assemble(
     unreached = [b for b in bones if b not in order]
     if unreached:
         raise MotionFormatError(path, f"bones not connected to the root: {', '.join(unreached)}")
+    return order, children, parent_of
+
+
+def _assemble(
+    path: str | Path,
+    bones: dict[str, _Bone],
+    hierarchy: list[tuple[int, list[str]]],
+    root_order: tuple[str, ...],
+    root_axis: str,
+    degrees: bool,
+    metres: float,
+) -> AsfSkeleton:
+    order, children, parent_of = _tree(path, bones, hierarchy)
     index = {name: j for j, name in enumerate(order)}
     n_joints = len(order)
     parents = np.full(n_joints, -1, dtype=np.int64)
