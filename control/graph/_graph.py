@@ -318,6 +318,41 @@ def _in_largest_component(
     return (a[order], b[order], d[order], align[order]), in_scc, n_comp
 
 
+def _transitions(
+    feat: FrameFeatures,
+    options: GraphOptions,
+    fps: float,
+    dmax: float,
+    cluster: str | None,
+    work: Path | None,
+    jobs: Callable[[int, int], None] | None,
+    progress: Callable[[str], None] | None,
+) -> tuple[tuple[Any, Any, Any, Any], NDArray[np.bool_], dict[str, Any], list[float]]:
+    """The transitions ``(a, b, d, align)`` of ``build_graph``: the likely pairs
+    (``likely_pairs``), pruned as the options ask, within the largest strongly connected
+    component; which frames the component holds; the counts left after each step; and
+    when the search, the pruning and the component were done."""
+    (a, b, d, align), counts = likely_pairs(feat, options, dmax, cluster, work, jobs)
+    n_likely = a.size
+    t_search = time.perf_counter()  # (the search's jobs, and a resumed build's parts read)
+    if progress:
+        progress(f"{n_likely} transitions under the likelihood threshold")
+    (a, b, d, align), n_similar, n_case4 = _prune_rules(feat, options, fps, a, b, d, align)
+    t_prune = time.perf_counter()
+    (a, b, d, align), in_scc, n_comp = _in_largest_component(feat, a, b, d, align)
+    counted = {
+        **{k: counts[k] for k in ("contact", "candidates", "jobs")},
+        "resumed_jobs": counts["resumed"],
+        "likelihood": int(n_likely),
+        "similarity": n_similar,
+        "case4": n_case4,
+        "scc": int(a.size),
+        "scc_frames": int(in_scc.sum()),
+        "components": n_comp,
+    }
+    return (a, b, d, align), in_scc, counted, [t_search, t_prune, time.perf_counter()]
+
+
 def build_graph(
     clips: Sequence[Clip],
     options: GraphOptions | None = None,
@@ -350,32 +385,19 @@ def build_graph(
     t_feat = time.perf_counter()
 
     where = Path(work) if work is not None else None
-    (a, b, d, align), counts = likely_pairs(feat, options, dmax, cluster, where, jobs)
-    n_likely = a.size
-    t_search = time.perf_counter()  # (the search's jobs, and a resumed build's parts read)
-    if progress:
-        progress(f"{n_likely} transitions under the likelihood threshold")
-    (a, b, d, align), n_similar, n_case4 = _prune_rules(feat, options, fps, a, b, d, align)
-    t_prune = time.perf_counter()
-    (a, b, d, align), in_scc, n_comp = _in_largest_component(feat, a, b, d, align)
-    t_end = time.perf_counter()
+    (a, b, d, align), in_scc, counted, marks = _transitions(
+        feat, options, fps, dmax, cluster, where, jobs, progress
+    )
     report: dict[str, Any] = {
         "clips": len(chosen),
         "excluded_clips": excluded,
         "fps": fps,
         "frames": n,
         "possible": n * n,
-        **{k: counts[k] for k in ("contact", "candidates", "jobs")},
-        "resumed_jobs": counts["resumed"],
-        "likelihood": int(n_likely),
-        "similarity": n_similar,
-        "case4": n_case4,
-        "scc": int(a.size),
-        "scc_frames": int(in_scc.sum()),
-        "components": n_comp,
+        **counted,
         "sigma": sigma,
         "max_distance": dmax,
-        "seconds": _seconds(t0, t_feat, t_search, t_prune, t_end),
+        "seconds": _seconds(t0, t_feat, *marks),
     }
     return MotionGraph(
         options=options,

@@ -146,13 +146,7 @@ def _amc_slow(
         done = np.empty((0, width))
 
     def close_frame(at_line: int) -> None:
-        missing = [b for b in expected if b not in seen]
-        if missing:
-            raise MotionFormatError(
-                path,
-                f"frame {frame_no} (line {frame_line}) lacks bone(s) {', '.join(missing)}",
-                at_line,
-            )
+        _check_frame(path, expected, seen, frame_no, frame_line, at_line)
 
     lines = body.splitlines()
     for n, raw in enumerate(lines, start=header_lines + 1):
@@ -186,6 +180,23 @@ def _amc_slow(
     if frame_no is not None:
         close_frame(header_lines + len(lines))
     return np.concatenate([done, np.array(frames, dtype=np.float64).reshape(-1, width)])
+
+
+def _check_frame(
+    path: str | Path,
+    expected: dict[str, int],
+    seen: set[str],
+    frame_no: int | None,
+    frame_line: int,
+    at_line: int,
+) -> None:
+    """Frame ``frame_no`` (from line ``frame_line``), ended at ``at_line``, gave every
+    moving bone (``expected``) its values (``seen``)."""
+    missing = ", ".join(b for b in expected if b not in seen)
+    if missing:
+        raise MotionFormatError(
+            path, f"frame {frame_no} (line {frame_line}) lacks bone(s) {missing}", at_line
+        )
 
 
 def _bone_values(
