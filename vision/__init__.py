@@ -23,8 +23,10 @@ from ._evaluate import (
     switch_delays,
 )
 from ._index import (
-    IndexFileError,
     WindowIndex,
+)
+from ._index_store import (
+    IndexFileError,
     cached_window_index,
 )
 from ._landmarks import (

@@ -23,7 +23,8 @@ from control.graph import MotionGraph
 from silhouette_bank import Bank
 
 from ._facing import Facing
-from ._index import WindowIndex, cached_window_index
+from ._index import WindowIndex
+from ._index_store import cached_window_index
 from ._settings import MatchSettings
 from ._tables import cached_shape_stats, cached_window_tables
 from ._windows import bank_sequences, best_window, performer_queries

@@ -27,7 +27,7 @@ layer, _, built_l = cached_higher_layer(g, lib.clips, LayerSettings(k=12), cache
 small = BankSettings(CameraRing(n_views=4, width=64, height_px=48), descriptor="hu")
 bank, _, built_b = cached_bank(lib.clips, small, cache_dir=sys.argv[2], workers=1)
 from pathlib import Path
-from vision import Matcher, MatchSettings, _index, _summaries
+from vision import Matcher, MatchSettings, _index_store, _summaries
 m = Matcher(layer, bank, MatchSettings())
 shape, centre, starts = m.windows.tables()
 # the window index: one process has done its jobs (kept as parts) and not yet filled its
@@ -41,7 +41,7 @@ else:
     while not kept.exists() and time.time() < deadline:
         time.sleep(0.01)
 # (an inverted file, as a large library's: built in jobs kept as parts)
-_index.cached_window_index(shape, centre, starts, m.n, bank.path, m.windows.key, flat_below=0)
+_index_store.cached_window_index(shape, centre, starts, m.n, bank.path, m.windows.key, flat_below=0)
 out = {"graph": built_g, "layer": built_l, "bank": built_b, "k": int(layer.clustering.k)}
 print(json.dumps({**out, "frames": bank.n_frames}))
 """
