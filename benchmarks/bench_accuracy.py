@@ -316,6 +316,7 @@ def _run_figures(
     seconds = float(times[-1] - times[0]) if times.size > 1 else 0.0
     avatar_labels = [str(lib_labels[f]) for f in frames]
     performer_labels = [perf_labels[i] or "" for i in k]
+    moving = None if motion_labels is None else [motion_labels[i] for i in k]
     lat = np.array([d["latency_ms"] for d in made]) if made else np.zeros(1)
     motion = r.avatar.motion().motion
     low = lowest_foot(motion)
@@ -349,6 +350,8 @@ def _run_figures(
         "timeline": {
             "t": [round(float(x), 3) for x in times],
             "performer": [x or None for x in performer_labels],
+            # where the performer's motion changes action (the take's cleaned labels)
+            **({} if moving is None else {"motion": [x or None for x in moving]}),
             "avatar": [x or None for x in avatar_labels],
         },
         "switches_per_minute": {
@@ -368,8 +371,8 @@ def _run_figures(
         # the same from where the performer's motion changes action (the take's cleaned
         # labels: the label files' boundaries lie up to a second off it either way)
         "switch_followed_after_motion_s": None
-        if motion_labels is None
-        else switch_delays(avatar_labels, [motion_labels[i] for i in k], times.tolist(), known),
+        if moving is None
+        else switch_delays(avatar_labels, moving, times.tolist(), known),
         "latency_ms": {
             "p50": float(np.percentile(lat, 50)),
             "p99": float(np.percentile(lat, 99)),

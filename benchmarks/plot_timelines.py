@@ -1,5 +1,7 @@
 """The performer's actions and the avatar's on one time axis, one PNG a run of a
 ``bench_accuracy`` result: what a viewer would see of the avatar's steadiness and lag.
+The performer's row is the label files'; a result that has them adds a row for where the
+performer's motion changes action (the take's cleaned labels).
 
 Usage: python -m benchmarks.plot_timelines RESULT.json --out DIR
 
