@@ -231,7 +231,7 @@ def likely_pairs(
     pairs = _joined([part for i in range(len(jobs)) for part in results[i][0]])
     counts = {
         "contact": _pair_count(groups),
-        "candidates": sum(results[i][1] for i in range(len(jobs))),
+        "candidates": int(sum(results[i][1] for i in range(len(jobs)))),
         "jobs": len(jobs),
         "resumed": resumed,
         "search": t_search,
