@@ -160,7 +160,14 @@ def evaluation(
     from_motion: dict[str, Any] = {}
     if motion is not None:
         timeline["motion"] = [motion.label_at(t) for t in at]
-        from_motion = _from_motion(decisions, clips, motion, lags, mine, timeline["motion"])
+        moved = agreement(decisions, clips, motion, lags, known=known)
+        from_motion = {
+            "motion_truth": motion.source,
+            "agreement_known_actions_by_lag_from_motion_s": moved["by_lag_s"],
+            "best_at_lag_le_1s_from_motion": moved["best_at_lag_le_1s"],
+            "best_lag_from_motion_s": moved["best_lag_s"],
+            "switch_followed_after_motion_s": switch_delays(mine, timeline["motion"], at, known),
+        }
     return {
         "truth": truth.source,
         "decisions": len(decisions),
@@ -175,7 +182,7 @@ def evaluation(
         "best_lag_s": have["best_lag_s"],
         "per_action_at_best_lag": per_action,
         "confusion_at_best_lag": conf,
-        "chance": _chance(decisions, clips, truth, have["best_lag_s"] or 0.0),
+        "chance": _chance(decisions, clips, truth, have["best_lag_s"] or 0.0, known),
         "switches_per_minute": {
             "avatar": _switches_per_minute(mine, media_seconds),
             "performer": _switches_per_minute(theirs, media_seconds),
@@ -192,37 +199,18 @@ def evaluation(
 
 
 def _chance(
-    decisions: Sequence[dict[str, Any]], clips: Sequence[Clip], truth: Truth, lag: float
+    decisions: Sequence[dict[str, Any]],
+    clips: Sequence[Clip],
+    truth: Truth,
+    lag: float,
+    known: set[str],
 ) -> float | None:
     """The agreement of an avatar at a random library frame with the performer's actions
-    the library has, at ``lag``."""
-    known = library_actions(clips)
+    the library has (``known``), at ``lag``."""
     lib = np.array([(c.label_at(i) or "").lower() for c in clips for i in range(c.motion.n_frames)])
     truths = [truth.label_at(float(d["t"]) - lag) for d in decisions]
     truths = [t for t in truths if t is not None and t in known]
     return round(float(np.mean([np.mean(lib == t) for t in truths])), 3) if truths else None
-
-
-def _from_motion(
-    decisions: Sequence[dict[str, Any]],
-    clips: Sequence[Clip],
-    motion: Truth,
-    lags: Sequence[float],
-    mine: Sequence[str | None],
-    theirs: Sequence[str | None],
-) -> dict[str, Any]:
-    """The agreement by lag and the lag of each change against where the performer's
-    motion changes action (``theirs``: its action at each decision point)."""
-    known = library_actions(clips)
-    moved = agreement(decisions, clips, motion, lags, known=known)
-    at = [float(d["t"]) for d in decisions]
-    return {
-        "motion_truth": motion.source,
-        "agreement_known_actions_by_lag_from_motion_s": moved["by_lag_s"],
-        "best_at_lag_le_1s_from_motion": moved["best_at_lag_le_1s"],
-        "best_lag_from_motion_s": moved["best_lag_s"],
-        "switch_followed_after_motion_s": switch_delays(mine, theirs, at, known),
-    }
 
 
 def _latency(decisions: Sequence[dict[str, Any]]) -> dict[str, Any]:
