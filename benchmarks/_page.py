@@ -119,7 +119,7 @@ def page_run(root: Path, video: Path, seconds: float | None = None) -> dict[str,
     labelled = video.name in LABELS.read_text() and seconds <= length  # (not looped)
     truth = truth_for(str(video), str(LABELS)) if labelled else None
     if truth is not None:
-        clips = load_library(root).clips
+        clips = load_library(root, mirror="labelled").clips  # (perform's, for landmarks)
         got = agreement(decisions, clips, truth, known=library_actions(clips))
         out["agreement_best_lag_le_1s"] = got["best_at_lag_le_1s"]
         with tempfile.TemporaryDirectory() as tmp:  # the same clip as a file

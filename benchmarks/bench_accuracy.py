@@ -4,23 +4,25 @@ Usage: python -m benchmarks.bench_accuracy [LIBRARY_DIR] [--out FILE] [--clips P
        [--coords relative|fixed] [--sigma-scale S] [--threshold T] [--contact RULE]
        [--folds 13_29,13_30] [--settings W:A,...] [--variants] [--descriptor D]
        [--stay S] [--views N] [--recordings base,side,high,thin] [--leave take|person]
+       [--mirror auto|none|labelled|all]
 
 Two folds on the labelled exercise clips: the performer is a recording of 13_29 (or
 13_30) made by ``mimic record`` (another body, a camera off the ring, mask noise); the
-library is every other clip (or every other clip of ``--clips``). ``--recordings`` films
-each held-out take more ways (``RECORDINGS``: a side camera, a high one, a thinner body
-with ragged edges, other proportions: ``long_legs``, ``short_legs``; cameras behind,
-left, low and far, a wider body: ``az140``, ``az-60``, ``low_far``, ``wide``; the take
-mirrored, a performer using the other arm and leg: ``mirrored``; the take at 0.7, 0.5 and
-1.3 times its tempo: ``slow``, ``slower``, ``fast``; the take with a still pause of 2 s
-every 6 s: ``pauses``; the take done with 0.7 and 1.25 times its reach: ``small``,
-``big``, ``benchmarks._takes``), each a run of its own: one recording a fold
-swings with a setting. With ``--descriptor pose`` the performer is
-not the recording's silhouettes but the landmarks a pose model would give of the same
-performer and camera (``benchmarks._landmarks``: the take's joints on the recording's
-body, 3% noise), what a camera with MediaPipe feeds the matcher. For each match
-setting (window, look-ahead) and each lag (the avatar is compared with what the
-performer did ``lag`` seconds earlier):
+library is every other clip (or every other clip of ``--clips``), with the mirrored
+copies ``mimic perform`` adds (``--mirror auto``: of the labelled clips with
+``--descriptor pose``; never the held-out take's). ``--recordings`` films each held-out
+take more ways (``RECORDINGS``: a side camera, a high one, a thinner body with ragged
+edges, other proportions: ``long_legs``, ``short_legs``; cameras behind, left, low and
+far, a wider body: ``az140``, ``az-60``, ``low_far``, ``wide``; the take mirrored, a
+performer using the other arm and leg: ``mirrored``; the take at 0.7, 0.5 and 1.3 times
+its tempo: ``slow``, ``slower``, ``fast``; the take with a still pause of 2 s every 6 s:
+``pauses``; the take done with 0.7 and 1.25 times its reach: ``small``, ``big``,
+``benchmarks._takes``), each a run of its own: one recording a fold swings with a
+setting. With ``--descriptor pose`` the performer is not the recording's silhouettes but
+the landmarks a pose model would give of the same performer and camera
+(``benchmarks._landmarks``: the take's joints on the recording's body, 3% noise), what a
+camera with MediaPipe feeds the matcher. For each match setting (window, look-ahead) and
+each lag (the avatar is compared with what the performer did ``lag`` seconds earlier):
 
 - pose score: joint-angle error (weighted joints, squared half-angles as in the graph's
   distance) between the avatar's frame and the performer's true frame, normalised so
@@ -452,14 +454,20 @@ def fold(
     store: str = "float32",
     recordings: tuple[str, ...] = ("base",),
     leave: str = "take",
+    copies: str = "auto",
 ) -> dict[str, Any]:
-    everything = load_library(root, clips=list(clips) if clips else None)
-    # leave the take out, or every take of its subject (CMU names: subject_take)
+    if copies == "auto":  # as mimic perform's --mirror (mimic.args.mirror_for)
+        copies = "labelled" if descriptor == "pose" else "none"
+    mirrors = {"none": False, "all": True}.get(copies, copies)
+    everything = load_library(root, clips=list(clips) if clips else None, mirror=mirrors)
+    # leave the take (and its mirror image) out, or every take of its subject (CMU names:
+    # subject_take)
     subject = test.split("_")[0]
     train = [
         c
         for c in everything.clips
-        if c.name != test and not (leave == "person" and c.name.split("_")[0] == subject)
+        if c.name not in (test, f"{test}_mirror")
+        and not (leave == "person" and c.name.split("_")[0] == subject)
     ]
     dropped: dict[str, float] = {}
     if not off_floor:  # as mimic perform does by default
@@ -762,6 +770,13 @@ def main() -> None:
         "at float16, so float16 only rounds the root motion too)",
     )
     ap.add_argument(
+        "--mirror",
+        default="auto",
+        choices=("auto", "none", "labelled", "all"),
+        help="the library's mirrored copies, as mimic perform's --mirror (default auto: the "
+        "labelled clips' with --descriptor pose)",
+    )
+    ap.add_argument(
         "--settings",
         default=",".join(f"{w}:{a}" for w, a in SETTINGS),
         help="window:lookahead pairs in seconds, comma separated",
@@ -802,6 +817,7 @@ def main() -> None:
         "store": args.store,
         "recordings": list(recordings),
         "leave": args.leave,
+        "mirror": args.mirror,
         "folds": [
             fold(
                 root,
@@ -818,6 +834,7 @@ def main() -> None:
                 args.store,
                 recordings,
                 args.leave,
+                args.mirror,
             )
             for t in args.folds.split(",")
         ],

@@ -8,7 +8,7 @@ import math
 import os
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +36,7 @@ __all__ = [
     "library_dir",
     "library_for",
     "load_chosen",
+    "mirror_for",
     "number",
     "start_frame",
 ]
@@ -107,8 +108,15 @@ def library_dir(args: argparse.Namespace) -> str | None:
     return opt if opt is not None else pos
 
 
-def add_library_args(p: argparse.ArgumentParser) -> None:
-    """The library folder, ``--clips``, ``--fps`` and ``--mirror``."""
+#: ``--mirror``'s choices: no mirrored copies, copies of the labelled clips, of every
+#: clip, or (``auto``: ``perform``'s and ``bank build``'s default) the labelled clips'
+#: where the descriptor is the pose one (``mirror_for``)
+MIRRORS = ("none", "labelled", "all", "auto")
+
+
+def add_library_args(p: argparse.ArgumentParser, mirror: str = "none") -> None:
+    """The library folder, ``--clips``, ``--fps`` and ``--mirror`` (whose default is
+    ``mirror``)."""
     add_library_dir(p)
     p.add_argument(
         "--clips",
@@ -122,7 +130,17 @@ def add_library_args(p: argparse.ArgumentParser) -> None:
         default=15.0,
         help="library frame rate (default 15)",
     )
-    p.add_argument("--mirror", action="store_true", help="add mirrored copies of every clip")
+    p.add_argument(
+        "--mirror",
+        nargs="?",
+        const="all",
+        default=mirror,
+        choices=MIRRORS if mirror == "auto" else MIRRORS[:3],
+        help="add left/right mirrored copies of the clips: labelled (those with labels), "
+        "all (--mirror alone) or none"
+        + (", or auto: the labelled clips' where landmarks are matched" if mirror == "auto" else "")
+        + f" (default {mirror})",
+    )
 
 
 def add_graph_args(p: argparse.ArgumentParser) -> None:
@@ -233,12 +251,13 @@ def blend_seconds(args: argparse.Namespace, default: float | None = None) -> flo
 @dataclass(frozen=True)
 class LibraryChoice:
     """Which library: its ``folder`` (``None``: the default), the frame rate ``fps`` it
-    is read at, whether mirrored copies are added (``mirror``), and which ``clips``
+    is read at, which clips' mirrored copies are added (``mirror``: one of ``MIRRORS``),
+    and which ``clips``
     (shell patterns; ``None``: every clip)."""
 
     folder: str | None
     fps: float
-    mirror: bool
+    mirror: str
     clips: tuple[str, ...] | None
 
 
@@ -247,11 +266,24 @@ def library_choice(args: argparse.Namespace) -> LibraryChoice:
     if args.fps is None or args.fps <= 0:
         raise ValueError("--fps must be positive")
     clips = tuple(args.clips) if args.clips else None
-    return LibraryChoice(library_dir(args), float(args.fps), bool(args.mirror), clips)
+    return LibraryChoice(library_dir(args), float(args.fps), args.mirror, clips)
+
+
+def mirror_for(choice: LibraryChoice, descriptor: str) -> LibraryChoice:
+    """``choice`` with its ``auto`` mirror made concrete for a bank of ``descriptor``: the
+    labelled clips' copies for landmarks (a performer may lead with the other arm or leg,
+    and a pose model reading someone from behind takes their left for their right), none
+    for silhouettes (which already read the performer as seen and mirrored: a mirrored
+    library lets the avatar do the mirror image of the performer's pose)."""
+    if choice.mirror != "auto":
+        return choice
+    return replace(choice, mirror="labelled" if descriptor == "pose" else "none")
 
 
 def load_chosen(choice: LibraryChoice) -> Library:
     """The library ``choice`` names, saying on stderr when it is the embedded one."""
+    if choice.mirror == "auto":
+        raise ValueError("the library's mirror is 'auto': make it concrete (mirror_for)")
     unset = choice.folder is None and not os.environ.get("MIMIC_MOCAP")
     if unset and default_library_path() == EMBEDDED_LIBRARY:  # (nothing else found)
         print(
@@ -261,7 +293,8 @@ def load_chosen(choice: LibraryChoice) -> Library:
         )
     clips = list(choice.clips) if choice.clips else None
     with step("motion library"):
-        return load_library(choice.folder, fps=choice.fps, mirror=choice.mirror, clips=clips)
+        mirror = {"none": False, "all": True}.get(choice.mirror, choice.mirror)
+        return load_library(choice.folder, fps=choice.fps, mirror=mirror, clips=clips)
 
 
 def library_for(args: argparse.Namespace) -> Library:

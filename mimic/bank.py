@@ -10,6 +10,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from control.motion import Library
 from control.progress import bar
 from silhouette_bank import (
     DEFAULT_DESCRIPTOR,
@@ -24,15 +25,16 @@ from silhouette_bank import (
     motion_silhouettes,
 )
 
-from .args import add_library_args, library_for, number
+from .args import add_library_args, library_choice, load_chosen, mirror_for, number
 
 __all__ = ["add_bank_args", "add_bank_commands", "bank_settings", "contact_sheet"]
 
 
 def add_bank_args(p: argparse.ArgumentParser) -> None:
-    """The library, ``--bank`` and the bank's settings (camera ring, body, renderer,
-    descriptor)."""
-    add_library_args(p)
+    """The library (with ``mimic perform``'s mirrored copies for a pose bank, so that a
+    bank built here is the one it matches against), ``--bank`` and the bank's settings
+    (camera ring, body, renderer, descriptor)."""
+    add_library_args(p, mirror="auto")
     d = CameraRing()
     p.add_argument("--bank", help="bank folder (default: the cache, by content hash)")
     p.add_argument(
@@ -145,8 +147,14 @@ def add_bank_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
     show.set_defaults(func=_show)
 
 
+def _library(args: argparse.Namespace) -> Library:
+    """The library of the bank's arguments (``--mirror auto``: ``perform``'s for the
+    bank's descriptor)."""
+    return load_chosen(mirror_for(library_choice(args), args.descriptor))
+
+
 def _build(args: argparse.Namespace) -> int:
-    library = library_for(args)
+    library = _library(args)
     settings = bank_settings(args)
     options = {
         "shard_frames": args.shard_frames,
@@ -216,7 +224,7 @@ def contact_sheet(masks: np.ndarray, cols: int = 6) -> np.ndarray:
 
 
 def _show(args: argparse.Namespace) -> int:
-    library = library_for(args)
+    library = _library(args)
     settings = bank_settings(args)
     clip_name, _, frame = args.frame.rpartition(":")
     if not clip_name or not frame.isdigit():

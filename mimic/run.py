@@ -38,7 +38,7 @@ from vision import (
     person_segmentation_available,
 )
 
-from .args import load_chosen, start_frame
+from .args import LibraryChoice, load_chosen, mirror_for, start_frame
 from .run_args import RunSettings
 
 __all__ = [
@@ -110,7 +110,7 @@ def prepare(settings: RunSettings, source: Source) -> Prepared:
     """The library (the clips on the floor unless ``off_floor``), its graph, higher
     layer and bank for ``source``, saying on stderr what was chosen and what was left
     out."""
-    clips = _clips(settings)
+    clips = _clips(settings, mirror_for(settings.library, _descriptor_of(settings, source)))
     t0 = time.perf_counter()
     with step("motion graph"):
         pairs = bar("motion graph: frame pairs", "jobs")
@@ -195,12 +195,30 @@ def _vote_phrase(a: ActionSettings, kind: str) -> str:
     return how
 
 
-def _clips(settings: RunSettings) -> list[Clip]:
-    """The library's clips, less those left out (``--leave-out``) and, unless
-    ``--off-floor``, those whose feet leave the floor; said on stderr."""
-    library = load_chosen(settings.library)
+def _descriptor_of(settings: RunSettings, source: Source) -> str:
+    """The descriptor ``_bank`` will match with: ``--bank``'s (as its manifest says; a
+    bank that cannot be read says so there), else the one chosen for ``source``."""
+    if not settings.bank:
+        return choose_descriptor(settings.descriptor, source)
+    try:
+        manifest = json.loads((Path(settings.bank) / "manifest.json").read_text("utf-8"))
+        return str(manifest["settings"]["descriptor"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return ""
+
+
+def _clips(settings: RunSettings, choice: LibraryChoice) -> list[Clip]:
+    """The clips of the library ``choice`` names, less those left out (``--leave-out``:
+    a clip left out takes its mirrored copy with it, which is the same performer) and,
+    unless ``--off-floor``, those whose feet leave the floor; said on stderr."""
+    library = load_chosen(choice)
     out = settings.leave_out
-    clips = [c for c in library.clips if not any(fnmatch.fnmatchcase(c.name, p) for p in out)]
+
+    def left_out(c: Clip) -> bool:
+        names = (c.name, c.name.removesuffix("_mirror")) if c.mirrored else (c.name,)
+        return any(fnmatch.fnmatchcase(n, p) for n in names for p in out)
+
+    clips = [c for c in library.clips if not left_out(c)]
     if out:
         gone = sorted({c.name for c in library.clips} - {c.name for c in clips})
         print(f"left out as asked: {', '.join(gone) or 'nothing matched'}", file=sys.stderr)
@@ -308,7 +326,7 @@ def warn_own_take(video: str, clips: list[Clip]) -> None:
         take = json.loads(side.read_text()).get("clip") if side.is_file() else None
     except (OSError, ValueError, AttributeError):
         return
-    if take and any(c.name == take for c in clips):
+    if take and any(c.name in (take, f"{take}_mirror") for c in clips):
         print(
             f"note: the recording is of {take}, which is in the library: this agreement is "
             f"not that of an unseen performer (--leave-out {take} measures one)"

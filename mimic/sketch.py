@@ -235,7 +235,7 @@ def _terrain_graph(
             f"{args.env}: a terrain environment needs the clips captured on blocks: "
             "pass --clips (for the CMU library: --clips '03_*')"
         )
-    if args.mirror:
+    if args.mirror != "none":
         raise ValueError("--mirror cannot be used on terrain: mirrored clips leave the block grid")
     library = library_for(args)
     options, captured = terrain_options(library.clips, block, graph_options(args))

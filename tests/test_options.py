@@ -106,3 +106,33 @@ def test_steady_sets_the_filtered_vote_and_a_flag_given_too_wins() -> None:
     spelt = ["--vote-switch", "0.02", "--vote-confidence", "0.9", "--vote-margin", "inf"]
     spelt += ["--vote-temperature", "0.2", "--vote", "9"]
     assert action_settings(parse([*video, *spelt])) == dataclasses.replace(steady, vote=9)
+
+
+def test_perform_reads_the_labelled_clips_mirrored_for_landmarks_and_a_left_out_clips_copy_goes(
+    mocap: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from mimic.args import mirror_for
+    from mimic.run import _clips
+    from mimic.run_args import run_settings
+
+    def clips(*argv: str, descriptor: str = "pose") -> list[str]:
+        args = build_parser().parse_args(["perform", "--video", "x.mp4", str(mocap), *argv])
+        settings = run_settings(args)
+        return [c.name for c in _clips(settings, mirror_for(settings.library, descriptor))]
+
+    pick = ["--clips", "13_3*", "--clips", "02_01"]  # two labelled takes and a walk
+    assert clips(*pick) == ["02_01", "13_30", "13_30_mirror", "13_31", "13_31_mirror"]
+    # silhouettes read the performer mirrored already: the library as it is
+    assert clips(*pick, descriptor="outline") == ["02_01", "13_30", "13_31"]
+    assert clips(*pick, "--mirror", "none") == ["02_01", "13_30", "13_31"]
+    assert clips(*pick, "--mirror", descriptor="outline") == [  # every clip, as elsewhere
+        "02_01", "02_01_mirror", "13_30", "13_30_mirror", "13_31", "13_31_mirror"
+    ]  # fmt: skip
+    # a left-out take takes its mirror image with it: the same performer
+    assert clips(*pick, "--leave-out", "13_30") == ["02_01", "13_31", "13_31_mirror"]
+    assert "left out as asked: 13_30, 13_30_mirror" in capsys.readouterr().err
+    # the other commands' library as it was; auto is perform's and bank build's alone
+    assert build_parser().parse_args(["graph", "build", str(mocap)]).mirror == "none"
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["graph", "build", str(mocap), "--mirror", "auto"])
+    assert "invalid choice: 'auto'" in capsys.readouterr().err

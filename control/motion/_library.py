@@ -225,7 +225,7 @@ class LibrarySpec:
 def load_library(
     root: str | Path | None = None,
     fps: float | None = 15.0,
-    mirror: bool = False,
+    mirror: bool | str = False,
     prefer: str = "amc",
     bvh_units: str | float = "auto",
     cache_dir: str | Path | None = None,
@@ -242,7 +242,10 @@ def load_library(
     ----------
     root : the library folder; ``default_library_path()`` when ``None``.
     fps : target rate (Lee et al. use 15); ``None`` keeps each clip's own rate.
-    mirror : also add a left/right mirrored copy of every clip (``<name>_mirror``).
+    mirror : also add a left/right mirrored copy of every clip (``<name>_mirror``);
+        ``"labelled"``: of every clip with labels only (the same actions done with the
+        other arm and leg, which the matcher wants; an unlabelled clip's copy would only
+        be one more unnamed action).
     prefer : ``"amc"`` or ``"bvh"``, which format to take when a take exists in both.
     bvh_units : passed to ``read_bvh``.
     cache_dir : where parsed files are cached; ``default_cache_dir()`` when ``None``.
@@ -263,17 +266,23 @@ def load_library(
     MotionFormatError
         for the first file that cannot be read, naming it.
     """
+    if mirror not in (False, True, "labelled"):
+        raise ValueError(f"mirror must be True, False or 'labelled', not {mirror!r}")
     spec = LibrarySpec(
         Path(root) if root is not None else default_library_path(),
         fps,
-        mirror,
+        bool(mirror),
         prefer,
         bvh_units,
         tuple(clips) if clips is not None else None,
         dict(contact_options or {}),
         clean_labels,
     )
-    return load_spec(spec, cache_dir, use_cache, workers, progress)
+    library = load_spec(spec, cache_dir, use_cache, workers, progress)
+    if mirror == "labelled":
+        kept = tuple(c for c in library.clips if not c.mirrored or (c.labels >= 0).any())
+        library = replace(library, clips=kept)
+    return library
 
 
 def load_spec(

@@ -60,6 +60,12 @@ def test_mirror_adds_copies(small_lib: Path, tmp_path: Path) -> None:
     assert names == ["02_03", "02_03_mirror", "02_04", "02_04_mirror", "09_01", "09_01_mirror"]
     assert lib.clip("02_03_mirror").mirrored
     assert lib.clip("02_03_mirror").label_names == ("Jog", "Stop")
+    # the matcher's library: the labelled clips' copies only (the same actions done with
+    # the other arm and leg); an unlabelled copy would be one more unnamed action
+    labelled = load_library(small_lib, mirror="labelled", cache_dir=tmp_path / "c", workers=1)
+    assert [c.name for c in labelled.clips] == ["02_03", "02_03_mirror", "02_04", "09_01"]
+    with pytest.raises(ValueError, match="mirror must be"):
+        load_library(small_lib, mirror="some", cache_dir=tmp_path / "c", workers=1)
 
 
 def _entries(cache: Path) -> list[Path]:
