@@ -120,8 +120,14 @@ def _private_cache(session_cache: Path) -> Iterator[None]:
         yield
 
 
-#: the session fixtures whose artifacts tests/prebuild.py builds, and the part of each
-PREBUILT = {"playground": "playground", "actions": "walks", "setup": "bank", "films": "films"}
+#: the session fixtures whose artifacts tests/prebuild.py builds, and the parts of each
+#: (a session of the vision tests also runs the commands on 13_30 with landmarks)
+PREBUILT = {
+    "playground": ("playground",),
+    "actions": ("walks",),
+    "setup": ("bank", "mirrored"),
+    "films": ("films",),
+}
 
 
 class Prebuild:
@@ -149,7 +155,8 @@ def prebuild(
     from tests.prebuild import PARTS
 
     used = {f for item in request.session.items for f in getattr(item, "fixturenames", ())}
-    parts = [p for p in PARTS if p in {PREBUILT[f] for f in used & set(PREBUILT)}]
+    wanted = {p for f in used & set(PREBUILT) for p in PREBUILT[f]}
+    parts = [p for p in PARTS if p in wanted]
     # A session of the slow fixtures' tests also compiles the test-only kernels, in a
     # process of its own: the first tests that use them come before the parts are done.
     jobs = [parts, ["kernels"]] if parts else []

@@ -1,8 +1,9 @@
 """What the slowest session fixtures build, built in a background process from the
 session's start (``conftest.prebuild``) while the first tests run on the other core: the
 playground's graph and higher layer (the choice tests), the walks' higher layer (the
-sketch tests), the 13_30 bank (the vision fixtures) and the colour films of 13_29 that
-the view tests read with the pose model, into the tests' cache ($MIMIC_CACHE).
+sketch tests), the 13_30 bank (the vision fixtures), what ``mimic perform --clips 13_30``
+builds for landmarks (13_30 and its mirror image) and the colour films of 13_29 that the
+view tests read with the pose model, into the tests' cache ($MIMIC_CACHE).
 
 Each part, once built, leaves a marker ``prebuilt-<part>`` in the cache. A fixture that
 needs a part waits for its marker (or for this process to end, whatever its outcome) and
@@ -20,8 +21,9 @@ import os
 import sys
 from pathlib import Path
 
-#: the parts, in the order the tests need them (clusters, sketch, then vision tests)
-PARTS = ("playground", "walks", "bank", "films")
+#: the parts, in the order the tests need them (clusters, sketch, the commands run on
+#: 13_30 with landmarks, then vision tests)
+PARTS = ("playground", "walks", "bank", "mirrored", "films")
 
 
 def build(part: str) -> None:
@@ -50,6 +52,8 @@ def build(part: str) -> None:
 
         lib = load_library(MOCAP, clips=["13_30"])
         cached_bank(lib.clips, BankSettings(), workers=1)
+    elif part == "mirrored":  # mimic perform --clips 13_30 --k 12 with landmarks
+        build_mirrored()
     elif part == "films":  # tests/vision/test_views.py: films
         from tests.vision.test_views import FILMS, film
 
@@ -59,6 +63,29 @@ def build(part: str) -> None:
         warm_kernels()
     else:
         raise ValueError(f"unknown part {part!r}: the parts are {', '.join(PARTS)}, kernels")
+
+
+def build_mirrored() -> None:
+    """The graph, higher layer and banks that ``mimic perform --clips 13_30 --k 12``
+    builds for a colour video (13_30 and its mirror image: ``mimic.args.mirror_for``),
+    made by the command's own functions so that they are the ones it looks for."""
+    from control.clusters import cached_higher_layer
+    from control.graph import cached_graph
+    from mimic.args import mirror_for
+    from mimic.cli import build_parser
+    from mimic.run import _clips, _graph_clips
+    from mimic.run_args import run_settings
+    from silhouette_bank import BankSettings, cached_bank
+    from tests.conftest import MOCAP
+
+    argv = ["perform", "--video", "-", str(MOCAP), "--clips", "13_30", "--k", "12"]
+    settings = run_settings(build_parser().parse_args(argv))
+    clips = _clips(settings, mirror_for(settings.library, "pose"))
+    graph, _, _ = cached_graph(clips, settings.graph)
+    clips = _graph_clips(graph, clips)
+    cached_higher_layer(graph, clips, settings.layer)
+    for bank in (BankSettings(descriptor="pose"), BankSettings()):  # (and the fallback's)
+        cached_bank(clips, bank, workers=1)
 
 
 def warm_kernels() -> None:
