@@ -243,9 +243,9 @@ def load_library(
     root : the library folder; ``default_library_path()`` when ``None``.
     fps : target rate (Lee et al. use 15); ``None`` keeps each clip's own rate.
     mirror : also add a left/right mirrored copy of every clip (``<name>_mirror``);
-        ``"labelled"``: of every clip with labels only (the same actions done with the
-        other arm and leg, which the matcher wants; an unlabelled clip's copy would only
-        be one more unnamed action).
+        ``"labelled"``: of every clip with labels only (``mimic perform``'s library for
+        landmarks: the same actions done with the other arm and leg; an unlabelled
+        clip's copy would only be one more unnamed action to its vote).
     prefer : ``"amc"`` or ``"bvh"``, which format to take when a take exists in both.
     bvh_units : passed to ``read_bvh``.
     cache_dir : where parsed files are cached; ``default_cache_dir()`` when ``None``.
