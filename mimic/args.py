@@ -137,8 +137,11 @@ def add_library_args(p: argparse.ArgumentParser, mirror: str = "none") -> None:
         default=mirror,
         choices=MIRRORS if mirror == "auto" else MIRRORS[:3],
         help="add left/right mirrored copies of the clips: labelled (those with labels), "
-        "all (--mirror alone) or none"
-        + (", or auto: the labelled clips' where landmarks are matched" if mirror == "auto" else "")
+        + (
+            "all (--mirror alone), none, or auto (the labelled clips' where landmarks are matched)"
+            if mirror == "auto"
+            else "all (--mirror alone) or none"
+        )
         + f" (default {mirror})",
     )
 
