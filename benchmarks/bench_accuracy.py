@@ -79,6 +79,7 @@ from control.graph import (
     weighted_joints,
 )
 from control.motion import Clip, default_library_path, load_library, mirror, qconj, qlog, qmul
+from mimic.args import mirror_copies
 from silhouette_bank import (
     DEFAULT_DESCRIPTOR,
     DESCRIPTORS,
@@ -456,9 +457,7 @@ def fold(
     leave: str = "take",
     copies: str = "auto",
 ) -> dict[str, Any]:
-    if copies == "auto":  # as mimic perform's --mirror (mimic.args.mirror_for)
-        copies = "labelled" if descriptor == "pose" else "none"
-    mirrors = {"none": False, "all": True}.get(copies, copies)
+    mirrors = mirror_copies(copies, descriptor)  # (as mimic perform's --mirror)
     everything = load_library(root, clips=list(clips) if clips else None, mirror=mirrors)
     # leave the take (and its mirror image) out, or every take of its subject (CMU names:
     # subject_take)

@@ -8,7 +8,7 @@ import math
 import os
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +36,7 @@ __all__ = [
     "library_dir",
     "library_for",
     "load_chosen",
-    "mirror_for",
+    "mirror_copies",
     "number",
     "start_frame",
 ]
@@ -110,7 +110,7 @@ def library_dir(args: argparse.Namespace) -> str | None:
 
 #: ``--mirror``'s choices: no mirrored copies, copies of the labelled clips, of every
 #: clip, or (``auto``: ``perform``'s and ``bank build``'s default) the labelled clips'
-#: where the descriptor is the pose one (``mirror_for``)
+#: where the descriptor is the pose one (``mirror_copies``)
 MIRRORS = ("none", "labelled", "all", "auto")
 
 
@@ -272,21 +272,21 @@ def library_choice(args: argparse.Namespace) -> LibraryChoice:
     return LibraryChoice(library_dir(args), float(args.fps), args.mirror, clips)
 
 
-def mirror_for(choice: LibraryChoice, descriptor: str) -> LibraryChoice:
-    """``choice`` with its ``auto`` mirror made concrete for a bank of ``descriptor``: the
-    labelled clips' copies for landmarks (a performer may lead with the other arm or leg,
-    and a pose model reading someone from behind takes their left for their right), none
-    for silhouettes (which already read the performer as seen and mirrored: a mirrored
-    library lets the avatar do the mirror image of the performer's pose)."""
-    if choice.mirror != "auto":
-        return choice
-    return replace(choice, mirror="labelled" if descriptor == "pose" else "none")
+def mirror_copies(mirror: str, descriptor: str = "") -> bool | str:
+    """``load_library``'s ``mirror`` for ``--mirror``'s value (one of ``MIRRORS``) with a
+    bank of ``descriptor``. ``auto`` is the labelled clips' copies for landmarks (a
+    performer may lead with the other arm or leg, and a pose model reading someone from
+    behind takes their left for their right) and none otherwise: silhouettes already read
+    the performer as seen and mirrored, and a mirrored library lets the avatar do the
+    mirror image of their pose."""
+    if mirror == "auto":
+        mirror = "labelled" if descriptor == "pose" else "none"
+    return {"none": False, "all": True}.get(mirror, mirror)
 
 
-def load_chosen(choice: LibraryChoice) -> Library:
-    """The library ``choice`` names, saying on stderr when it is the embedded one."""
-    if choice.mirror == "auto":
-        raise ValueError("the library's mirror is 'auto': make it concrete (mirror_for)")
+def load_chosen(choice: LibraryChoice, descriptor: str = "") -> Library:
+    """The library ``choice`` names, for a bank of ``descriptor`` (``mirror_copies``),
+    saying on stderr when it is the embedded one."""
     unset = choice.folder is None and not os.environ.get("MIMIC_MOCAP")
     if unset and default_library_path() == EMBEDDED_LIBRARY:  # (nothing else found)
         print(
@@ -296,7 +296,7 @@ def load_chosen(choice: LibraryChoice) -> Library:
         )
     clips = list(choice.clips) if choice.clips else None
     with step("motion library"):
-        mirror = {"none": False, "all": True}.get(choice.mirror, choice.mirror)
+        mirror = mirror_copies(choice.mirror, descriptor)
         return load_library(choice.folder, fps=choice.fps, mirror=mirror, clips=clips)
 
 

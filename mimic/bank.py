@@ -25,7 +25,7 @@ from silhouette_bank import (
     motion_silhouettes,
 )
 
-from .args import add_library_args, library_choice, load_chosen, mirror_for, number
+from .args import add_library_args, library_choice, load_chosen, number
 
 __all__ = ["add_bank_args", "add_bank_commands", "bank_settings", "contact_sheet"]
 
@@ -150,7 +150,7 @@ def add_bank_commands(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
 def _library(args: argparse.Namespace) -> Library:
     """The library of the bank's arguments (``--mirror auto``: ``perform``'s for the
     bank's descriptor)."""
-    return load_chosen(mirror_for(library_choice(args), args.descriptor))
+    return load_chosen(library_choice(args), args.descriptor)
 
 
 def _build(args: argparse.Namespace) -> int:

@@ -38,7 +38,7 @@ from vision import (
     person_segmentation_available,
 )
 
-from .args import LibraryChoice, load_chosen, mirror_for, start_frame
+from .args import load_chosen, start_frame
 from .run_args import RunSettings
 
 __all__ = [
@@ -110,7 +110,8 @@ def prepare(settings: RunSettings, source: Source) -> Prepared:
     """The library (the clips on the floor unless ``off_floor``), its graph, higher
     layer and bank for ``source``, saying on stderr what was chosen and what was left
     out."""
-    clips = _clips(settings, mirror_for(settings.library, _descriptor_of(settings, source)))
+    chosen = _descriptor_of(settings, source)
+    clips = _clips(settings, chosen)
     t0 = time.perf_counter()
     with step("motion graph"):
         pairs = bar("motion graph: frame pairs", "jobs")
@@ -132,7 +133,7 @@ def prepare(settings: RunSettings, source: Source) -> Prepared:
         f"{time.perf_counter() - t0:.1f} s",
         file=sys.stderr,
     )
-    descriptor, bank, built = _bank(settings, clips, source)
+    descriptor, bank, built = _bank(settings, clips, source, chosen)
     fallback = None
     fuse = settings.perform.match.action.fuse
     if descriptor == "pose" and settings.fallback:
@@ -207,11 +208,12 @@ def _descriptor_of(settings: RunSettings, source: Source) -> str:
         return ""
 
 
-def _clips(settings: RunSettings, choice: LibraryChoice) -> list[Clip]:
-    """The clips of the library ``choice`` names, less those left out (``--leave-out``:
-    a clip left out takes its mirrored copy with it, which is the same performer) and,
-    unless ``--off-floor``, those whose feet leave the floor; said on stderr."""
-    library = load_chosen(choice)
+def _clips(settings: RunSettings, descriptor: str) -> list[Clip]:
+    """The library's clips for a bank of ``descriptor`` (its mirrored copies:
+    ``mimic.args.mirror_copies``), less those left out (``--leave-out``: a clip left out
+    takes its mirrored copy with it, which is the same performer) and, unless
+    ``--off-floor``, those whose feet leave the floor; said on stderr."""
+    library = load_chosen(settings.library, descriptor)
     out = settings.leave_out
 
     def left_out(c: Clip) -> bool:
@@ -283,9 +285,12 @@ def _say_unreachable(graph: MotionGraph, no_jumps: bool, most: int = 8) -> None:
         )
 
 
-def _bank(settings: RunSettings, clips: list[Clip], source: Source) -> tuple[str, Bank, bool]:
+def _bank(
+    settings: RunSettings, clips: list[Clip], source: Source, chosen: str
+) -> tuple[str, Bank, bool]:
     """The descriptor and the bank: ``--bank``'s (its own settings), else the cache's
-    for the chosen descriptor (with ``--variants``, the robust settings)."""
+    for the ``chosen`` descriptor (``_descriptor_of``; with ``--variants``, the robust
+    settings)."""
     if settings.bank:  # a bank built by mimic bank build, with its own settings
         try:
             bank, built = load_bank(settings.bank, clips), False
@@ -300,7 +305,7 @@ def _bank(settings: RunSettings, clips: list[Clip], source: Source) -> tuple[str
         descriptor = choose_descriptor(bank.settings.descriptor, source)
         print(f"descriptor: {descriptor} (the bank's, {settings.bank})", file=sys.stderr)
         return descriptor, bank, built
-    descriptor = choose_descriptor(settings.descriptor, source)
+    descriptor = chosen
     print(f"descriptor: {descriptor}", file=sys.stderr)
     base = BankSettings(descriptor=descriptor)
     if settings.variants and descriptor == "pose":

@@ -144,7 +144,7 @@ def run_settings(args: argparse.Namespace) -> RunSettings:
 def add_run_args(p: argparse.ArgumentParser) -> None:
     """The options of a performance that ``perform`` and ``evaluate`` share: the library,
     its graph, the matcher, the segmentation and the descriptor (which sets the library's
-    mirrored copies: ``mimic.args.mirror_for``)."""
+    mirrored copies: ``mimic.args.mirror_copies``)."""
     add_library_args(p, mirror="auto")
     p.add_argument(
         "--leave-out",

@@ -67,11 +67,10 @@ def build(part: str) -> None:
 
 def build_mirrored() -> None:
     """The graph, higher layer and banks that ``mimic perform --clips 13_30 --k 12``
-    builds for a colour video (13_30 and its mirror image: ``mimic.args.mirror_for``),
+    builds for a colour video (13_30 and its mirror image: ``mimic.args.mirror_copies``),
     made by the command's own functions so that they are the ones it looks for."""
     from control.clusters import cached_higher_layer
     from control.graph import cached_graph
-    from mimic.args import mirror_for
     from mimic.cli import build_parser
     from mimic.run import _clips, _graph_clips
     from mimic.run_args import run_settings
@@ -80,7 +79,7 @@ def build_mirrored() -> None:
 
     argv = ["perform", "--video", "-", str(MOCAP), "--clips", "13_30", "--k", "12"]
     settings = run_settings(build_parser().parse_args(argv))
-    clips = _clips(settings, mirror_for(settings.library, "pose"))
+    clips = _clips(settings, "pose")
     graph, _, _ = cached_graph(clips, settings.graph)
     clips = _graph_clips(graph, clips)
     cached_higher_layer(graph, clips, settings.layer)

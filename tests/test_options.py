@@ -111,14 +111,13 @@ def test_steady_sets_the_filtered_vote_and_a_flag_given_too_wins() -> None:
 def test_perform_reads_the_labelled_clips_mirrored_for_landmarks_and_a_left_out_clips_copy_goes(
     mocap: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from mimic.args import mirror_for
     from mimic.run import _clips
     from mimic.run_args import run_settings
 
     def clips(*argv: str, descriptor: str = "pose") -> list[str]:
         args = build_parser().parse_args(["perform", "--video", "x.mp4", str(mocap), *argv])
         settings = run_settings(args)
-        return [c.name for c in _clips(settings, mirror_for(settings.library, descriptor))]
+        return [c.name for c in _clips(settings, descriptor)]
 
     pick = ["--clips", "13_3*", "--clips", "02_01"]  # two labelled takes and a walk
     assert clips(*pick) == ["02_01", "13_30", "13_30_mirror", "13_31", "13_31_mirror"]
