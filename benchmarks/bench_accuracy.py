@@ -105,6 +105,7 @@ from vision import (
     on_the_floor,
     perform,
     performer_sequence,
+    person_segmentation_available,
     record_clip,
     switch_delays,
     truth_for,
@@ -610,7 +611,7 @@ def _recorded_runs(
     with its cleaned labels, for the lag counted from where the motion changes."""
     perf_clip, layer, bank, train, lib_labels, lib_q, truth_q, walk_frames, lib_qm = ctx
     runs = []
-    fallback = None
+    fallback = voice = None
     with tempfile.TemporaryDirectory() as tmp:
         video = Path(tmp) / f"{perf_clip.name}_{rec}.mkv"
         side = record_clip(perf_clip, video, RECORDINGS[rec])
@@ -649,6 +650,12 @@ def _recorded_runs(
 
         else:
             rows = _silhouette_rows(video, bank.settings.descriptor, perf_labels, fps)
+            # with the fused ballot (the default), the landmarks the pose model reads from
+            # each silhouette weigh in where the silhouette's ballot is unsure, as
+            # ``mimic perform`` weighs them for a silhouette video
+            fuse = with_values(MatchSettings(), match or {}).action.fuse
+            if fuse and person_segmentation_available():
+                voice, _, _ = cached_bank(train, BankSettings(descriptor="pose"))
 
             def source() -> Any:
                 return VideoSource(video, silhouette=True)
@@ -662,7 +669,8 @@ def _recorded_runs(
                 ),
                 match or {},
             )
-            r = perform(source(), layer, bank, train, PerformSettings(match=ms), fallback=fallback)
+            st = PerformSettings(match=ms)
+            r = perform(source(), layer, bank, train, st, fallback=fallback, voice=voice)
             # mimic evaluate's figures of the same run (the confusion matrix among them)
             truth = truth_for(video)
             assert truth is not None  # the recording's sidecar

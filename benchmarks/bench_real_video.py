@@ -191,7 +191,9 @@ def agreement(
         source = open_source(None, str(path), None, silhouette=silhouette_flag(args))
         ready = prepare(run_settings(args), source)
         # (mimic evaluate's own call: the silhouette decides where the landmarks fail)
-        run = functools.partial(perform, start=ready.start, seed=args.seed, fallback=ready.fallback)
+        run = functools.partial(
+            perform, start=ready.start, seed=args.seed, fallback=ready.fallback, voice=ready.voice
+        )
         t0 = time.perf_counter()
         result = run(source, ready.layer, ready.bank, ready.clips, ready.settings)
         wall = time.perf_counter() - t0

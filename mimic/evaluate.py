@@ -93,6 +93,7 @@ def _evaluate(args: argparse.Namespace) -> int:
             start=ready.start,
             seed=args.seed,
             fallback=ready.fallback,
+            voice=ready.voice,
             bars=bar,
         )
     finally:

@@ -289,6 +289,7 @@ def _run(
                 start=ready.start,
                 seed=args.seed,
                 fallback=ready.fallback,
+                voice=ready.voice,
                 bars=bar,
                 log=log,
                 tape=tape,

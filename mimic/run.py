@@ -57,7 +57,7 @@ def choose_descriptor(name: str, source: Source) -> str:
     any silhouette descriptor: ``benchmarks/bench_recognition.py``), else the bank's
     default silhouette descriptor. A pose descriptor for a silhouette source is an
     error."""
-    colour = not (isinstance(source, MaskFolderSource) or getattr(source, "silhouette", False))
+    colour = _gives_colour(source)
     if name == "auto":
         return "pose" if colour and person_segmentation_available() else DEFAULT_DESCRIPTOR
     if name == "pose" and not colour:
@@ -70,6 +70,11 @@ def choose_descriptor(name: str, source: Source) -> str:
             f"mimic perform: the pose descriptor needs MediaPipe; install it with: {INSTALL}"
         )
     return name
+
+
+def _gives_colour(source: Source) -> bool:
+    """Whether ``source`` gives colour frames (a camera, a colour video), not silhouettes."""
+    return not (isinstance(source, MaskFolderSource) or getattr(source, "silhouette", False))
 
 
 @dataclass
@@ -93,6 +98,9 @@ class Prepared:
         The graph frame the avatar starts at (``None``: where the performer is found).
     fallback : Bank or None
         With the pose descriptor, the silhouette bank matched where the landmarks fail.
+    voice : Bank or None
+        With a silhouette descriptor, the pose bank that scores the landmarks read from
+        each silhouette (``vision._voice``).
     """
 
     descriptor: str
@@ -104,6 +112,7 @@ class Prepared:
     settings: PerformSettings
     start: int | None
     fallback: Bank | None = None
+    voice: Bank | None = None
 
 
 def prepare(settings: RunSettings, source: Source) -> Prepared:
@@ -150,9 +159,32 @@ def prepare(settings: RunSettings, source: Source) -> Prepared:
         fallback, _, _ = cached_bank(
             clips, BankSettings(), progress=bar("silhouette bank (fallback)", "silhouettes")
         )
+    voice = _voice(settings, clips, source, bank)
     _say_vote(clips, match, bank.settings.features.kind)
     start = start_frame(graph, settings.start)
-    return Prepared(descriptor, clips, graph, layer, bank, built, settings.perform, start, fallback)
+    return Prepared(
+        descriptor, clips, graph, layer, bank, built, settings.perform, start, fallback, voice
+    )
+
+
+def _voice(settings: RunSettings, clips: list[Clip], source: Source, bank: Bank) -> Bank | None:
+    """With a silhouette bank, a source of silhouettes, the fused ballot and MediaPipe,
+    the pose bank that scores the landmarks the pose model reads from each silhouette
+    (``vision._voice``), said on stderr; else ``None``."""
+    fuse = settings.perform.match.action.fuse
+    if bank.settings.features.kind != "silhouette" or _gives_colour(source):
+        return None  # (colour frames: the pose descriptor reads them itself)
+    if not fuse or not person_segmentation_available():
+        return None
+    print(
+        "the silhouette's vote also weighs the landmarks the pose model reads from each "
+        "silhouette (--no-fuse: the silhouette alone)",
+        file=sys.stderr,
+    )
+    voice, _, _ = cached_bank(
+        clips, BankSettings(descriptor="pose"), progress=bar("pose bank (voice)", "poses")
+    )
+    return voice
 
 
 def _say_vote(clips: list[Clip], match: MatchSettings, kind: str) -> None:

@@ -302,8 +302,9 @@ def _add_vote_args(p: argparse.ArgumentParser) -> None:
         default=ActionSettings.fuse,
         help="with landmarks, where the pose model's limbs are of low confidence (a camera "
         "at the side or behind), each decision's vote weighs the silhouette's action "
-        "scores too, each descriptor by how well its best window fits (--no-fuse: the "
-        "landmarks alone wherever they give a pose)",
+        "scores too, each descriptor by how well its best window fits; with a silhouette "
+        "video, where the silhouette's vote is unsure, it weighs the landmarks the pose "
+        "model reads from the silhouette too (--no-fuse: each descriptor alone)",
     )
     p.add_argument(
         "--vote",

@@ -18,6 +18,7 @@ from ._person import make_segmenter, resolve_segmentation
 from ._segment import clean_mask_others
 from ._settings import PerformSettings
 from ._sources import Frame, Source
+from ._voice import PoseVoice
 
 __all__ = ["MAX_COVER", "UNPOSED", "FrameReader"]
 
@@ -36,7 +37,8 @@ class FrameReader:
     the pose model's landmarks, ``others`` the other people in view beside the one
     followed. With the pose descriptor ``pose`` reads the landmarks (which limbs are
     hidden, whether the body is upright), and the silhouette ``fallback``, if any, is
-    shown each frame's mask."""
+    shown each frame's mask; with a silhouette descriptor the landmarks' ``voice``, if
+    any, is."""
 
     def __init__(
         self,
@@ -44,8 +46,10 @@ class FrameReader:
         settings: PerformSettings,
         desc: Descriptor,
         fallback: SilhouetteFallback | None = None,
+        voice: PoseVoice | None = None,
     ) -> None:
         self.source, self.settings, self.desc, self.fallback = source, settings, desc, fallback
+        self.voice = voice
         self.landmarks = desc.kind == "pose"
         self.pose = PoseReader() if self.landmarks else None
         self.segmenter: Any = None
@@ -114,6 +118,8 @@ class FrameReader:
             self.latest = silhouette_features(mask, descriptor=self.desc)
         else:
             self.latest, self.why_blank = self.blank, problem or "no silhouette"
+        if self.voice is not None:
+            self.voice.see(mask)
         self.mask = mask
         self.picture = (frame.image, getattr(self.segmenter, "landmarks", None))
         return mask

@@ -41,6 +41,8 @@ from ._search import Bars
 from ._settings import PerformSettings
 from ._sources import Source
 from ._video import MaskTape
+from ._voice import PoseVoice
+from ._vote import ActionVote, Evidence, Partner
 
 __all__ = ["PerformResult", "Performance", "perform"]
 
@@ -83,6 +85,7 @@ def perform(
     stop: Callable[[], str] | None = None,
     fallback: Bank | None = None,
     bars: Bars | None = None,
+    voice: Bank | None = None,
 ) -> PerformResult:
     """Run the loop until the source ends (or ``settings.seconds`` of media time).
 
@@ -93,9 +96,11 @@ def perform(
     with every decision log entry (the live view uses both). ``stop()`` is asked before
     every frame: a non-empty answer (why) ends the run there, and what was performed is
     returned as usual. ``fallback``: with a pose ``bank``, a silhouette bank of the same
-    clips (``vision._fallback``). ``bars(label, unit)``: progress bars for the search's
-    tables and index where they are made before the run (a large library's take minutes)."""
-    run = Performance(source, layer, bank, clips, settings, start, seed, fallback, bars)
+    clips (``vision._fallback``). ``voice``: with a silhouette ``bank``, a pose bank of
+    the same clips, whose matcher scores the landmarks read from each silhouette
+    (``vision._voice``). ``bars(label, unit)``: progress bars for the search's tables and
+    index where they are made before the run (a large library's take minutes)."""
+    run = Performance(source, layer, bank, clips, settings, start, seed, fallback, bars, voice)
     return run.run(log=log, tape=tape, on_frame=on_frame, on_decision=on_decision, stop=stop)
 
 
@@ -116,6 +121,7 @@ class Performance:
         seed: int = 0,
         fallback: Bank | None = None,
         bars: Bars | None = None,
+        voice: Bank | None = None,
     ) -> None:
         # the graph's clips, in its order (one of another skeleton would misalign the vote)
         self.graph, clips = layer.graph, layer.graph.clips_of(clips)
@@ -123,9 +129,16 @@ class Performance:
         self.settings = settings = settings or PerformSettings()
         #: the silhouette's matcher, where the landmarks fail (landmarks only; made below)
         self.fallback: SilhouetteFallback | None = None
-        # with ``fuse``, the landmarks' ballot weighs the silhouette's evidence too
-        fuse = fallback is not None and settings.match.action.fuse
-        partner = (lambda v: self.fallback.evidence(v) if self.fallback else None) if fuse else None
+        #: the landmarks read from the silhouettes (silhouettes only; made below)
+        self.voice: PoseVoice | None = None
+        # with ``fuse``, each ballot weighs the other descriptor's evidence too: the
+        # landmarks' the silhouette's, the silhouette's the landmarks read from it
+        fuse = settings.match.action.fuse
+        partner: Partner | None = None
+        if fuse and fallback is not None:
+            partner = self._silhouette_evidence
+        elif fuse and voice is not None:
+            partner = self._landmark_evidence
         self.matcher = matcher = Matcher(layer, bank, settings.match, partner=partner)
         # motion matching: relocation at every decision. One set of jump costs for every
         # avatar of the run (``open_matcher`` computes its frame features before the first frame)
@@ -137,8 +150,10 @@ class Performance:
             period = settings.decide_every
             args = (layer, fallback, clips, matcher, self.avatar, self.costs, period, bars)
             self.fallback = SilhouetteFallback(*args)
+        if partner is not None and voice is not None and matcher.desc.kind == "silhouette":
+            self.voice = PoseVoice(layer, voice, clips, matcher, settings.decide_every, bars)
         #: what each frame says of the performer
-        self.reader = FrameReader(source, settings, matcher.desc, self.fallback)
+        self.reader = FrameReader(source, settings, matcher.desc, self.fallback, self.voice)
         self.period = 1.0 / self.graph.fps
         #: the performer's features at the library's rate: the last window (``window``)
         #: and before it as many as the matcher's tempos read
@@ -165,6 +180,14 @@ class Performance:
         self.pending: Future[tuple[int, int, float] | None] | None = None
         self.t_start = 0.0
         self.tape: MaskTape | None = None
+
+    def _silhouette_evidence(self, vote: ActionVote) -> Evidence | None:
+        """The silhouette's evidence for the landmarks' ballot (``Partner``)."""
+        return None if self.fallback is None else self.fallback.evidence(vote)
+
+    def _landmark_evidence(self, vote: ActionVote) -> Evidence | None:
+        """The landmarks' evidence for the silhouette's ballot (``Partner``)."""
+        return None if self.voice is None else self.voice.evidence(vote)
 
     def open_matcher(self, start: int | None, bars: Bars | None) -> Avatar:
         """With jumps, the search's index opened and the jump costs' frame features
@@ -213,6 +236,8 @@ class Performance:
             self.history.append(self.reader.latest)
             if self.fallback is not None:
                 self.fallback.tick()
+            if self.voice is not None:
+                self.voice.tick()
             self.next_tick += self.period
         while self.t_avatar + self.period <= t + 1e-9:
             self.avatar.step()
@@ -304,6 +329,10 @@ class Performance:
             if self.jumps
             else matcher.decide(avatar.frame, self.window())
         )
+        if self.voice is not None:  # (the share of silhouettes the pose model read)
+            read = self.voice.read_share()
+            if np.isfinite(read):
+                entry["landmarks_read"] = round(read, 2)
         if self.fallback is None:
             return d
         weight = self.fallback.weight_given()  # (where the ballot asked it: limbs hidden)

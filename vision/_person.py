@@ -237,6 +237,14 @@ class PersonSegmenter:
         size = (image.shape[1], image.shape[0])
         return cv2.resize(mask.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST) > 0
 
+    def landmarks_of(self, image: NDArray[np.uint8]) -> NDArray[np.float64] | None:
+        """The pose model's 33 landmarks ``(33, 3)`` of ``image`` (``landmarks``), or
+        ``None``: the pose model alone, no mask made and no other model asked."""
+        if self.method != "pose":
+            raise ValueError(f"landmarks come from the pose model, not {self.method!r}")
+        self._model_probability(image)
+        return self.landmarks
+
     def _find_unposed(self, image: NDArray[np.uint8]) -> NDArray[np.bool_] | None:
         """The selfie model's mask of a frame the pose model found nobody in (``None``
         when it finds nobody either); a person must fill ``UNPOSED_AREA`` of the frame,

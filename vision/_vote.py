@@ -43,7 +43,7 @@ from ._search import WindowSearch
 from ._settings import ActionSettings, MatchSettings
 from ._windows import per_frame_cost, tempo_readings
 
-__all__ = ["ActionChoice", "ActionVote", "Partner", "fused"]
+__all__ = ["ActionChoice", "ActionVote", "Evidence", "Partner", "fused"]
 
 #: how steeply ``fused`` weighs a descriptor by its fit: (reject / per-frame cost) to this
 #: power. From the front the pose model's landmarks' best windows cost about 0.3 of their
@@ -52,6 +52,13 @@ __all__ = ["ActionChoice", "ActionVote", "Partner", "fused"]
 #: silhouette of another body than the library's still swayed landmarks that were right
 #: (``benchmarks/HISTORY.md``, "Both descriptors")
 FIT_POWER = 8.0
+
+#: how far (relatively) a ballot's best action must lead the second for a voice without
+#: a fit (``Evidence``) to say nothing. With the landmarks read from a silhouette: the
+#: silhouettes of the library's own performer mostly lead by more, another person's by
+#: less, and with a longer reach the landmarks, blind to what the silhouette hides, cost
+#: the library's own performer more (``benchmarks/HISTORY.md``, "Views and people")
+UNSURE_LEAD = 0.15
 
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
@@ -242,22 +249,40 @@ class ActionVote:
 
 
 def fused(
-    scores: Sequence[FloatArray], fits: Sequence[float], weights: Sequence[float] | None = None
+    scores: Sequence[FloatArray],
+    fits: Sequence[float | None],
+    weights: Sequence[float] | None = None,
 ) -> FloatArray:
     """Action scores ``scores`` of several descriptors (each ``action_scores``', no
     ``inf``) as one: their mean, each weighed by ``fit ** -FIT_POWER`` (times its
     ``weights``, default 1), ``fit`` its best window's per-frame cost over its reject
-    threshold (lower: the descriptor reads the performer better)."""
-    w = np.array([max(f, 1e-6) ** -FIT_POWER for f in fits])
+    threshold (lower: the descriptor reads the performer better). Where any ``fit`` is
+    ``None`` the fits are not weighed at all (a voice whose fit says nothing beside the
+    other's: ``vision._voice``)."""
+    if any(f is None for f in fits):
+        w = np.ones(len(fits))
+    else:
+        w = np.array([max(f, 1e-6) ** -FIT_POWER for f in fits if f is not None])
     if weights is not None:
         w = w * np.asarray(weights, dtype=np.float64)
     return np.asarray(np.tensordot(w / w.sum(), np.asarray(scores), axes=1), dtype=np.float64)
 
 
+def unsure(scores: FloatArray) -> float:
+    """How unsure a ballot's action ``scores`` (lower: better) are: 1 where the best two
+    tie, falling to 0 where the best is ``UNSURE_LEAD`` under the second (relatively)."""
+    if scores.size < 2:
+        return 0.0
+    best, second = np.partition(scores, 1)[:2]
+    lead = (second - best) / max(float(best), 1e-9)
+    return float(np.clip(1.0 - lead / UNSURE_LEAD, 0.0, 1.0))
+
+
 #: a second descriptor's evidence at a decision (``ActionChoice.partner``): its action
-#: scores, its fit (best per-frame cost over its reject threshold) and its weight
-#: (``fused``), or ``None``
-Partner = Callable[[ActionVote], "tuple[FloatArray, float, float] | None"]
+#: scores, its fit (best per-frame cost over its reject threshold; ``None``: the two weigh
+#: alike, whatever their fits) and its weight (``fused``)
+Evidence = tuple[FloatArray, "float | None", float]
+Partner = Callable[[ActionVote], "Evidence | None"]
 
 
 class ActionChoice:
@@ -321,7 +346,8 @@ class ActionChoice:
             return None, None
         if other is not None and np.isfinite(scores).all():
             fits = [self.fit(ranked, queries[0]), other[1]]
-            scores = fused([scores, other[0]], fits, [1.0, other[2]])
+            weight = other[2] if other[1] is not None else other[2] * unsure(scores)
+            scores = fused([scores, other[0]], fits, [1.0, weight])
         return int(np.argmin(scores)), scores
 
     def scores(
