@@ -171,13 +171,15 @@ def test_perform_says_whether_the_classifier_settles_the_vote(
         err = capsys.readouterr().err
         assert "actions: " in err
         assert ("settled by an action classifier" in err) is said
-    # a silhouette video has no landmarks for the silhouette to be weighed beside: the
-    # option is taken, and the run says nothing of it
-    for flag in ("--fuse", "--no-fuse"):
+    # a silhouette video: with ``--fuse`` (the default) the silhouette's vote also weighs
+    # the landmarks the pose model reads from each silhouette, and the run says so; with
+    # ``--no-fuse`` it says nothing of it
+    for flag, said in (("--fuse", True), ("--no-fuse", False)):
         out = tmp_path / f"fuse{flag}.bvh"
         assert main([*base, flag, "--seconds", "1.5", "--out", str(out)]) == 0
         err = capsys.readouterr().err
-        assert "fuse" not in err and "weighs it too" not in err
+        assert ("also weighs the landmarks the pose model reads" in err) is said, err
+        assert "weighs it too" not in err  # (the landmarks' fallback: colour frames only)
 
 
 def test_fused_scores_weigh_the_descriptor_that_fits_better() -> None:
