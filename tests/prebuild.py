@@ -52,6 +52,9 @@ def build(part: str) -> None:
 
         lib = load_library(MOCAP, clips=["13_30"])
         cached_bank(lib.clips, BankSettings(), workers=1)
+        # the pose bank that scores the landmarks read from a silhouette video's masks
+        # (``mimic perform --clips 13_30`` on a silhouette video: ``vision._voice``)
+        cached_bank(lib.clips, BankSettings(descriptor="pose"), workers=1)
     elif part == "mirrored":  # mimic perform --clips 13_30 --k 12 with landmarks
         build_mirrored()
     elif part == "films":  # tests/vision/test_views.py: films
