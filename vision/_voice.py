@@ -10,11 +10,14 @@ shows: arms circled in front of the body seen from the front are read as nothing
 particular, so its landmarks alone follow the library's own performer worse than the
 silhouette does (``benchmarks/HISTORY.md``, "Views and people").
 
-So the silhouette matcher decides and lands, and ``PoseVoice`` weighs in: a second
-matcher on a pose bank of the same clips scores every action from the landmarks read
-from the last window of silhouettes, and the silhouette's ballot takes the mean of the
-two descriptors' action scores (``vision._vote.fused``, each weighing alike: their
-fits are on different scales). Both cast their vote into one ``ActionVote``.
+So the silhouette matcher decides and lands, and ``PoseVoice`` weighs in where the
+silhouette is unsure: a second matcher on a pose bank of the same clips scores every
+action from the landmarks read from the last window of silhouettes, and the silhouette's
+ballot takes the mean of the two descriptors' action scores (``vision._vote.fused``),
+the landmarks' weighing as much as the silhouette's where its best two actions tie and
+nothing where its best leads (``vision._vote.unsure``). Their fits are on scales of
+their own, so neither is weighed by its fit. Both cast their vote into one
+``ActionVote``.
 """
 
 from __future__ import annotations
@@ -44,7 +47,9 @@ FloatArray = NDArray[np.float64]
 #: the grey of the figure and of the ground a silhouette is painted in (BGR alike)
 FIGURE, GROUND = 0, 255
 #: the blur a painted silhouette gets, in pixels per 160 pixels of frame height: a
-#: hard-edged silhouette with mask noise reads worse than one softened a little
+#: hard-edged silhouette with ragged edges is unlike the pictures the model learned from,
+#: and softened a little (and in full contrast) it found a body in more of the frames
+#: tried (``benchmarks/HISTORY.md``, "Views and people")
 BLUR_PER_160 = 1.0
 
 
