@@ -150,13 +150,7 @@ class SilhouetteFallback:
         m = self.matcher
         if len(self.history) < m.n or (weight := min(1.0, self.hidden(m.n) / HIDDEN_FULL)) <= 0:
             return None
-        if (queries := m.queries(self.features(m.n))) is None:
-            return None
-        ranked: list[tuple[NDArray[np.int64], NDArray[np.int64], FloatArray]] = []
-        m.windows.ranked(queries, ranked)
-        if m.windows.facing is not None:  # (as the silhouette's own decisions weigh it)
-            ranked[:] = m.windows.facing.weigh(ranked, recost=m.windows.plain_cost(queries))
-        got = m.ballot.scores(vote, queries, ranked)
+        got = m.action_scores(vote, self.features(m.n))
         if got is None:
             return None
         self._weighed = weight

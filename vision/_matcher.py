@@ -140,6 +140,21 @@ class Matcher:
             self.why = "no silhouette" if self.desc.kind == "silhouette" else "no pose"
         return got
 
+    def action_scores(
+        self, vote: ActionVote, performer: FloatArray
+    ) -> tuple[FloatArray, float] | None:
+        """Every action's score for ``vote`` from the performer's last features ``(n,
+        F)`` and this matcher's fit (``ActionChoice.scores``), as another descriptor's
+        ballot hears them (the silhouette beside the landmarks, the landmarks read from
+        a silhouette); ``None`` without enough features or a score for every action."""
+        if (queries := self.queries(performer)) is None:
+            return None
+        ranked: list[tuple[IntArray, IntArray, FloatArray]] = []
+        self.windows.ranked(queries, ranked)
+        if self.windows.facing is not None:  # (as this descriptor's own decisions weigh it)
+            ranked[:] = self.windows.facing.weigh(ranked, recost=self.windows.plain_cost(queries))
+        return self.ballot.scores(vote, queries, ranked)
+
     def per_frame(self, cost: float, query: FloatArray) -> float:
         """``per_frame_cost`` of a DTW cost of ``query``: the scale of ``reject``."""
         return per_frame_cost(cost, query.shape[0])

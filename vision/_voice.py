@@ -130,12 +130,7 @@ class PoseVoice:
         n = len(self.history)
         if n < m.n:
             return None
-        window = np.array(list(itertools.islice(self.history, n - m.n, n)))
-        if (queries := m.queries(window)) is None:
-            return None
-        ranked: list[tuple[NDArray[np.int64], NDArray[np.int64], FloatArray]] = []
-        m.windows.ranked(queries, ranked)
-        got = m.ballot.scores(vote, queries, ranked)
+        got = m.action_scores(vote, np.array(list(itertools.islice(self.history, n - m.n, n))))
         if got is None:
             return None
         return got[0], None, 1.0

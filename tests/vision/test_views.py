@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 
 from control.motion import load_library
-from silhouette_bank import BankSettings, build_bank
 from tests.conftest import Prebuild
 from vision import (
     ActionSettings,
@@ -26,24 +25,12 @@ from vision import (
     decision_points,
     evaluation,
     perform,
-    person_segmentation_available,
     record_clip,
     truth_for,
 )
 from vision._fallback import HIDDEN_FULL
 from vision._frames import UNPOSED
 from vision._perform import Performance
-
-
-@pytest.fixture(scope="module")
-def pose_bank(setup: Any, tmp_path_factory: pytest.TempPathFactory) -> Any:
-    if not person_segmentation_available():
-        pytest.fail("MediaPipe is needed here (see the README's install line)")
-    lib, _, _ = setup
-    return build_bank(
-        lib.clips, BankSettings(descriptor="pose"), tmp_path_factory.mktemp("pose"), workers=1
-    )
-
 
 #: the takes the tests film, as ``(seconds, how)``: ``tests/prebuild.py`` films them in
 #: the background (part ``films``) while the earlier tests run

@@ -11,29 +11,17 @@ import numpy as np
 import pytest
 
 from control.motion import load_library
-from silhouette_bank import BankSettings, build_bank
 from vision import (
     ActionSettings,
     MatchSettings,
     PerformSettings,
     RecordSettings,
     VideoSource,
-    person_segmentation_available,
     record_clip,
 )
 from vision._perform import Performance
 from vision._voice import paint
 from vision._vote import UNSURE_LEAD, fused, unsure
-
-
-@pytest.fixture(scope="module")
-def pose_bank(setup: Any, tmp_path_factory: pytest.TempPathFactory) -> Any:
-    if not person_segmentation_available():
-        pytest.fail("MediaPipe is needed here (see the README's install line)")
-    lib, _, _ = setup
-    return build_bank(
-        lib.clips, BankSettings(descriptor="pose"), tmp_path_factory.mktemp("pose"), workers=1
-    )
 
 
 def test_a_silhouette_is_painted_dark_on_light_and_softened() -> None:
