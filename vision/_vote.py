@@ -279,8 +279,9 @@ def unsure(scores: FloatArray) -> float:
 
 
 #: a second descriptor's evidence at a decision (``ActionChoice.partner``): its action
-#: scores, its fit (best per-frame cost over its reject threshold; ``None``: the two weigh
-#: alike, whatever their fits) and its weight (``fused``)
+#: scores, its fit (best per-frame cost over its reject threshold; ``None``: a voice whose
+#: fit says nothing beside the ballot's own, weighed by its weight as far as the ballot is
+#: ``unsure``, whatever the fits) and its weight (``fused``)
 Evidence = tuple[FloatArray, "float | None", float]
 Partner = Callable[[ActionVote], "Evidence | None"]
 
