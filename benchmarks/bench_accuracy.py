@@ -80,6 +80,7 @@ from control.graph import (
 )
 from control.motion import Clip, default_library_path, load_library, mirror, qconj, qlog, qmul
 from mimic.args import mirror_copies
+from mimic.run import voice_bank
 from silhouette_bank import (
     DEFAULT_DESCRIPTOR,
     DESCRIPTORS,
@@ -105,7 +106,6 @@ from vision import (
     on_the_floor,
     perform,
     performer_sequence,
-    person_segmentation_available,
     record_clip,
     switch_delays,
     truth_for,
@@ -653,9 +653,7 @@ def _recorded_runs(
             # with the fused ballot (the default), the landmarks the pose model reads from
             # each silhouette weigh in where the silhouette's ballot is unsure, as
             # ``mimic perform`` weighs them for a silhouette video
-            fuse = with_values(MatchSettings(), match or {}).action.fuse
-            if fuse and person_segmentation_available():
-                voice, _, _ = cached_bank(train, BankSettings(descriptor="pose"))
+            voice = voice_bank(train, with_values(MatchSettings(), match or {}))
 
             def source() -> Any:
                 return VideoSource(video, silhouette=True)

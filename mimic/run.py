@@ -9,6 +9,7 @@ import json
 import math
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -46,6 +47,7 @@ __all__ = [
     "choose_descriptor",
     "prepare",
     "print_actions",
+    "voice_bank",
     "warn_own_take",
     "warn_source",
 ]
@@ -168,23 +170,29 @@ def prepare(settings: RunSettings, source: Source) -> Prepared:
 
 
 def _voice(settings: RunSettings, clips: list[Clip], source: Source, bank: Bank) -> Bank | None:
-    """With a silhouette bank, a source of silhouettes, the fused ballot and MediaPipe,
-    the pose bank that scores the landmarks the pose model reads from each silhouette
-    (``vision._voice``), said on stderr; else ``None``."""
-    fuse = settings.perform.match.action.fuse
+    """``voice_bank`` for a run on ``bank`` of ``source``, said on stderr."""
     if bank.settings.features.kind != "silhouette" or _gives_colour(source):
         return None  # (colour frames: the pose descriptor reads them itself)
-    if not fuse or not person_segmentation_available():
-        return None
-    print(
-        "the silhouette's vote also weighs the landmarks the pose model reads from each "
-        "silhouette (--no-fuse: the silhouette alone)",
-        file=sys.stderr,
-    )
-    voice, _, _ = cached_bank(
-        clips, BankSettings(descriptor="pose"), progress=bar("pose bank (voice)", "poses")
-    )
+    progress = bar("pose bank (voice)", "poses")
+    voice = voice_bank(clips, settings.perform.match, progress)
+    if voice is not None:
+        print(
+            "the silhouette's vote also weighs the landmarks the pose model reads from each "
+            "silhouette (--no-fuse: the silhouette alone)",
+            file=sys.stderr,
+        )
     return voice
+
+
+def voice_bank(
+    clips: list[Clip], match: MatchSettings, progress: Callable[[int, int], None] | None = None
+) -> Bank | None:
+    """For a silhouette bank's run on a source of silhouettes with ``match``, the pose
+    bank of ``clips`` that scores the landmarks the pose model reads from each silhouette
+    (``vision._voice``); ``None`` without the fused ballot (``--no-fuse``) or MediaPipe."""
+    if not match.action.fuse or not person_segmentation_available():
+        return None
+    return cached_bank(clips, BankSettings(descriptor="pose"), progress=progress)[0]
 
 
 def _say_vote(clips: list[Clip], match: MatchSettings, kind: str) -> None:
