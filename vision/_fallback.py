@@ -25,8 +25,6 @@ weighed into the landmarks' ballot, the more the more limbs are hidden (``eviden
 
 from __future__ import annotations
 
-import itertools
-from collections import deque
 from collections.abc import Sequence
 from typing import Any
 
@@ -43,6 +41,7 @@ from ._decision import Decision
 from ._matcher import Matcher
 from ._person import MAX_SIDE
 from ._search import Bars
+from ._second import SecondMatcher
 from ._vote import ActionVote
 
 __all__ = ["FALLBACK_REASONS", "UPRIGHT_REASONS", "SilhouetteFallback"]
@@ -61,13 +60,14 @@ HIDDEN_FULL = 0.25
 FloatArray = NDArray[np.float64]
 
 
-class SilhouetteFallback:
+class SilhouetteFallback(SecondMatcher["_Seen"]):
     """The silhouette matcher beside a landmark matcher ``main`` of the same graph, with
     its settings, for the ``avatar`` (``costs``: its jump costs) of a loop deciding every
     ``period`` seconds. ``bank``: a silhouette bank of the graph's ``clips``. Made
     before the first frame, as ``main`` is (its search index, classifier and kernels
     warmed up), so that the first frame without landmarks does not stall the loop;
-    ``bars``: progress bars for its search's tables and index (``WindowSearch.open``)."""
+    ``bars``: progress bars for its search's tables and index (``WindowSearch.open``).
+    Its history holds the performer's masks, in step with the landmark features'."""
 
     def __init__(
         self,
@@ -80,23 +80,13 @@ class SilhouetteFallback:
         period: float,
         bars: Bars | None = None,
     ) -> None:
-        if bank.settings.features.kind != "silhouette":
-            raise ValueError(
-                f"the fallback needs a silhouette bank, not one of the "
-                f"{bank.settings.descriptor!r} descriptor"
-            )
-        settings = main.settings
-        # one vote, whoever decides
-        self.matcher = matcher = Matcher(layer, bank, settings, vote=main.vote)
-        if settings.landing.jumps:
+        super().__init__(layer, bank, main, "silhouette", "the fallback")
+        self.latest = _Seen(None)
+        matcher = self.matcher
+        if matcher.settings.landing.jumps:
             matcher.windows.open(bars, "search (fallback)")
             matcher.warm_up(avatar.frame, avatar.recent(matcher.recent_frames), costs)
         matcher.ready(clips, period)
-        self.blank = np.full(matcher.n_features, np.nan)
-        #: the performer's masks at the library's rate, in step with the landmark
-        #: features' history
-        self.history: deque[_Seen] = deque(maxlen=matcher.history_frames)
-        self.latest = _Seen(None)
         #: the history held under a window at the last ``decide``
         self.filling = False
         #: the weight of the evidence given since ``weight_given`` was last asked
@@ -107,18 +97,9 @@ class SilhouetteFallback:
         landmarks the pose model saw it with that were of low confidence (1: no pose)."""
         self.latest = _Seen(mask if mask is not None and mask.any() else None, hidden)
 
-    def tick(self) -> None:
-        """One library frame on: the latest mask into the history."""
-        self.history.append(self.latest)
-
-    def _last(self, last: int | None) -> list[_Seen]:
-        """The history's ``last`` frames (``None``: all of it)."""
-        n = len(self.history)
-        return list(itertools.islice(self.history, 0 if last is None else max(0, n - last), n))
-
     def features(self, last: int | None = None) -> FloatArray:
         """The silhouette features ``(m, F)`` of the history (its ``last`` frames)."""
-        return np.array([s.features(self.matcher.desc, self.blank) for s in self._last(last)])
+        return np.array([s.features(self.matcher.desc, self.blank) for s in self.last(last)])
 
     def decide(
         self, frame: int, recent: NDArray[np.int64] | None, costs: JumpCosts | None
@@ -126,7 +107,7 @@ class SilhouetteFallback:
         """The silhouette matcher's decision from the avatar at ``frame`` (``None``, and
         ``why``, without one)."""
         matcher = self.matcher
-        self.filling = len(self.history) < matcher.n
+        self.filling = not self.full
         if self.filling:
             return None
         if matcher.settings.landing.jumps:
@@ -136,7 +117,7 @@ class SilhouetteFallback:
     def hidden(self, last: int) -> float:
         """The share of limb landmarks of low confidence over the history's ``last``
         frames (``see``)."""
-        seen = self._last(last)
+        seen = self.last(last)
         return float(np.mean([s.hidden for s in seen])) if seen else 1.0
 
     def evidence(self, vote: ActionVote) -> tuple[FloatArray, float, float] | None:
@@ -147,10 +128,10 @@ class SilhouetteFallback:
         model's limbs are then guesses and the mask shows them; with every limb seen
         (a performer facing the camera) the silhouette does not speak (``None``), nor
         while the window is not yet full or its silhouettes are too few."""
-        m = self.matcher
-        if len(self.history) < m.n or (weight := min(1.0, self.hidden(m.n) / HIDDEN_FULL)) <= 0:
+        n = self.matcher.n
+        if not self.full or (weight := min(1.0, self.hidden(n) / HIDDEN_FULL)) <= 0:
             return None
-        got = m.action_scores(vote, self.features(m.n))
+        got = self.matcher.action_scores(vote, self.features(n))
         if got is None:
             return None
         self._weighed = weight

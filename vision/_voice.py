@@ -22,8 +22,6 @@ their own, so neither is weighed by its fit. Both cast their vote into one
 
 from __future__ import annotations
 
-import itertools
-from collections import deque
 from collections.abc import Sequence
 
 import cv2
@@ -38,6 +36,7 @@ from ._landmarks import PoseReader
 from ._matcher import Matcher
 from ._person import PersonSegmenter
 from ._search import Bars
+from ._second import SecondMatcher
 from ._vote import ActionVote, Evidence
 
 __all__ = ["PoseVoice", "paint"]
@@ -62,11 +61,12 @@ def paint(mask: NDArray[np.bool_]) -> NDArray[np.uint8]:
     return np.asarray(cv2.GaussianBlur(img, (0, 0), sigma), dtype=np.uint8)
 
 
-class PoseVoice:
+class PoseVoice(SecondMatcher[FloatArray]):
     """The pose matcher beside a silhouette matcher ``main`` of the same graph, with its
     settings: ``bank`` a pose bank of the graph's ``clips``, for a loop deciding every
     ``period`` seconds. ``see`` each frame's mask, ``tick`` at the library's rate, and
-    ``evidence`` at each decision (the silhouette's ballot's ``Partner``)."""
+    ``evidence`` at each decision (the silhouette's ballot's ``Partner``). Its history
+    holds the landmark features read from the masks."""
 
     def __init__(
         self,
@@ -77,20 +77,12 @@ class PoseVoice:
         period: float,
         bars: Bars | None = None,
     ) -> None:
-        if bank.settings.features.kind != "pose":
-            raise ValueError(
-                f"the landmarks' voice needs a pose bank, not one of the "
-                f"{bank.settings.descriptor!r} descriptor"
-            )
-        self.matcher = matcher = Matcher(layer, bank, main.settings, vote=main.vote)
-        matcher.windows.open(bars, "search (landmarks of the silhouette)")
-        matcher.ready(clips, period)
+        super().__init__(layer, bank, main, "pose", "the landmarks' voice")
+        self.latest = self.blank
+        self.matcher.windows.open(bars, "search (landmarks of the silhouette)")
+        self.matcher.ready(clips, period)
         self.model = PersonSegmenter("pose")
         self.reader = PoseReader()
-        self.blank = np.full(matcher.n_features, np.nan)
-        #: the landmark features read from the masks, at the library's rate
-        self.history: deque[FloatArray] = deque(maxlen=matcher.history_frames)
-        self.latest = self.blank
         #: silhouettes read since ``read_share`` was last asked, and those with a body
         #: found in them
         self._seen = self._read = 0
@@ -111,10 +103,6 @@ class PoseVoice:
             self.latest = vec
             self._read += 1
 
-    def tick(self) -> None:
-        """One library frame on: the latest landmark features into the history."""
-        self.history.append(self.latest)
-
     def read_share(self) -> float:
         """The share of the silhouettes read since the last ask in which the model
         found a body (NaN: none read), for the decision log."""
@@ -126,11 +114,9 @@ class PoseVoice:
         """The landmarks' action scores for ``vote`` over the last window, no fit (the
         two descriptors weigh alike) and a weight of 1; ``None`` while the window is
         not full or holds too few frames with a body read."""
-        m = self.matcher
-        n = len(self.history)
-        if n < m.n:
+        if not self.full:
             return None
-        got = m.action_scores(vote, np.array(list(itertools.islice(self.history, n - m.n, n))))
+        got = self.matcher.action_scores(vote, np.array(self.last(self.matcher.n)))
         if got is None:
             return None
         return got[0], None, 1.0
