@@ -57,6 +57,7 @@ import itertools
 import re
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -585,6 +586,21 @@ def fold(
     return out
 
 
+#: the second bank of the fold being run (the silhouette beside simulated landmarks, or
+#: the pose bank of the landmarks read from silhouettes), loaded once for its recordings
+_SECOND: dict[tuple[str, tuple[str, ...]], Any] = {}
+
+
+def _fold_bank(kind: str, train: list[Any], load: Callable[[], Any]) -> Any:
+    """``load()``'s bank of ``kind`` for the library ``train``, loaded at its first
+    recording and kept for the others (only the last fold's is kept)."""
+    key = (kind, tuple(c.name for c in train))
+    if key not in _SECOND:
+        _SECOND.clear()
+        _SECOND[key] = load()
+    return _SECOND[key]
+
+
 def _masks(video: Path) -> tuple[list[np.ndarray], float]:
     """Every mask of a silhouette recording, and its frame rate."""
     src = VideoSource(video, silhouette=True)
@@ -642,7 +658,7 @@ def _recorded_runs(
             fuse = with_values(MatchSettings(), match or {}).action.fuse
             masks, mask_fps = _masks(video) if fuse else ([], 0.0)
             if masks:
-                fallback, _, _ = cached_bank(train, BankSettings())
+                fallback = _fold_bank("silhouette", train, lambda: cached_bank(train)[0])
 
             def source() -> Any:
                 name = f"{video.stem} landmarks"
@@ -653,7 +669,9 @@ def _recorded_runs(
             # with the fused ballot (the default), the landmarks the pose model reads from
             # each silhouette weigh in where the silhouette's ballot is unsure, as
             # ``mimic perform`` weighs them for a silhouette video
-            voice = voice_bank(train, with_values(MatchSettings(), match or {}))
+            voice = _fold_bank(
+                "voice", train, lambda: voice_bank(train, with_values(MatchSettings(), match or {}))
+            )
 
             def source() -> Any:
                 return VideoSource(video, silhouette=True)

@@ -130,7 +130,10 @@ def table() -> str:
         (
             f"the same, silhouette videos ({sil['runs']} runs)",
             f"{sil['agreement']:.3f}",
-            f"pose score {sil['pose']:.3f}; {sil['switches']:.0f} switches a minute",
+            f"pose score {sil['pose']:.3f}; {sil['switches']:.0f} switches a minute "
+            f"({sil['brief']:.0f} brief) against the performer's {sil['performer']:.0f}; "
+            f"the landmarks read from the silhouettes weigh in where the silhouette is "
+            f"unsure, and the vote is filtered as the landmarks' is",
         ),
         (
             f"another person, simulated landmarks ({person['runs']} runs)",
@@ -141,9 +144,9 @@ def table() -> str:
         (
             f"another person, silhouettes ({sil_person['runs']} runs)",
             f"{sil_person['agreement']:.3f}",
-            f"the landmarks read from the silhouettes weigh in where the silhouette is "
-            f"unsure; pose score {sil_person['pose']:.3f}, {sil_person['switches']:.0f} "
-            f"switches a minute",
+            f"pose score {sil_person['pose']:.3f}, {sil_person['switches']:.0f} "
+            f"switches a minute ({sil_person['brief']:.0f} brief) against "
+            f"{sil_person['performer']:.0f}",
         ),
         (
             "another person read by MediaPipe, by camera azimuth",

@@ -104,7 +104,8 @@ def _evaluate(args: argparse.Namespace) -> int:
     match = dataclasses.asdict(ready.settings.match)
     # the vote the run used (the default is the descriptor's own: ``switch_for``)
     action = ready.settings.match.action
-    match["action"]["switch_chance"] = action.switch_for(ready.bank.settings.features.kind)
+    kind = ready.bank.settings.features.kind
+    match["action"]["switch_chance"] = action.switch_for(kind, ready.voice is not None)
     report = {
         "video": str(args.video),
         "library": [c.name for c in ready.clips],

@@ -162,7 +162,7 @@ def prepare(settings: RunSettings, source: Source) -> Prepared:
             clips, BankSettings(), progress=bar("silhouette bank (fallback)", "silhouettes")
         )
     voice = _voice(settings, clips, source, bank)
-    _say_vote(clips, match, bank.settings.features.kind)
+    _say_vote(clips, match, bank.settings.features.kind, voice is not None)
     start = start_frame(graph, settings.start)
     return Prepared(
         descriptor, clips, graph, layer, bank, built, settings.perform, start, fallback, voice
@@ -195,9 +195,10 @@ def voice_bank(
     return cached_bank(clips, BankSettings(descriptor="pose"), progress=progress)[0]
 
 
-def _say_vote(clips: list[Clip], match: MatchSettings, kind: str) -> None:
+def _say_vote(clips: list[Clip], match: MatchSettings, kind: str, voice: bool) -> None:
     """Say on stderr whether the avatar keeps to a voted action, and among which (for a
-    matcher of descriptor ``kind``)."""
+    matcher of descriptor ``kind``; ``voice``: with the landmarks read from its
+    silhouettes)."""
     names = sorted({c.label_names[k] for c in clips for k in set(c.labels[c.labels >= 0])})
     if not (match.landing.jumps and match.action.vote > 0):
         print("actions: no vote (the avatar jumps to the best windows alone)", file=sys.stderr)
@@ -206,16 +207,17 @@ def _say_vote(clips: list[Clip], match: MatchSettings, kind: str) -> None:
     else:
         print(
             f"actions: {len(names)} labelled ({', '.join(names)}); the avatar keeps to the "
-            + _vote_phrase(match.action, kind)
+            + _vote_phrase(match.action, kind, voice)
             + " (--vote 0: off)",
             file=sys.stderr,
         )
 
 
-def _vote_phrase(a: ActionSettings, kind: str) -> str:
-    """How the voted action is chosen (for a matcher of descriptor ``kind``) and what
-    else the avatar may jump into, in words."""
-    switch = a.switch_for(kind)
+def _vote_phrase(a: ActionSettings, kind: str, voice: bool) -> str:
+    """How the voted action is chosen (for a matcher of descriptor ``kind``, ``voice``:
+    with the landmarks read from its silhouettes) and what else the avatar may jump
+    into, in words."""
+    switch = a.switch_for(kind, voice)
     if switch > 0:
         how = (
             f"one a hidden Markov filter of the last decisions believes in (a change "

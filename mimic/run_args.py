@@ -87,7 +87,8 @@ class RunSettings:
 
 def action_settings(args: argparse.Namespace) -> ActionSettings:
     """The ``ActionSettings`` of the vote's arguments: ``--steady``'s or the defaults
-    (the filter with landmarks, the counted vote with silhouettes), with ``--vote-switch``
+    (the filter where the ballots hear landmarks, the counted vote where they hear a
+    silhouette alone: ``ActionSettings.switch_for``), with ``--vote-switch``
     and ``--vote-margin``, where given, over either."""
     base = ActionSettings.steady() if args.steady else ActionSettings()
     given = {"margin": args.vote_margin, "switch_chance": args.vote_switch}
@@ -366,7 +367,8 @@ def _add_filter_args(p: argparse.ArgumentParser) -> None:
         metavar="P",
         help="filter the voted action by a hidden Markov model whose chance of a change "
         "per decision is P; 0: count the votes instead (default: "
-        f"{FILTER_SWITCH:g} with landmarks, 0 with silhouettes; with --steady "
+        f"{FILTER_SWITCH:g} with landmarks, a silhouette video's included (the "
+        "landmarks read from its silhouettes), 0 with silhouettes alone; with --steady "
         f"{steady.switch_chance:g})",
     )
     p.add_argument(

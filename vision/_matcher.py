@@ -110,7 +110,9 @@ class Matcher:
         self.d_max = float(d_max) if d_max else 1.0
         if vote is None:
             kind = self.desc.kind
-            vote = ActionVote.of(self.settings.action, self.n // 2, actions, names, kind)
+            # (a silhouette's partner is the landmarks read from it: ``vision._voice``)
+            voice = kind == "silhouette" and partner is not None
+            vote = ActionVote.of(self.settings.action, self.n // 2, actions, names, kind, voice)
         #: where a jump lands and what it must beat; it holds the action vote
         self.lander = Lander(self.windows, self.settings, vote, self.n, self.recent_frames)
 

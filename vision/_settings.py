@@ -172,11 +172,13 @@ class ActionSettings:
     switch_chance : float or None
         > 0: the voted action is filtered online by a hidden Markov model over the
         actions (``ActionVote.filter``) rather than counted: the chance per decision
-        that the performer changes action (0: the counted vote). ``None``: the
-        descriptor's own (``switch_for``): the filter (0.02) for landmarks, whose
-        ballots it follows steadier and as soon, with ``ballot_jumps``; the counted vote
-        for silhouettes, whose ballots are less sure and which the filter follows late
-        (``benchmarks/HISTORY.md``, "Ballot jumps").
+        that the performer changes action (0: the counted vote). ``None``: by what the
+        ballots hear (``switch_for``): the filter (0.02) where they hear landmarks (the
+        pose descriptor, or a silhouette's with the landmarks read from it:
+        ``vision._voice``), whose ballots it follows steadier and as soon, with
+        ``ballot_jumps``; the counted vote for a silhouette's alone, whose ballots are
+        less sure and which the filter follows late (``benchmarks/HISTORY.md``, "Ballot
+        jumps" and "Steadiness").
     temperature : float
         With the filter: what turns each decision's action scores into evidence.
     min_points : int
@@ -263,12 +265,14 @@ class ActionSettings:
         "Steadiness" and "Ballot jumps")."""
         return cls(switch_chance=FILTER_SWITCH, margin=math.inf)
 
-    def switch_for(self, descriptor: str) -> float:
-        """``switch_chance`` for a matcher of ``descriptor`` (a ``Descriptor.kind``): as
-        set, or by default ``FILTER_SWITCH`` for landmarks and 0 (counted) otherwise."""
+    def switch_for(self, descriptor: str, voice: bool = False) -> float:
+        """``switch_chance`` for a matcher of ``descriptor`` (a ``Descriptor.kind``),
+        ``voice``: with the landmarks read from its silhouettes beside it
+        (``vision._voice``). As set, or by default ``FILTER_SWITCH`` where the ballots
+        hear landmarks and 0 (counted) where they hear a silhouette alone."""
         if self.switch_chance is not None:
             return self.switch_chance
-        return FILTER_SWITCH if descriptor == "pose" else 0.0
+        return FILTER_SWITCH if descriptor == "pose" or voice else 0.0
 
     def __post_init__(self) -> None:
         if self.vote < 0:

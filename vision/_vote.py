@@ -23,10 +23,11 @@ them too, so that the vote spans the same time at any frame rate.
 
 With ``ActionSettings.switch_chance`` the voted action is not counted but filtered
 (``ActionVote.filter``): a hidden (semi-)Markov model over the actions, each decision's
-action scores its evidence. It is the default with landmarks, whose ballots it follows
-steadier and as soon once a decision may jump into its own ballot's action
-(``ActionSettings.ballot_jumps``); silhouettes keep the counted vote, whose ballots are
-less sure and which the filter follows late (``ActionSettings.switch_for``).
+action scores its evidence. It is the default where the ballots hear landmarks (the
+pose descriptor, or a silhouette's with the landmarks read from it), whose ballots it
+follows steadier and as soon once a decision may jump into its own ballot's action
+(``ActionSettings.ballot_jumps``); a silhouette alone keeps the counted vote, its
+ballots less sure, which the filter follows late (``ActionSettings.switch_for``).
 """
 
 from __future__ import annotations
@@ -111,11 +112,13 @@ class ActionVote:
         actions: IntArray | None = None,
         names: Sequence[str] = (),
         descriptor: str = "",
+        voice: bool = False,
     ) -> ActionVote:
         """The vote ``settings`` ask for, over ``actions`` named ``names``, for a matcher
-        of ``descriptor`` (``ActionSettings.switch_for``)."""
+        of ``descriptor``, ``voice``: with the landmarks read from its silhouettes
+        (``ActionSettings.switch_for``)."""
         st = settings
-        switch = st.switch_for(descriptor)
+        switch = st.switch_for(descriptor, voice)
         vote = cls(st.vote, span, switch, st.temperature, st.min_points, st.confidence)
         vote.actions, vote.names = actions, list(names)
         return vote

@@ -12,6 +12,7 @@ import pytest
 
 from control.motion import load_library
 from vision import (
+    FILTER_SWITCH,
     ActionSettings,
     MatchSettings,
     PerformSettings,
@@ -62,6 +63,8 @@ def test_the_landmarks_read_from_each_silhouette_weigh_into_its_ballot(
         VideoSource(video, silhouette=True), layer, silhouettes, lib.clips, st, voice=pose_bank
     )
     assert run.voice is not None and run.matcher.ballot.partner is not None
+    # ballots that hear landmarks are filtered, as a camera's are (``switch_for``)
+    assert run.matcher.vote.switch == FILTER_SWITCH
     asked: list[Any] = []
     own = run.voice.evidence
     run.voice.evidence = lambda vote: asked.append(got := own(vote)) or got  # type: ignore[method-assign]
@@ -84,6 +87,7 @@ def test_the_landmarks_read_from_each_silhouette_weigh_into_its_ballot(
         VideoSource(video, silhouette=True), layer, silhouettes, lib.clips, off, voice=pose_bank
     )
     assert plain.voice is None and plain.matcher.ballot.partner is None
+    assert plain.matcher.vote.switch == 0.0  # (a silhouette alone: counted)
     with pytest.raises(ValueError, match="needs a pose bank"):
         Performance(
             VideoSource(video, silhouette=True),
