@@ -131,6 +131,7 @@ class PersonSegmenter:
         threshold: float = 0.5,
         min_area: float = 0.003,
         max_side: int | None = MAX_SIDE,
+        masks: bool = True,
     ):
         if method not in PERSON_METHODS:
             raise ValueError(f"method must be one of {', '.join(PERSON_METHODS)}, not {method!r}")
@@ -144,6 +145,9 @@ class PersonSegmenter:
         #: never)
         self.max_side = max_side
         mp = _mediapipe()
+        #: whether the model makes person masks (``apply``); without them the pose model
+        #: gives the same landmarks (``landmarks_of``) in about a tenth less time
+        self.masks = masks
         self.method = method
         self.threshold = threshold
         self.min_area = min_area
@@ -175,7 +179,7 @@ class PersonSegmenter:
             if self.method == "selfie":
                 return mp.solutions.selfie_segmentation.SelfieSegmentation(model_selection=0)
             return mp.solutions.pose.Pose(
-                static_image_mode=False, model_complexity=1, enable_segmentation=True
+                static_image_mode=False, model_complexity=1, enable_segmentation=self.masks
             )
 
     def probability(self, image: NDArray[np.uint8]) -> NDArray[np.float32] | None:
@@ -224,6 +228,8 @@ class PersonSegmenter:
         return None if prob is None else np.asarray(prob, dtype=np.float32)
 
     def apply(self, image: NDArray[np.uint8]) -> NDArray[np.bool_] | None:
+        if not self.masks:
+            raise ValueError("this person model was made without masks (masks=False)")
         prob = self._model_probability(image)
         self.unposed = False
         if prob is None and self.method == "pose":

@@ -81,7 +81,7 @@ class PoseVoice(SecondMatcher[FloatArray]):
         self.latest = self.blank
         self.matcher.windows.open(bars, "search (landmarks of the silhouette)")
         self.matcher.ready(clips, period)
-        self.model = PersonSegmenter("pose")
+        self.model = PersonSegmenter("pose", masks=False)  # (the silhouette is the mask)
         self.reader = PoseReader()
         #: silhouettes read since ``read_share`` was last asked, and those with a body
         #: found in them

@@ -130,6 +130,20 @@ def test_frames_that_change_size_start_the_pose_model_again(
     selfie.close()
 
 
+def test_a_pose_model_without_masks_reads_the_same_landmarks(squats: list[np.ndarray]) -> None:
+    """The landmarks' voice (``vision._voice``) has its silhouette already: its pose model
+    makes no masks, and reads the very landmarks one that makes them does."""
+    with_masks, without = PersonSegmenter("pose"), PersonSegmenter("pose", masks=False)
+    for img in squats[:4]:
+        seen = with_masks.landmarks_of(img)
+        assert seen is not None
+        assert np.array_equal(without.landmarks_of(img), seen)
+    with pytest.raises(ValueError, match="without masks"):
+        without.apply(squats[0])
+    with_masks.close()
+    without.close()
+
+
 @pytest.mark.slow
 def test_a_plate_subtractor_loses_a_person_who_is_there_from_the_start(mocap: Path) -> None:
     """The measured fact behind the person segmenter: with no empty frames to learn from,
