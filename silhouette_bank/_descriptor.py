@@ -31,8 +31,8 @@ same with every descriptor. A multigrid or outline bank also holds a metric lear
 the bank (``_metric``): the matcher then compares the shape numbers along its 24 (48)
 directions, scaled the same way.
 
-``mirror`` gives the vector of the left/right mirrored image (a performer who does the
-action with the other side, or a mirrored camera), so that the matcher can try both.
+``mirror`` gives the vector of the mirrored image (a performer using the other side, or a
+mirrored camera); ``variants``, the readings of a performer that the matcher tries.
 """
 
 from __future__ import annotations
@@ -44,7 +44,16 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from ._masks import as_binary, binary_outline, mask_extents, outline_extents
+from ._masks import (
+    as_binary,
+    binary_outline,
+    cells_unclipped,
+    crop_rows,
+    grid_cells,
+    grid_width,
+    mask_extents,
+    outline_extents,
+)
 
 __all__ = [
     "DEFAULT_DESCRIPTOR",
@@ -87,7 +96,6 @@ POSE_JOINTS = (
     "right_ankle",
 )
 
-
 #: thigh (hip to knee) and shin (knee to ankle) in torso lengths (mid-hip to mid-shoulder):
 #: 0.424, 0.461 and 0.52 m on the CMU exercise subject
 THIGH_RATIO = 0.82
@@ -107,47 +115,6 @@ def hu_log(hu: FloatArray) -> FloatArray:
     """
     hu = np.asarray(hu, dtype=np.float64)
     return np.sign(hu) * np.log10(1.0 + np.abs(hu) / HU_SCALE)
-
-
-def grid_cells(
-    mask: NDArray[np.uint8], top: int, bottom: int, cx: float, rows: int, cols: int
-) -> FloatArray:
-    """Fraction filled of each of ``rows x cols`` cells ``(rows * cols,)``, row by row
-    from the top: the grid spans image rows ``[top, bottom)`` and ``h * cols / rows``
-    columns (rounded) centred on ``cx`` (pixel-index coordinates, as the centroid of
-    ``cv2.moments``; sampled to a fraction of a pixel, so the mirrored image gives the
-    mirrored cells); cells beyond the image are empty."""
-    return _cells(_crop(mask, top, bottom, cx, _grid_width(bottom - top, rows, cols)), rows, cols)
-
-
-def _grid_width(h: int, rows: int, cols: int) -> int:
-    return max(1, round(h * cols / rows))
-
-
-def _crop(
-    mask: NDArray[np.uint8], top: int, bottom: int, cx: float, width: int
-) -> NDArray[np.float32]:
-    """Image rows ``[top, bottom)`` and ``width`` columns centred on ``cx``, as float32."""
-    shift = np.array([[1.0, 0.0, cx - (width - 1) / 2.0], [0.0, 1.0, float(top)]])
-    crop = cv2.warpAffine(
-        np.asarray(mask, dtype=np.float32),
-        shift,
-        (width, bottom - top),
-        flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-        borderMode=cv2.BORDER_CONSTANT,
-        borderValue=0.0,
-    )
-    return np.asarray(crop, dtype=np.float32)
-
-
-def _cells(crop: NDArray[np.float32], rows: int, cols: int) -> FloatArray:
-    # the area average of values in [0, 1], less float32's rounding (1.0000002 seen)
-    return np.clip(_cells_unclipped(crop, rows, cols).astype(np.float64), 0.0, 1.0)
-
-
-def _cells_unclipped(crop: NDArray[np.float32], rows: int, cols: int) -> NDArray[np.float32]:
-    cells = cv2.resize(crop, (cols, rows), interpolation=cv2.INTER_AREA)
-    return np.asarray(cells, dtype=np.float32).ravel()
 
 
 @dataclass(frozen=True)
@@ -300,11 +267,11 @@ class GridDescriptor(Descriptor):
         crops: dict[int, NDArray[np.float32]] = {}  # levels of one aspect share a crop
         cells = []
         for r, c in self.levels:
-            width = _grid_width(bottom - top, r, c)
+            width = grid_width(bottom - top, r, c)
             crop = crops.get(width)
             if crop is None:
-                crop = crops[width] = _crop(rows, 0, bottom - top, cx, width)
-            cells.append(_cells_unclipped(crop, r, c))
+                crop = crops[width] = crop_rows(rows, 0, bottom - top, cx, width)
+            cells.append(cells_unclipped(crop, r, c))
         return np.concatenate(cells)
 
     def mirror(self, x: NDArray[np.floating]) -> NDArray[np.floating]:
@@ -332,6 +299,9 @@ class PoseDescriptor(Descriptor):
     #: against the four readings: the same label agreement, a better pose score on the
     #: performer's own side)
     reads_mirrored: bool = False
+    #: a frame shows the performer's front or back (``sides``) where its shoulders and
+    #: hips lie in the same left-right order, each pair this far apart (torso lengths)
+    side_margin: float = 0.1
 
     def scale(self, points: FloatArray) -> FloatArray:
         """The torso length ``(...)`` in pixels of image points ``(..., 12, 2)``: the
@@ -389,9 +359,34 @@ class PoseDescriptor(Descriptor):
     ) -> list[NDArray[np.floating]]:
         """As seen; with ``mirror`` (``None``: ``reads_mirrored``, no) also with left and
         right swapped (what a detector gives of a performer seen from behind, were it to
-        confuse the two) and both mirrored (the other arm and leg)."""
+        confuse the two) and both mirrored (the other arm and leg). A window ``(n, size)``
+        whose frames show both sides is also read with every frame showing one side, then
+        the other (``sides``)."""
         mirror = self.reads_mirrored if mirror is None else mirror
-        return [x, self.swap(x), self.mirror(x), self.mirror(self.swap(x))] if mirror else [x]
+        seen = [x, self.swap(x), self.mirror(x), self.mirror(self.swap(x))] if mirror else [x]
+        return seen + self.sides(x)
+
+    def sides(self, x: NDArray[np.floating]) -> list[NDArray[np.floating]]:
+        """A window ``(n, size)`` whose frames show both sides of the body (some the
+        shoulders and hips in one left-right order, some in the other: ``side_margin``)
+        read twice more: those of the one side swapped, then those of the other (``[]``
+        where every frame shows one side or none). A pose model reading a performer from
+        behind takes their left for their right in about two frames of three and not the
+        rest: such a window mixes two readings, and each of these is one of them throughout
+        (``benchmarks/HISTORY.md``, "Views and people")."""
+        if x.ndim != 2:
+            return []
+        m = self.side_margin  # (x of the left minus the right shoulder, hip: POSE_JOINTS)
+        shoulders, hips = x[:, 0] - x[:, 2], x[:, 12] - x[:, 14]
+        ones = ((shoulders > m) & (hips > m), (shoulders < -m) & (hips < -m))
+        if not (ones[0].any() and ones[1].any()):
+            return []
+        out = []
+        for flip in ones:
+            read = np.array(x, copy=True)
+            read[flip] = self.swap(x[flip])
+            out.append(read)
+        return out
 
 
 @dataclass(frozen=True)

@@ -1,14 +1,25 @@
-"""Numba kernels that measure binary masks for the silhouette descriptors (``_descriptor``):
-the raw moments and rows a silhouette spans (``mask_extents``), and how far it reaches left
-and right in row bands (``outline_extents``)."""
+"""What the silhouette descriptors (``_descriptor``) measure of binary masks: numba kernels
+for the raw moments and rows a silhouette spans (``mask_extents``) and how far it reaches
+left and right in row bands (``outline_extents``), and the grid cells it fills
+(``grid_cells``, by OpenCV's area resampling)."""
 
 from __future__ import annotations
 
+import cv2
 import numba
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["as_binary", "binary_outline", "mask_extents", "outline_extents"]
+__all__ = [
+    "as_binary",
+    "binary_outline",
+    "cells_unclipped",
+    "crop_rows",
+    "grid_cells",
+    "grid_width",
+    "mask_extents",
+    "outline_extents",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -128,3 +139,48 @@ def binary_outline(m: NDArray[np.uint8], ext: NDArray[np.int64], bands: int) -> 
         _outline_kernel(m, seen.astype(np.int64), ext[seen, 3], ext[seen, 4], cx, bands, got)
         out[seen] = got
     return out
+
+
+def grid_cells(
+    mask: NDArray[np.uint8], top: int, bottom: int, cx: float, rows: int, cols: int
+) -> FloatArray:
+    """Fraction filled of each of ``rows x cols`` cells ``(rows * cols,)``, row by row
+    from the top: the grid spans image rows ``[top, bottom)`` and ``h * cols / rows``
+    columns (rounded) centred on ``cx`` (pixel-index coordinates, as the centroid of
+    ``cv2.moments``; sampled to a fraction of a pixel, so the mirrored image gives the
+    mirrored cells); cells beyond the image are empty."""
+    return _cells(
+        crop_rows(mask, top, bottom, cx, grid_width(bottom - top, rows, cols)), rows, cols
+    )
+
+
+def grid_width(h: int, rows: int, cols: int) -> int:
+    """The width in pixels of a grid of ``rows x cols`` square cells ``h`` pixels high."""
+    return max(1, round(h * cols / rows))
+
+
+def crop_rows(
+    mask: NDArray[np.uint8], top: int, bottom: int, cx: float, width: int
+) -> NDArray[np.float32]:
+    """Image rows ``[top, bottom)`` and ``width`` columns centred on ``cx``, as float32."""
+    shift = np.array([[1.0, 0.0, cx - (width - 1) / 2.0], [0.0, 1.0, float(top)]])
+    crop = cv2.warpAffine(
+        np.asarray(mask, dtype=np.float32),
+        shift,
+        (width, bottom - top),
+        flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=0.0,
+    )
+    return np.asarray(crop, dtype=np.float32)
+
+
+def _cells(crop: NDArray[np.float32], rows: int, cols: int) -> FloatArray:
+    # the area average of values in [0, 1], less float32's rounding (1.0000002 seen)
+    return np.clip(cells_unclipped(crop, rows, cols).astype(np.float64), 0.0, 1.0)
+
+
+def cells_unclipped(crop: NDArray[np.float32], rows: int, cols: int) -> NDArray[np.float32]:
+    """The mean of ``crop`` over each of ``rows x cols`` cells, row by row (float32)."""
+    cells = cv2.resize(crop, (cols, rows), interpolation=cv2.INTER_AREA)
+    return np.asarray(cells, dtype=np.float32).ravel()

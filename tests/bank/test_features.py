@@ -227,6 +227,21 @@ def test_pose_descriptor_normalises_position_scale_and_swaps_sides() -> None:
     # landmarks name the sides: read as seen only, unless told to try the other readings
     assert len(desc.variants(f)) == 1 and len(desc.variants(f, mirror=True)) == 4
     assert len(desc.variants(f, mirror=False)) == 1
+    # a window whose frames show both sides (the shoulders and hips in one left-right
+    # order, then the other) is also read with every frame showing one side, then the
+    # other; a frame side on (its shoulders and hips nearer than side_margin) stays
+    side_on = desc.from_points(pts * [0.05, 1])
+    window = np.stack([f, swapped, side_on, swapped])
+    reads = desc.variants(window)
+    assert len(reads) == 3 and reads[0] is window
+    one_sided = {
+        np.stack([swapped, swapped, side_on, swapped]).tobytes(),
+        np.stack([f, f, side_on, f]).tobytes(),
+    }
+    assert {reads[1].tobytes(), reads[2].tobytes()} == one_sided
+    assert len(desc.variants(np.stack([f, side_on, f]))) == 1  # one side throughout
+    assert len(desc.variants(np.stack([f, desc.swap(side_on)]))) == 1
+    assert len(desc.variants(window, mirror=True)) == 6
     # bent over towards the camera, the torso is short in the image: the legs say how
     # long it is (a thigh is THIGH_RATIO torsos long)
     bent = pts.copy()
