@@ -95,6 +95,10 @@ POSE_JOINTS = (
     "left_ankle",
     "right_ankle",
 )
+#: where a pose vector holds the x of the left and the right shoulder, then hip (``sides``)
+_SIDE_X = tuple(
+    2 * POSE_JOINTS.index(j) for j in ("left_shoulder", "right_shoulder", "left_hip", "right_hip")
+)
 
 #: thigh (hip to knee) and shin (knee to ankle) in torso lengths (mid-hip to mid-shoulder):
 #: 0.424, 0.461 and 0.52 m on the CMU exercise subject
@@ -376,8 +380,8 @@ class PoseDescriptor(Descriptor):
         (``benchmarks/HISTORY.md``, "Views and people")."""
         if x.ndim != 2:
             return []
-        m = self.side_margin  # (x of the left minus the right shoulder, hip: POSE_JOINTS)
-        shoulders, hips = x[:, 0] - x[:, 2], x[:, 12] - x[:, 14]
+        m, (ls, rs, lh, rh) = self.side_margin, _SIDE_X
+        shoulders, hips = x[:, ls] - x[:, rs], x[:, lh] - x[:, rh]
         ones = ((shoulders > m) & (hips > m), (shoulders < -m) & (hips < -m))
         if not (ones[0].any() and ones[1].any()):
             return []
