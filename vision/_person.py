@@ -137,6 +137,8 @@ class PersonSegmenter:
             raise ValueError(f"method must be one of {', '.join(PERSON_METHODS)}, not {method!r}")
         if not 0.0 < threshold < 1.0:
             raise ValueError("threshold must lie in (0, 1)")
+        if not masks and method != "pose":
+            raise ValueError(f"only the pose model can go without masks, not {method!r}")
         if max_side is not None and max_side < 64:
             raise ValueError(
                 f"max_side must be at least 64 pixels (None: never scaled), not {max_side}"
@@ -185,6 +187,7 @@ class PersonSegmenter:
     def probability(self, image: NDArray[np.uint8]) -> NDArray[np.float32] | None:
         """The model's person probability per pixel ``(H, W)``, or ``None`` (the pose
         model finds no person)."""
+        self._need_masks()
         prob = self._model_probability(image)
         if prob is None or prob.shape == image.shape[:2]:
             return prob
@@ -227,9 +230,14 @@ class PersonSegmenter:
         prob = result.segmentation_mask
         return None if prob is None else np.asarray(prob, dtype=np.float32)
 
-    def apply(self, image: NDArray[np.uint8]) -> NDArray[np.bool_] | None:
+    def _need_masks(self) -> None:
+        """Refuse to make a mask with a model made without them (its ``None`` would read
+        as nobody found)."""
         if not self.masks:
             raise ValueError("this person model was made without masks (masks=False)")
+
+    def apply(self, image: NDArray[np.uint8]) -> NDArray[np.bool_] | None:
+        self._need_masks()
         prob = self._model_probability(image)
         self.unposed = False
         if prob is None and self.method == "pose":

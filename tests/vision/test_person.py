@@ -138,8 +138,11 @@ def test_a_pose_model_without_masks_reads_the_same_landmarks(squats: list[np.nda
         seen = with_masks.landmarks_of(img)
         assert seen is not None
         assert np.array_equal(without.landmarks_of(img), seen)
-    with pytest.raises(ValueError, match="without masks"):
-        without.apply(squats[0])
+    for makes_a_mask in (without.apply, without.probability):
+        with pytest.raises(ValueError, match="without masks"):
+            makes_a_mask(squats[0])
+    with pytest.raises(ValueError, match="only the pose model"):
+        PersonSegmenter("selfie", masks=False)
     with_masks.close()
     without.close()
 
