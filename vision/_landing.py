@@ -1,7 +1,8 @@
 """Where the avatar goes next, one of ``Matcher``'s collaborators: a direct jump lands on
 the frame after one of the search's best windows, placed by the performer's last frames
 (``phased_targets``), unless the avatar is there already, weighed by the action vote
-(``gated``); or, for a performer standing still, the avatar holds its frame (``held``).
+(``gated``); or, for a performer standing still, the avatar holds its frame, or lands
+on one and holds it (``held``).
 What a jump must beat is the avatar's own cost (``own_cost`` of ``own_frames``).
 
 A live avatar is seen a moment after the frame it answers (the pose model, the page's
@@ -16,10 +17,10 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from control.avatar import JumpCosts
+from control.avatar import JUMP, JumpCosts
 from control.dtw import dtw_batch
 
-from ._decision import Decision
+from ._decision import Decision, Jump
 from ._facing import Ranked
 from ._index import best_of
 from ._search import Windows, WindowSearch
@@ -78,18 +79,28 @@ class Lander:
         return f
 
     def held(
-        self, frame: int, queries: list[FloatArray], rival: Decision | None, own: float
+        self,
+        frame: int,
+        queries: list[FloatArray],
+        rival: Decision | None,
+        own: float,
+        costs: JumpCosts | None = None,
+        holding: bool = False,
     ) -> Decision | None:
-        """The avatar holding ``frame`` still (shown again, as a performer standing
-        still does), when ``settings.landing.hold_still`` and that matches the performer's window
-        better than ``rival`` (the jump ``Matcher.jump`` chose, unless it leaves for the
-        voted action) or, without one, than playing on (``own``, the avatar's own cost);
-        else ``None``. The library has no
+        """The avatar holding a frame still (shown again, as a performer standing still
+        does), when ``settings.landing.hold_still`` and that matches the performer's
+        window better than ``rival`` (the jump ``Matcher.jump`` chose, unless it leaves
+        for the voted action) or, without one, than playing on (``own``, the avatar's own
+        cost); else ``None``. The frame held is the avatar's own or, where ``rival`` is a
+        jump, one of the ``landing.hold_back`` frames that play into its target (the
+        jump then lands there and holds: ``costs`` gives its blend). The library has no
         still second (its stillest windows still turn a joint 1.5-5 degrees a frame), so
-        without it the avatar jumped about 4 times a second among near-still windows
-        while the performer stood still. With the vote's margin, a frame of another
-        action than the voted one costs 1 + ``action.margin`` times as much held, as it
-        does played on."""
+        without holds the avatar jumped about 4 times a second among near-still windows
+        while the performer stood still; and a performer who stops where a cycle turns
+        (the bottom of a squat) matches windows that run through that frame and on, so a
+        jump lands past the pose the performer holds and plays out of it. With the
+        vote's margin, a frame of another action than the voted one costs 1 +
+        ``action.margin`` times as much held, as it does played on."""
         if not self.settings.landing.hold_still or (
             rival is not None and rival.jump is not None and rival.jump.leaves
         ):
@@ -97,6 +108,59 @@ class Lander:
         against = rival.cost if rival is not None else own
         if not np.isfinite(against):
             return None
+        frames = [frame]
+        if rival is not None and rival.jump is not None:
+            back = self.played_into(rival.jump.target, self.settings.landing.hold_back)
+            if self.vote.actions is not None:  # (the action the jump was let into alone)
+                keys = self.vote.actions
+                back = [f for f in back if keys[f] == keys[rival.jump.target]]
+            frames += back
+        got = [self._held_cost(f, queries) for f in frames]
+        # a frame held already, where it fits well, is left only for a clearly better
+        # one: a performer's stillness read with noise fits many near-alike frames about
+        # as well. Where it fits weakly (a pose model guessing from behind, or an action
+        # the library lacks) the keep would only hold the avatar in the wrong pose.
+        keep = 1.0
+        if holding and not self.fits_weakly(got[0][0], queries):
+            keep = self.settings.landing.hold_keep
+        weighed = [c * (keep if k == 0 else 1.0) for k, (c, _) in enumerate(got)]
+        i = int(np.argmin(weighed))
+        (cost, view), hold = got[i], frames[i]
+        if not weighed[i] < self.settings.landing.jump_ratio * against:
+            return None
+        path = np.full(self.n + 1, hold, dtype=np.int64)
+        edges = np.full(self.n, -1, dtype=np.int64)
+        jump = None
+        if hold != frame:  # (lands on the frame and holds it)
+            path[0] = frame
+            edges[0] = JUMP
+            blend = costs(frame, path[1:2])[0][0] if costs is not None else float("nan")
+            assert rival is not None and rival.jump is not None  # (``frames``' others)
+            jump = Jump(hold, rival.jump.own_cost, float(blend))
+        return Decision(
+            frames=path,
+            edges=edges,
+            cluster_path=np.zeros(0, dtype=np.int64),
+            cost=cost,
+            runner_up=against,
+            view=view,
+            candidates=len(frames),
+            latency_ms=0.0,
+            how="held",
+            jump=jump,
+        )
+
+    def played_into(self, frame: int, k: int) -> list[int]:
+        """``frame`` and up to ``k`` frames before it that play into it (in its clip)."""
+        out = [frame]
+        while len(out) <= k and out[-1] > 0 and self.plays[out[-1] - 1]:
+            out.append(out[-1] - 1)
+        return out
+
+    def _held_cost(self, frame: int, queries: list[FloatArray]) -> tuple[float, int]:
+        """The cost of ``frame`` held still against the performer's window (its best
+        view's, weighed by the vote's margin where it shows another action than the
+        voted one), and that view."""
         # the frame's features taken once, seen from every view (restricted to the best
         # window's view and its neighbours, the avatar holds less while the performer
         # stands still)
@@ -112,20 +176,7 @@ class Lander:
         voting = self.vote.actions is not None and self.vote.size > 0 and math.isfinite(margin)
         if voting and self.vote.leaves(frame, frame):  # (held: the frame shows no other)
             cost *= 1.0 + margin  # (weighed as the avatar's own motion is, however taken)
-        if not cost < self.settings.landing.jump_ratio * against:
-            return None
-        frames = np.full(self.n + 1, frame, dtype=np.int64)
-        return Decision(
-            frames=frames,
-            edges=np.full(self.n, -1, dtype=np.int64),
-            cluster_path=np.zeros(0, dtype=np.int64),
-            cost=cost,
-            runner_up=against,
-            view=int(np.argmin(costs.min(axis=0))) % self.windows.ring_views,
-            candidates=1,
-            latency_ms=0.0,
-            how="held",
-        )
+        return cost, int(np.argmin(costs.min(axis=0))) % self.windows.ring_views
 
     def own_cost(self, queries: list[FloatArray], recent: IntArray) -> float:
         """DTW cost of the avatar's last frames ``recent`` (best view) against the
@@ -245,18 +296,23 @@ class Lander:
             ok = ok & (voted | (keys == named))
         return got, target, ok, np.where(voted, 1.0, 1.0 + other), own
 
-    def weak(self, got: Windows, queries: list[FloatArray]) -> bool:
-        """Whether the best of the windows ``got`` fits the performer (``queries``, its
-        readings) weakly (``ActionSettings.weak_fit``): another action's window must
-        then fit far better to be taken (``weak_margin``)."""
+    def fits_weakly(self, cost: float, queries: list[FloatArray]) -> bool:
+        """Whether a window's DTW ``cost`` against the performer (``queries``, its
+        readings) fits weakly: per frame, over ``action.weak_fit`` times the reject
+        threshold."""
         st = self.settings
-        if not got or not queries:
+        if not queries:
             return False
         reject = self.windows.desc.reject if st.reject is None else st.reject
         if not math.isfinite(reject * st.action.weak_fit):
             return False
-        best = min(g[2] for g in got)
-        return per_frame_cost(best, queries[0].shape[0]) > st.action.weak_fit * reject
+        return per_frame_cost(cost, queries[0].shape[0]) > st.action.weak_fit * reject
+
+    def weak(self, got: Windows, queries: list[FloatArray]) -> bool:
+        """Whether the best of the windows ``got`` fits the performer (``queries``, its
+        readings) weakly (``ActionSettings.weak_fit``): another action's window must
+        then fit far better to be taken (``weak_margin``)."""
+        return bool(got) and self.fits_weakly(min(g[2] for g in got), queries)
 
     def voted_windows(
         self,

@@ -350,7 +350,9 @@ class Matcher:
             j = self.jump(frame, performer, recent, jump_costs, queries)
             if j is None and self.why:  # the best window was rejected: nothing real matches
                 return None
-            j = self.lander.held(frame, queries, j, self.last_own) or j  # standing still
+            holding = recent.size >= 2 and recent[-1] == recent[-2] == frame
+            held = self.lander.held(frame, queries, j, self.last_own, jump_costs, holding)
+            j = held or j  # standing still
             if j is None:
                 j = self.played_on(frame)
             if j is not None:

@@ -112,6 +112,20 @@ class LandingSettings:
     hold_still : bool
         The avatar may hold its frame still when that matches a performer standing still
         better than any jump or playing on.
+    hold_back : int
+        With ``hold_still``, where a jump is chosen: the avatar may instead land on one of
+        this many frames that play into the jump's target and hold it, where that
+        matches a performer standing still better (0: only its own frame is held).
+    hold_keep : float
+        With ``hold_still``, what a frame the avatar holds already costs, as a share of
+        its cost, when it is weighed against a jump or another frame to hold (1: as
+        much), where it fits the performer well (not over ``action.weak_fit``). A
+        performer's stillness, read with a pose model's or a segmentation's noise, fits
+        many near-alike frames about as well: at 1 the avatar went on hopping from one
+        held frame to another about twice a second while the performer stood still.
+        Where the held frame fits weakly (a pose model guessing from behind, an action
+        the library lacks) it would only keep the avatar in the wrong pose
+        (``benchmarks/HISTORY.md``, "Holds").
     lead : float
         Seconds ahead of the performer's last frame a jump lands (at most 0.5), where
         the performer will be when a live avatar is shown (the pose model, the page's
@@ -128,6 +142,8 @@ class LandingSettings:
     min_play: float = 0.1
     phase_frames: int = 6
     hold_still: bool = True
+    hold_back: int = 6
+    hold_keep: float = 0.8
     lead: float = 0.0
 
     def __post_init__(self) -> None:
@@ -139,6 +155,10 @@ class LandingSettings:
             )
         if not (self.top_windows >= 1 and self.blend_weight >= 0 and self.jump_ratio > 0):
             raise ValueError("top_windows must be >= 1, blend_weight >= 0 and jump_ratio > 0")
+        if not 0 < self.hold_keep <= 1:
+            raise ValueError(f"hold_keep must lie in (0, 1], got {self.hold_keep}")
+        if self.hold_back < 0:
+            raise ValueError(f"hold_back must be >= 0 (0: off), got {self.hold_back}")
         if self.phase_frames < 0:
             raise ValueError(f"phase_frames must be >= 0 (0: off), got {self.phase_frames}")
 

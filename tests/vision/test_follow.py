@@ -18,6 +18,8 @@ from mimic.cli import main
 from tests.vision.conftest import RECORDING
 from vision import (
     FLOOR_ABOVE,
+    Decision,
+    Jump,
     LandingSettings,
     Matcher,
     MatchSettings,
@@ -237,6 +239,19 @@ def test_bad_jump_settings_are_refused(bad) -> None:
         LandingSettings(**bad)
 
 
+@pytest.mark.parametrize(
+    ("bad", "said"),
+    [
+        ({"hold_keep": 0.0}, "hold_keep"),
+        ({"hold_keep": 1.5}, "hold_keep"),
+        ({"hold_back": -1}, "hold_back"),
+    ],
+)
+def test_bad_hold_settings_are_refused(bad, said) -> None:
+    with pytest.raises(ValueError, match=said):
+        LandingSettings(**bad)
+
+
 @pytest.mark.slow
 def test_the_playgrounds_climbs_are_left_out(mocap: Path, tmp_path: Path, capsys) -> None:
     """Before issue 17, ``mimic perform`` with no flags on the whole shared library played
@@ -325,3 +340,77 @@ def test_a_performer_standing_still_is_held_still(setup, monkeypatch) -> None:
         avatar.step()
     syn = avatar.motion().motion
     np.testing.assert_allclose(syn.root_pos[1:], np.broadcast_to(syn.root_pos[0], (5, 3)))
+
+
+def test_a_performer_still_in_another_pose_is_held_where_the_jump_lands(setup) -> None:
+    """A performer standing still mid-squat while the avatar twists: the windows that
+    match a still performer run through that pose and on, so a jump to the frame after
+    the best one plays out of it. The avatar lands on a frame that plays into that jump's
+    target and holds it, which matches the performer far better; with ``hold_back`` 0
+    it jumps and plays on."""
+    lib, layer, bank = setup
+    costs = JumpCosts(layer.graph, lib.clips, anywhere=True)
+    m = Matcher(layer, bank)
+    at, pose = 60, 200  # twisting, and a squat's pose in 13_30
+    assert lib.clips[0].label_at(at) == "Twist" and lib.clips[0].label_at(pose) == "Squat"
+    recent = np.arange(at - 30, at + 1, dtype=np.int64)
+    noise = 0.01 * np.random.default_rng(2).normal(size=(m.n, bank.features.shape[2]))
+    still = (
+        np.repeat(bank.features[m.windows.to_bank[[pose]], 3].astype(np.float64), m.n, axis=0)
+        + noise
+    )
+    d = m.decide(at, still, recent, costs)
+    assert d is not None and d.how == "held" and d.jump is not None
+    assert d.frames[0] == at and d.edges[0] == JUMP and np.all(d.edges[1:] == -1)
+    assert np.all(d.frames[1:] == d.jump.target) and lib.clips[0].label_at(d.jump.target) == "Squat"
+    plain = MatchSettings(landing=LandingSettings(hold_back=0))
+    d0 = Matcher(layer, bank, plain).decide(at, still, recent, costs)
+    assert d0 is not None and d0.how != "held" and d0.jump is not None
+    assert d0.frames[2] == d0.frames[1] + 1  # (it plays on)
+    assert d.cost < 0.8 * d0.cost
+    # held there, the next decision holds it again
+    avatar = Avatar(layer.graph, lib.clips, start=at, anywhere=True)
+    avatar.take(d.frames, d.edges)
+    for _ in range(m.n):
+        avatar.step()
+    shown = avatar.recent(31)
+    assert shown[-1] == d.jump.target
+    again = m.decide(int(shown[-1]), still, shown, costs)
+    assert again is not None and again.how == "held" and np.all(again.frames == d.jump.target)
+
+
+def test_a_held_frame_that_fits_well_is_kept_unless_another_fits_clearly_better(
+    setup, monkeypatch
+) -> None:
+    """Holding frame 150 already, against another frame to hold (one that plays into a
+    jump's target) that fits 10% better: the avatar keeps its frame, which costs
+    ``hold_keep`` (0.8) of itself; not holding it yet, or where it fits weakly (a pose
+    model's guess), the better frame is taken, by a jump that lands there and holds."""
+    lib, layer, bank = setup
+    costs = JumpCosts(layer.graph, lib.clips, anywhere=True)
+    m = Matcher(layer, bank)
+    frame, target = 150, 200
+    other = target - 2
+    fits = {frame: 1.0, other: 0.9}
+    monkeypatch.setattr(m.lander, "_held_cost", lambda f, q: (fits.get(f, 5.0), 0))
+    jump = Jump(target, own_cost=3.0, blend=0.0)
+    rival = Decision(
+        np.array([frame, target]),
+        np.array([JUMP]),
+        np.zeros(0, np.int64),
+        2.0,
+        3.0,
+        0,
+        8,
+        0.0,
+        jump=jump,
+    )
+    queries = [np.zeros((m.n, bank.features.shape[2]))]
+    kept = m.lander.held(frame, queries, rival, 3.0, costs, holding=True)
+    assert kept is not None and kept.jump is None and np.all(kept.frames == frame)
+    moved = m.lander.held(frame, queries, rival, 3.0, costs, holding=False)
+    assert moved is not None and moved.jump is not None and moved.jump.target == other
+    assert moved.frames[0] == frame and np.all(moved.frames[1:] == other)
+    monkeypatch.setattr(m.lander, "fits_weakly", lambda cost, q: True)
+    weak = m.lander.held(frame, queries, rival, 3.0, costs, holding=True)
+    assert weak is not None and weak.jump is not None and weak.jump.target == other
