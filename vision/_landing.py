@@ -71,12 +71,7 @@ class Lander:
     def behind(self, frame: int) -> int:
         """The frame the lead's frames play into ``frame`` from (as far back as its clip
         goes): where the performer's last frame was, the avatar being ahead."""
-        f = frame
-        for _ in range(self.lead):
-            if f <= 0 or not self.plays[f - 1]:
-                break
-            f -= 1
-        return f
+        return self.played_into(frame, self.lead)[-1]
 
     def held(
         self,
@@ -134,8 +129,8 @@ class Lander:
         if hold != frame:  # (lands on the frame and holds it)
             path[0] = frame
             edges[0] = JUMP
-            blend = costs(frame, path[1:2])[0][0] if costs is not None else float("nan")
             assert rival is not None and rival.jump is not None  # (``frames``' others)
+            blend = costs(frame, path[1:2])[0][0] if costs is not None else float("nan")
             jump = Jump(hold, rival.jump.own_cost, float(blend))
         return Decision(
             frames=path,
@@ -151,7 +146,8 @@ class Lander:
         )
 
     def played_into(self, frame: int, k: int) -> list[int]:
-        """``frame`` and up to ``k`` frames before it that play into it (in its clip)."""
+        """``frame`` and up to ``k`` frames before it that play into it (in its clip),
+        nearest first."""
         out = [frame]
         while len(out) <= k and out[-1] > 0 and self.plays[out[-1] - 1]:
             out.append(out[-1] - 1)
@@ -213,12 +209,8 @@ class Lander:
         need = self.recent_frames - recent.size
         if need <= 0 or recent.size == 0:
             return recent
-        f = int(recent[0])
-        lead: list[int] = []
-        while len(lead) < need and f > 0 and self.plays[f - 1]:
-            f -= 1
-            lead.append(f)
-        return np.concatenate((np.array(lead[::-1], dtype=np.int64), recent))
+        lead = self.played_into(int(recent[0]), need)[:0:-1]  # (oldest first)
+        return np.concatenate((np.array(lead, dtype=np.int64), recent))
 
     def margin(self) -> float:
         """The vote's margin (``ActionSettings.margin``): what another action's window,
