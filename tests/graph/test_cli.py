@@ -18,6 +18,7 @@ from tests.conftest import REPO
 from vision import RecordSettings
 
 
+@pytest.mark.slow  # (a whole command)
 def test_build_prints_table_and_writes_graph(
     mocap: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -257,6 +257,7 @@ def test_real_labels_clamp_the_last_block(mocap: Path) -> None:
     assert np.all(labels >= 0)
 
 
+@pytest.mark.slow  # (a whole command)
 def test_cli_library_info(small_lib: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["library", "info", str(small_lib), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)

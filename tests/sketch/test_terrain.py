@@ -159,6 +159,7 @@ def test_tracker_needs_a_matching_terrain_graph(blocks) -> None:
     assert foot_track(lib.clips).states.shape == (g.n_frames, 2)
 
 
+@pytest.mark.slow  # (a whole command)
 def test_cli_sketch_on_terrain(mocap: Path, tmp_path: Path, capsys) -> None:
     out = tmp_path / "t.bvh"
     argv = ["sketch", str(mocap), "--path", str(TERRAIN_PATH), "--env", str(TERRAIN)]

@@ -82,6 +82,7 @@ def test_bezier_fallback_when_no_path(chainer: Chainer) -> None:
     assert dataclasses.is_dataclass(r)
 
 
+@pytest.mark.slow  # (a whole command)
 def test_cli_chain_writes_a_bvh_others_read(mocap: Path, tmp_path: Path, capsys) -> None:
     out = tmp_path / "chain.bvh"
     argv = [

@@ -134,6 +134,7 @@ def test_a_chain_strikes_three_targets_between_other_actions(chainer: Chainer) -
     assert -2 in srcs and srcs[-1] == srcs[-2]  # the blend played, then the last pose held
 
 
+@pytest.mark.slow  # (a whole command)
 def test_mimic_chain_takes_a_target_and_says_how_close_it_got(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -55,7 +55,7 @@ def test_a_stopped_perform_writes_what_was_performed(mocap: Path, tmp_path: Path
         out, log = folder / "a.bvh", folder / "d.jsonl"
         log.write_text("an old log\n")
         argv = ["perform", "--video", str(RECORDING), str(mocap), "--clips", "13_30"]
-        argv += ["--k", "12", "--realtime", "--live-port", "0"]
+        argv += ["--k", "12", "--realtime", "--live-port", "0", "--no-fuse"]  # (a stop's test)
         runs.append((sig, rc, out, log, _start([*argv, "--out", str(out), "--log", str(log)])))
     for sig, _, _, log, proc in runs:
         _wait_for(log, proc, 10)  # a second of decisions
