@@ -243,6 +243,7 @@ def test_mimic_evaluate_writes_agreement_confusion_and_a_plot(
 
     out, png = tmp_path / "r" / "report.json", tmp_path / "r" / "plot.png"
     argv = ["evaluate", str(RECORDING), str(mocap), "--clips", "13_30", "--k", "12"]
+    argv += ["--no-fuse"]  # (what the report holds; the pose model reading each frame is slow)
     assert main([*argv, "--seconds", "6", "--json", str(out), "--png", str(png)]) == 0
     report = json.loads(out.read_text())
     assert report["library"] == ["13_30"] and report["truth"].endswith(".mkv.json")
