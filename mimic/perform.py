@@ -69,7 +69,12 @@ def add_perform_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     src.add_argument("--video", help="a video file (colour, or a silhouette video)")
     src.add_argument("--masks", help="a folder of mask images")
     add_run_args(p)
-    p.add_argument("--realtime", action="store_true", help="pace a file like a camera")
+    p.add_argument(
+        "--realtime",
+        action="store_true",
+        help="pace a file like a camera (frames whose time passed while the loop was busy "
+        "are dropped, as a camera's are)",
+    )
     p.add_argument("--out", help="BVH of the avatar's motion")
     p.add_argument("--video-out", help="MP4: performer silhouette beside the avatar")
     p.add_argument("--log", help="JSON-lines decision log")
@@ -392,7 +397,13 @@ def _summary(
     changes = sum(a != b for a, b in itertools.pairwise(clips_seen))
     minutes = max(result.media_seconds, 1e-9) / 60.0
     print(  # the one summary line
-        f"{result.media_seconds:.1f} s of media ({result.frames_read} frames): "
+        f"{result.media_seconds:.1f} s of media ({result.frames_read} frames"
+        + (
+            f", {result.frames_dropped} dropped to keep up in real time"
+            if result.frames_dropped
+            else ""
+        )
+        + "): "
         f"{len(made)} decisions of {len(result.decisions)}"
         + (
             f" (p50 {np.percentile(lat, 50):.2f} ms, p99 {np.percentile(lat, 99):.2f} ms)"

@@ -68,6 +68,8 @@ class PerformResult:
     frames_with_media: int = 0
     #: media time (s) of the avatar's first frame: its motion (BVH, MP4) starts there
     avatar_start_s: float = 0.0
+    #: frames a file paced in real time dropped to keep up (``vision._sources``)
+    frames_dropped: int = 0
 
 
 def perform(
@@ -454,6 +456,15 @@ class Performance:
             finally:
                 if self.searcher is not None:  # a search still running is left to finish alone
                     self.searcher.shutdown(wait=False, cancel_futures=True)
+        dropped = int(getattr(self.source, "dropped", 0))
         return PerformResult(
-            self.avatar, self.decisions, self.views, t, n_read, stopped, n_media, self.t_start
+            self.avatar,
+            self.decisions,
+            self.views,
+            t,
+            n_read,
+            stopped,
+            n_media,
+            self.t_start,
+            dropped,
         )

@@ -3,7 +3,10 @@
 Every source yields ``Frame`` objects with a media time in seconds. A file source ends
 (``read()`` returns ``None``); a camera never ends: when it fails it yields frames
 without an image while it reconnects with back-off, so the performance loop keeps going.
-``realtime=True`` paces a file as if it were a camera.
+``realtime=True`` paces a file as if it were a camera: a frame is given no earlier than
+its media time, and, as a camera's frames are, the frames whose time passed while the
+loop was busy with an earlier one are dropped (``dropped``), so a loop slower than the
+file's frame rate follows it late by a frame, not by more and more.
 """
 
 from __future__ import annotations
@@ -67,19 +70,28 @@ class Source(Protocol):
 
 
 class _Pacer:
+    """A file's media clock against the wall clock (``realtime``), from the first frame."""
+
     def __init__(self, realtime: bool) -> None:
         self.realtime = realtime
         self.start: float | None = None
+        self.clock: Callable[[], float] = time.monotonic
+        self.sleep: Callable[[float], None] = time.sleep
 
     def wait(self, t: float) -> None:
+        """Until media time ``t`` (at once when not ``realtime``)."""
         if not self.realtime:
             return
-        now = time.monotonic()
+        now = self.clock()
         if self.start is None:
             self.start = now - t
         delay = self.start + t - now
         if delay > 0:
-            time.sleep(delay)
+            self.sleep(delay)
+
+    def passed(self, t: float) -> bool:
+        """Whether media time ``t`` has already passed (``realtime``, once started)."""
+        return self.realtime and self.start is not None and self.clock() >= self.start + t
 
 
 class VideoSource:
@@ -105,6 +117,8 @@ class VideoSource:
         self._ended = False  # read to its end (not stopped early by --seconds or a stop)
         self._pacer = _Pacer(realtime)
         self.realtime = realtime  # paced like a camera
+        #: frames dropped to keep up (``realtime``): the next frame's time had come
+        self.dropped = 0
 
     @property
     def frames_read(self) -> int:
@@ -121,6 +135,12 @@ class VideoSource:
         return ""
 
     def read(self) -> Frame | None:
+        while self._pacer.passed((self._i + 1) / self.fps):  # late: the next is due too
+            if not self._cap.grab():
+                self._ended = True
+                return None
+            self._i += 1
+            self.dropped += 1
         ok, img = self._cap.read()
         if not ok or img is None:
             self._ended = True
@@ -159,8 +179,13 @@ class MaskFolderSource:
         self.realtime = realtime  # paced like a camera
         #: the files that could not be read (each one a frame without a silhouette)
         self.skipped: list[str] = []
+        #: files passed over to keep up (``realtime``): the next one's time had come
+        self.dropped = 0
 
     def read(self) -> Frame | None:
+        while self._i + 1 < len(self.files) and self._pacer.passed((self._i + 1) / self.fps):
+            self._i += 1
+            self.dropped += 1
         if self._i >= len(self.files):
             return None
         path = self.files[self._i]

@@ -72,6 +72,64 @@ def test_mask_folder_in_name_order(tmp_path: Path) -> None:
     assert [int(np.argmax(f.mask.any(axis=1))) for f in frames[:3]] == [0, 1, 2]
 
 
+class _Clock:
+    """A wall clock for a paced source: ``sleep`` moves it, and so does ``work``."""
+
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+    def sleep(self, seconds: float) -> None:
+        self.now += seconds
+
+
+@pytest.mark.parametrize("kind", ["video", "masks"])
+def test_a_file_paced_in_real_time_drops_what_a_slow_loop_cannot_take(
+    kind: str, tmp_path: Path
+) -> None:
+    """``realtime``: a frame comes no earlier than its time, and a loop that keeps up gets
+    every frame; one slower than the frame rate gets the newest frame whose time has
+    come, the rest dropped as a camera drops them, so it stays within a frame of the
+    media clock instead of falling further behind at every frame."""
+    if kind == "masks":
+        for i in range(40):
+            cv2.imwrite(str(tmp_path / f"m{i:03d}.png"), np.full((4, 4), 255, np.uint8))
+
+    def source(realtime: bool = True) -> VideoSource | MaskFolderSource:
+        if kind == "video":
+            src: VideoSource | MaskFolderSource = VideoSource(
+                RECORDING, silhouette=True, realtime=realtime
+            )
+        else:
+            src = MaskFolderSource(tmp_path, fps=30.0, realtime=realtime)
+        clock = _Clock()
+        src._pacer.clock, src._pacer.sleep = clock, clock.sleep
+        return src
+
+    keeping_up = source()
+    got = [keeping_up.read() for _ in range(10)]
+    assert [f.index for f in got if f is not None] == list(range(10))
+    assert keeping_up.dropped == 0
+    assert keeping_up._pacer.clock() == pytest.approx(100.0 + 9 / 30)  # waited for each
+    slow = source()  # a loop that takes 0.105 s a frame: over three frames' time
+    clock = slow._pacer.clock
+    assert isinstance(clock, _Clock)
+    frames = []
+    for _ in range(10):
+        f = slow.read()
+        assert f is not None
+        frames.append(f)
+        assert 0.0 <= clock() - 100.0 - f.t < 1 / 30  # the newest frame whose time came
+        clock.now += 0.105
+    assert [f.index for f in frames] == [0, 3, 6, 9, 12, 15, 18, 22, 25, 28]
+    assert slow.dropped == 19
+    unpaced = source(realtime=False)  # not paced: every frame, at once
+    assert [f.index for f in (unpaced.read() for _ in range(5)) if f] == list(range(5))
+    assert unpaced.dropped == 0 and unpaced._pacer.clock() == 100.0
+
+
 class _FlakyCapture:
     def __init__(self, frames: int) -> None:
         self.left = frames
