@@ -12,6 +12,7 @@ file's frame rate follows it late by a frame, not by more and more.
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -210,13 +211,76 @@ class MaskFolderSource:
 FIRST_WAIT = 20.0
 
 
+class _Newest:
+    """An opened camera read in a thread of its own, its newest frame kept.
+
+    OpenCV hands a camera's frames over in the order they came, from a queue of a few
+    buffers (V4L2's: four), so a loop slower than the camera is given frames up to that
+    many frames old. Read as fast as the camera gives them, with only the newest kept, a
+    loop is given the frame of now, and those it had no time for are dropped, counted
+    (opencv/opencv#13145). ``read`` waits for a frame not given before, and once the
+    camera fails gives the failure (the thread has ended)."""
+
+    def __init__(self, cap: Any, clock: Callable[[], float]) -> None:
+        self.cap = cap
+        self._clock = clock
+        self._ready = threading.Condition()
+        #: the newest frame (ok, image, when); whether it is not given yet (``_fresh``),
+        #: the frames dropped since the last given, and whether the camera has failed
+        self._newest: tuple[bool, Any, float] = (False, None, 0.0)
+        self._dropped = 0
+        self._fresh = self._failed = self._stop = False
+        self._thread = threading.Thread(target=self._run, name="mimic-camera", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        ok = True
+        while ok:
+            try:
+                got, img = self.cap.read()
+            except Exception as exc:  # (a reader that raised is a camera lost: reopened)
+                log.warning("reading the camera failed: %s", exc)
+                got, img = False, None
+            ok = bool(got) and img is not None
+            with self._ready:
+                if self._stop:
+                    return
+                if not ok:  # (after the last frame, if that was not given yet)
+                    self._failed = True
+                else:
+                    self._dropped += self._fresh  # the one before was never given
+                    self._newest, self._fresh = (True, img, self._clock()), True
+                self._ready.notify_all()
+
+    def read(self) -> tuple[bool, Any, float, int]:
+        """The newest frame not given before ``(ok, image, when, dropped)``, waited for;
+        ``dropped``: the frames read since the last one given and never given. Once the
+        camera has failed and its last frame was given: ``ok`` False."""
+        with self._ready:
+            self._ready.wait_for(lambda: self._fresh or self._failed)
+            dropped, self._dropped = self._dropped, 0
+            if not self._fresh:
+                return False, None, self._clock(), dropped
+            self._fresh = False
+            return (*self._newest, dropped)
+
+    def close(self) -> None:
+        """Stop reading and release the camera (once the thread is out of its read)."""
+        with self._ready:
+            self._stop = True
+        self._thread.join(timeout=2.0)
+        if not self._thread.is_alive():
+            self.cap.release()
+
+
 class CameraSource:
     """A webcam. Once it has given a frame, failures never end the stream: it yields
     empty frames and reopens the device with back-off (``min_backoff`` seconds, doubling
     up to ``max_backoff``): a camera unplugged for a moment is waited for. One that has
     given no frame ``first_wait`` seconds after the start raises ``SourceError`` (no such
-    camera, or one in use: retrying that forever helped nobody). ``opener`` replaces
-    ``cv2.VideoCapture(index)`` (tests)."""
+    camera, or one in use: retrying that forever helped nobody). Each frame is the newest
+    the camera has given (``_Newest``), its time when it came; ``dropped`` counts those
+    the loop had no time for. ``opener`` replaces ``cv2.VideoCapture(index)`` (tests)."""
 
     live = True  # frames come as they happen (segmentation and search choose by it)
 
@@ -234,7 +298,7 @@ class CameraSource:
         self.fps = fps
         self.max_backoff = max_backoff
         self._open = opener or (lambda: cv2.VideoCapture(index))
-        self._cap: Any = None
+        self._cap: _Newest | None = None
         self._t0 = time.monotonic()
         self._i = 0
         self.min_backoff = min_backoff
@@ -243,6 +307,7 @@ class CameraSource:
         self.reconnects = 0
         self.first_wait = first_wait
         self._seen = False  # a frame came: from then on, waited for whatever happens
+        self.dropped = 0
 
     def _connect(self) -> bool:
         now = time.monotonic()
@@ -250,7 +315,7 @@ class CameraSource:
             return False
         cap = self._open()
         if cap is not None and cap.isOpened():
-            self._cap = cap
+            self._cap = _Newest(cap, time.monotonic)
             self._backoff = self.min_backoff
             return True
         log.warning("%s not available; retrying in %.1f s", self.name, self._backoff)
@@ -270,19 +335,22 @@ class CameraSource:
         if self._cap is None and not self._connect():
             time.sleep(1.0 / self.fps)
             return Frame(t, i)
-        ok, img = self._cap.read()
-        if not ok or img is None:
+        assert self._cap is not None
+        ok, img, when, dropped = self._cap.read()
+        self.dropped += dropped
+        if not ok:
             log.warning("%s lost; reconnecting", self.name)
-            self._cap.release()
+            self._cap.close()
             self._cap = None
             self.reconnects += 1
             return Frame(t, i)
         self._seen = True
-        return Frame(t, i, image=img)
+        return Frame(when - self._t0, i, image=img)
 
     def close(self) -> None:
         if self._cap is not None:
-            self._cap.release()
+            self._cap.close()
+            self._cap = None
 
 
 def open_source(

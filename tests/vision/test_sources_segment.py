@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -159,6 +161,54 @@ def test_camera_reconnects_with_backoff_and_never_ends() -> None:
     assert all(f is not None for f in got)
     with_images = sum(f.image is not None for f in got if f is not None)
     assert with_images >= 6 and cam.reconnects >= 2 and opened["n"] >= 4
+
+
+class _Ticking:
+    """A camera that gives a frame every ``period`` seconds, its number in its pixels."""
+
+    def __init__(self, period: float) -> None:
+        self.period = period
+        self.k = 0
+        self.released = False
+
+    def isOpened(self) -> bool:
+        return True
+
+    def read(self) -> tuple[bool, np.ndarray]:
+        time.sleep(self.period)
+        self.k += 1
+        return True, np.full((2, 2, 3), self.k % 256, np.uint8)
+
+    def release(self) -> None:
+        self.released = True
+
+
+def test_a_camera_gives_a_slow_loop_its_newest_frame() -> None:
+    """OpenCV queues a camera's frames, so a loop slower than the camera read them in
+    turn, later and later; it is now given the newest, those it had no time for
+    dropped and counted, and a loop that keeps up is given every frame."""
+    made: list[_Ticking] = []
+
+    def ticking(period: float) -> Callable[[], _Ticking]:
+        return lambda: made.append(_Ticking(period)) or made[-1]
+
+    cam = CameraSource(0, fps=100.0, opener=ticking(0.01))
+    numbers, times = [], []
+    for _ in range(6):
+        f = cam.read()
+        assert f is not None and f.image is not None
+        numbers.append(int(f.image[0, 0, 0]))
+        times.append(f.t)
+        time.sleep(0.1)  # a loop ten frames slower than the camera
+    cam.close()
+    assert (np.diff(numbers) >= 5).all(), numbers  # about 10 on each time, not 1
+    assert np.all(np.diff(times) > 0.05) and cam.dropped >= 5 * 5
+    assert made[-1].released
+    cam = CameraSource(0, fps=33.0, opener=ticking(0.03))
+    got = [cam.read() for _ in range(8)]
+    cam.close()
+    numbers = [int(f.image[0, 0, 0]) for f in got if f is not None and f.image is not None]
+    assert numbers == list(range(1, 9)) and cam.dropped == 0
 
 
 def test_a_camera_that_never_gives_a_frame_is_given_up_saying_so() -> None:
