@@ -81,6 +81,7 @@ class Lander:
         own: float,
         costs: JumpCosts | None = None,
         holding: bool = False,
+        land: bool = True,
     ) -> Decision | None:
         """The avatar holding a frame still (shown again, as a performer standing still
         does), when ``settings.landing.hold_still`` and that matches the performer's
@@ -95,7 +96,8 @@ class Lander:
         (the bottom of a squat) matches windows that run through that frame and on, so a
         jump lands past the pose the performer holds and plays out of it. With the
         vote's margin, a frame of another action than the voted one costs 1 +
-        ``action.margin`` times as much held, as it does played on."""
+        ``action.margin`` times as much held, as it does played on. ``land`` False: the
+        jump's frames are not held (``sparse_window``)."""
         if not self.settings.landing.hold_still or (
             rival is not None and rival.jump is not None and rival.jump.leaves
         ):
@@ -104,7 +106,7 @@ class Lander:
         if not np.isfinite(against):
             return None
         frames = [frame]
-        if rival is not None and rival.jump is not None:
+        if land and rival is not None and rival.jump is not None:
             back = self.played_into(rival.jump.target, self.settings.landing.hold_back)
             if self.vote.actions is not None:  # (the action the jump was let into alone)
                 keys = self.vote.actions
@@ -358,3 +360,18 @@ class Lander:
         ok[ok] &= costs.landing[target[ok]] & self.plays[target[ok] - 1]
         there = (np.abs(target - frame) <= 2) & self.windows.same_run(frame, target)
         return target, ok & ~there, there
+
+
+def sparse_window(performer: FloatArray) -> bool:
+    """Whether the performer's window ``(n, F)`` repeats a frame in at least half of its
+    steps: its source gives frames slower than the library's rate (a 5 frames/s clip, a
+    loaded page that drops frames), and each frame stands for the steps until the next.
+    Such a window reads a performer in motion as one who stops at every frame, and
+    landing a jump on a frame and holding it there lost the live page whole squats (the
+    avatar held between squats while the performer squatted: ``benchmarks/HISTORY.md``,
+    "Holds"), so the jumps are not held there."""
+    x = np.asarray(performer)
+    if len(x) < 2:
+        return False
+    same = np.all(x[1:] == x[:-1], axis=1)
+    return bool(np.mean(same) >= 0.5)

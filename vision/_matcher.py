@@ -36,7 +36,7 @@ from ._classify import ActionClassifier
 from ._decision import Decision, Jump
 from ._facing import Facing
 from ._index import best_of
-from ._landing import Lander
+from ._landing import Lander, sparse_window
 from ._paths import CandidatePaths
 from ._search import Windows, WindowSearch
 from ._settings import MatchSettings
@@ -351,7 +351,8 @@ class Matcher:
             if j is None and self.why:  # the best window was rejected: nothing real matches
                 return None
             holding = recent.size >= 2 and recent[-1] == recent[-2] == frame
-            held = self.lander.held(frame, queries, j, self.last_own, jump_costs, holding)
+            land = not sparse_window(performer)
+            held = self.lander.held(frame, queries, j, self.last_own, jump_costs, holding, land)
             j = held or j  # standing still
             if j is None:
                 j = self.played_on(frame)

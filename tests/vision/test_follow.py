@@ -31,6 +31,7 @@ from vision import (
     perform,
     record_clip,
 )
+from vision._landing import sparse_window
 
 
 def test_clips_that_leave_the_floor_are_found(mocap: Path) -> None:
@@ -379,6 +380,13 @@ def test_a_performer_still_in_another_pose_is_held_where_the_jump_lands(setup) -
     assert shown[-1] == d.jump.target
     again = m.decide(int(shown[-1]), still, shown, costs)
     assert again is not None and again.how == "held" and np.all(again.frames == d.jump.target)
+    # the same window from a source slower than the library (each frame repeated for the
+    # steps until the next, as a 5 frames/s clip or a page dropping frames gives it)
+    # reads motion as stillness: the jump is not landed and held there
+    steps = still[::3].repeat(3, axis=0)[: m.n]
+    assert sparse_window(steps) and not sparse_window(still)
+    sparse = m.decide(at, steps, recent, costs)
+    assert sparse is not None and sparse.how != "held" and sparse.jump is not None
 
 
 def test_a_held_frame_that_fits_well_is_kept_unless_another_fits_clearly_better(
