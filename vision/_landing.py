@@ -234,10 +234,26 @@ class Lander:
         """With the filter and ``action.ballot_jumps``: the action this decision's ballot
         names where the filter does not vote for it (yet); ``None`` otherwise, and with
         the margin infinite (no window of another action is ever taken)."""
-        v, st = self.vote, self.settings.action
-        if not (st.ballot_jumps and v.switch > 0 and math.isfinite(self.margin())):
+        v = self.vote
+        if not self.ballots_jump():
             return None
         return v.named if 0 <= v.named != v.voted else None
+
+    def ballots_jump(self) -> bool:
+        """Whether a decision's ballot may open the margin for its own action
+        (``ActionSettings.ballot_jumps``: with the filter and a finite margin)."""
+        st = self.settings.action
+        return st.ballot_jumps and self.vote.switch > 0 and math.isfinite(self.margin())
+
+    def kept(self, frame: int, ahead: int) -> bool:
+        """Whether the avatar at ``frame``, which plays on to ``ahead``, shows another
+        action than the voted one that a ballot named lately and still shows it there: its
+        own motion then costs no margin (``ActionSettings.ballot_keep``)."""
+        v = self.vote
+        if v.actions is None or not self.ballots_jump():
+            return False
+        shows = int(v.actions[frame])
+        return shows != v.voted and int(v.actions[ahead]) == shows and v.named_lately(shows)
 
     def gated(
         self,
@@ -254,7 +270,8 @@ class Lander:
         target, ok, weight, own_weight)``: each window's cost is times ``weight`` (1 + the
         settings' ``action.margin`` for another action, ``weak_margin`` where the best
         fits weakly: ``weak``), the avatar's own times
-        ``own_weight`` (the same, where it shows another action). Where the decision is
+        ``own_weight`` (the same, where it shows another action, unless a ballot named
+        that one lately: ``kept``). Where the decision is
         ``strict``, windows of another action are not ``ok``; where the ballot names
         another action (``named``), only its windows and the voted action's are; with the
         margin infinite, ``own_weight`` is infinite where the avatar must leave its
@@ -274,7 +291,7 @@ class Lander:
                 ok, voted = np.concatenate((ok, more[2])), np.concatenate((voted, more[3]))
         ahead = int(self.windows.playback(frame)[: self.n // 2 + 1][-1])
         away = self.vote.leaves(frame, ahead)
-        own = 1.0 + margin if away else 1.0
+        own = 1.0 + margin if away and not self.kept(frame, ahead) else 1.0
         if strict:
             # playing on out of the voted action is not weighed: the avatar leaves first
             if away and not self.vote.leaves(frame, frame):

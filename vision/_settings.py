@@ -240,6 +240,14 @@ class ActionSettings:
         its cost; the performer's pose often shows the new action a decision or two
         before that (a squat begins), and a window of it then fits far better than any
         of the voted action.
+    ballot_keep : int
+        With ``ballot_jumps``: an avatar showing another action than the voted one that
+        a ballot of the last ``ballot_keep`` decision points named (a skipped point
+        counts) plays on in it at its own cost, without the margin, while it will still
+        show it half a window on (0: off). Otherwise the next decision whose ballot named
+        the voted action again pushed the avatar straight back out of the action it had
+        just jumped into, and the ballot, naming it again a decision later, took it back
+        in: the action shown for a tenth of a second, twice.
     fuse : bool
         With landmarks and the silhouette beside them (``vision._fallback``): where the
         pose model's limbs are of low confidence, each decision's ballot weighs both
@@ -270,6 +278,7 @@ class ActionSettings:
     weak_fit: float = 0.35
     weak_margin: float = 1.0
     ballot_jumps: bool = True
+    ballot_keep: int = 5
     fuse: bool = True
     tempos: tuple[float, ...] = ()
 
@@ -297,6 +306,8 @@ class ActionSettings:
     def __post_init__(self) -> None:
         if self.vote < 0:
             raise ValueError(f"vote must be a number of decisions >= 0 (0: off), got {self.vote}")
+        if self.ballot_keep < 0:
+            raise ValueError(f"ballot_keep must be >= 0 (0: off), got {self.ballot_keep}")
         if not self.margin >= 0:
             raise ValueError(f"margin must be >= 0 (inf: strict), got {self.margin}")
         if not (self.switch_chance is None or 0.0 <= self.switch_chance < 1.0):

@@ -26,8 +26,9 @@ With ``ActionSettings.switch_chance`` the voted action is not counted but filter
 action scores its evidence. It is the default where the ballots hear landmarks (the
 pose descriptor, or a silhouette's with the landmarks read from it), whose ballots it
 follows steadier and as soon once a decision may jump into its own ballot's action
-(``ActionSettings.ballot_jumps``); a silhouette alone keeps the counted vote, its
-ballots less sure, which the filter follows late (``ActionSettings.switch_for``).
+(``ActionSettings.ballot_jumps``), and plays on in an action a ballot named lately
+without the margin (``ActionSettings.ballot_keep``); a silhouette alone keeps the counted
+vote, its ballots less sure, which the filter follows late (``ActionSettings.switch_for``).
 """
 
 from __future__ import annotations
@@ -67,7 +68,8 @@ FloatArray = NDArray[np.float64]
 
 class ActionVote:
     """The vote over the last ``size`` decisions (0: none); a window counts for its action
-    only when it still shows it ``span`` frames on."""
+    only when it still shows it ``span`` frames on. ``keep``: how many decision points'
+    ballots ``named_lately`` remembers (``ActionSettings.ballot_keep``)."""
 
     def __init__(
         self,
@@ -77,6 +79,7 @@ class ActionVote:
         temperature: float = 0.1,
         min_stay: int = 1,
         confidence: float = 0.0,
+        keep: int = 0,
     ) -> None:
         self.size, self.span = size, span
         #: > 0: ``filter`` decides the voted action (``ActionSettings.switch_chance``)
@@ -93,6 +96,9 @@ class ActionVote:
         self.voted = -1
         #: the action the latest decision's ballot named (-1: none)
         self.named = -1
+        #: the actions the ballots of the last ``keep`` decision points named, a skipped
+        #: point's too (``named_lately``)
+        self._lately: deque[int] = deque(maxlen=max(0, keep))
         #: this many votes in a row for one action make it the voted one at once, before
         #: it has the most votes (a third of the vote: 0.5 s of 1.5 s); the older votes
         #: stay, so one vote more for the old action, while it still has the most, takes
@@ -119,7 +125,9 @@ class ActionVote:
         (``ActionSettings.switch_for``)."""
         st = settings
         switch = st.switch_for(descriptor, voice)
-        vote = cls(st.vote, span, switch, st.temperature, st.min_points, st.confidence)
+        vote = cls(
+            st.vote, span, switch, st.temperature, st.min_points, st.confidence, st.ballot_keep
+        )
         vote.actions, vote.names = actions, list(names)
         return vote
 
@@ -183,6 +191,7 @@ class ActionVote:
         if self.actions is None or self.size <= 0:
             return None
         self.named = -1 if choice is None else choice
+        self._lately.extend([self.named] * (1 + self.missed))
         if self.switch > 0 and scores is not None:
             self.filter(scores)
             return self.gate(target)
@@ -200,6 +209,10 @@ class ActionVote:
         if len(self._votes) >= q and len(set(itertools.islice(reversed(self._votes), q))) == 1:
             self.voted = self._votes[-1]  # the last ``quick`` votes agree: at once
         return self.gate(target)
+
+    def named_lately(self, action: int) -> bool:
+        """Whether a ballot of the last ``keep`` decision points named ``action``."""
+        return action >= 0 and action in self._lately
 
     def share(self) -> float:
         """The share of the last votes that went to the voted action (0 before any); with

@@ -450,6 +450,49 @@ def test_with_ballot_jumps_the_filter_may_jump_into_the_ballots_action_alone() -
     assert lander.named() is None and lander.strict()
 
 
+def test_an_action_a_ballot_named_lately_is_played_on_without_the_margin() -> None:
+    """``ActionSettings.ballot_keep``: the avatar showing an action a ballot named within
+    the last ``ballot_keep`` decision points (a skipped point counts) plays on in it at
+    its own cost, so the next ballot for the voted action does not push it straight back
+    out; later, or where it is about to play on out of that action, the margin holds."""
+    from types import SimpleNamespace
+
+    from vision._landing import Lander
+
+    vote = ActionVote(10, 3, switch=0.02, temperature=0.2, confidence=0.9, keep=3)
+    vote.actions = np.array([0] * 10 + [1] * 10 + [2] * 10, dtype=np.int64)
+    sure = np.array([0.0, 5.0, 5.0])  # the ballot's scores: action 0 far ahead
+    for _ in range(10):
+        vote.cast(np.array([2]), 0, sure)
+    lander = Lander.__new__(Lander)
+    action = ActionSettings(vote=10, margin=0.2, switch_chance=0.02, ballot_keep=3)
+    lander.settings, lander.vote, lander.n = MatchSettings(action=action), vote, 4
+    lander.windows = SimpleNamespace(playback=lambda f: np.arange(f, f + 4))
+    found = ([(1, 0, 1.0)], np.array([5]), np.array([True]), np.zeros(1, bool))
+
+    def own(frame: int) -> float:
+        return lander.gated(frame, [], [], None, found, vote.gate(found[1]))[4]
+
+    assert own(12) == 1.2  # the avatar in action 1, which no ballot named: the margin
+    vote.cast(np.array([2]), 1, np.array([1.02, 1.0, 5.0]))  # one ballot for action 1
+    assert vote.voted == 0 and own(12) == 1.0
+    assert own(18) == 1.2  # (it plays on into action 2 within half a window)
+    vote.cast(np.array([2]), 0, sure)
+    vote.cast(np.array([2]), 0, sure)
+    assert own(12) == 1.0  # action 1 named 3 points ago
+    vote.cast(np.array([2]), 0, sure)
+    assert own(12) == 1.2
+    vote.cast(np.array([2]), 1, np.array([1.02, 1.0, 5.0]))
+    vote.skipped(2)  # the next ballot stands for 3 points: action 1 is out of the last 3
+    vote.cast(np.array([2]), 0, sure)
+    assert own(12) == 1.2
+    lander.settings = MatchSettings(action=dataclasses.replace(action, ballot_jumps=False))
+    vote.cast(np.array([2]), 1, np.array([1.02, 1.0, 5.0]))
+    assert own(12) == 1.2  # (without ballot jumps, nothing is kept)
+    with pytest.raises(ValueError, match="ballot_keep"):
+        ActionSettings(ballot_keep=-1)
+
+
 def test_where_the_best_window_fits_weakly_another_action_costs_more(setup) -> None:
     # the performer does the library's window ending at frame 200, seen from view 3: as
     # the library has it, and so blurred by noise that no window fits it well
