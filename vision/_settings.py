@@ -244,10 +244,11 @@ class ActionSettings:
         With ``ballot_jumps``: an avatar showing another action than the voted one that
         a ballot of the last ``ballot_keep`` decision points named (a skipped point
         counts) plays on in it at its own cost, without the margin, while it will still
-        show it half a window on (0: off). Otherwise the next decision whose ballot named
-        the voted action again pushed the avatar straight back out of the action it had
-        just jumped into, and the ballot, naming it again a decision later, took it back
-        in: the action shown for a tenth of a second, twice.
+        show it half a window on (0: off). Without it, the next decision whose ballot
+        names the voted action again pushes the avatar straight back out of an action it
+        has just jumped into, and the next ballot for that action takes it back in: the
+        action is shown for a tenth of a second, twice (``benchmarks/HISTORY.md``,
+        "Ballot jumps").
     fuse : bool
         With landmarks and the silhouette beside them (``vision._fallback``): where the
         pose model's limbs are of low confidence, each decision's ballot weighs both

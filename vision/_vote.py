@@ -98,7 +98,8 @@ class ActionVote:
         self.named = -1
         #: the actions the ballots of the last ``keep`` decision points named, a skipped
         #: point's too (``named_lately``)
-        self._lately: deque[int] = deque(maxlen=max(0, keep))
+        self.keep = max(0, keep)
+        self._lately: deque[int] = deque(maxlen=self.keep)
         #: this many votes in a row for one action make it the voted one at once, before
         #: it has the most votes (a third of the vote: 0.5 s of 1.5 s); the older votes
         #: stay, so one vote more for the old action, while it still has the most, takes
@@ -191,7 +192,7 @@ class ActionVote:
         if self.actions is None or self.size <= 0:
             return None
         self.named = -1 if choice is None else choice
-        self._lately.extend([self.named] * (1 + self.missed))
+        self._lately.extend([self.named] * min(1 + self.missed, self.keep))
         if self.switch > 0 and scores is not None:
             self.filter(scores)
             return self.gate(target)
