@@ -15,11 +15,19 @@ from typing import Any
 # metric's eigensolver took 0.7 s instead of 0.01 s). Set before numpy is imported, and
 # inherited by every process a test starts.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# Where bytecode may not be written (PYTHONDONTWRITEBYTECODE, which some machines set for
+# every process), each process a test starts compiles the project's modules anew, and
+# each session rewrites every test module's asserts anew. Written once into
+# ``__pycache__`` (beside numba's own caches, ignored by git), they are read by every
+# later process and session (here from the test modules on: ``sys`` below).
+os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 
 import numpy as np
 import pytest
 
 from control.motion import Library, load_library
+
+sys.dont_write_bytecode = False
 
 REPO = Path(__file__).resolve().parents[1]
 

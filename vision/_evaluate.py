@@ -105,7 +105,7 @@ def switch_delays(
 
 #: reasons for no decision that are no failure to follow a person in view: nobody is, the
 #: first window is still filling, or the avatar is on its way to a window it chose
-UNSEEN_REASONS = ("nobody in view", "no silhouette", "filling buffer", "en route")
+UNSEEN_REASONS = ("nobody in view", "no silhouette", "no picture", "filling buffer", "en route")
 
 
 def decision_points(decisions: Sequence[dict[str, Any]]) -> dict[str, Any]:

@@ -20,7 +20,7 @@ from ._settings import PerformSettings
 from ._sources import Frame, Source
 from ._voice import PoseVoice
 
-__all__ = ["MAX_COVER", "UNPOSED", "FrameReader"]
+__all__ = ["HOLD_S", "MAX_COVER", "NO_PICTURE", "UNPOSED", "FrameReader"]
 
 #: a silhouette mask covering more of the frame than this is no performer (a white
 #: frame, the lights going on under a background subtractor): treated as no silhouette
@@ -28,6 +28,13 @@ MAX_COVER = 0.6
 #: why a frame has no pose when the pose model found nobody and a person is there all
 #: the same (``PersonSegmenter.unposed``: only part of a body in view, as a rule)
 UNPOSED = "a person in view, no body found in them"
+#: a source with no new picture for a moment (a camera page whose frames come later than
+#: the loop waits for them, on a loaded machine; a camera reconnecting) leaves the
+#: performer as last seen for up to this many seconds of media time: the picture is
+#: late, the performer has not gone. Longer, and the frame has no features
+HOLD_S = 1.0
+#: why a frame has no features when its source has given no picture for over ``HOLD_S``
+NO_PICTURE = "no picture"
 
 
 class FrameReader:
@@ -61,11 +68,27 @@ class FrameReader:
         self.latest = self.blank
         self.mask: NDArray[np.bool_] | None = None
         self.picture: tuple[Any, Any] = (None, None)  # the latest colour frame, landmarks
+        self._pictured: float | None = None  # media time of the last frame with a picture
 
     def read(self, frame: Frame) -> NDArray[np.bool_] | None:
         """The performer's features of ``frame`` into ``latest`` (NaN, and ``why_blank``
-        says why, when there are none); returns its cleaned mask."""
+        says why, when there are none); returns its cleaned mask. A frame without a
+        picture (nor a problem said) keeps the last one's for up to ``HOLD_S``."""
         mask: NDArray[np.bool_] | None
+        if frame.image is None and frame.mask is None and frame.landmarks is None:
+            late = None if self._pictured is None else frame.t - self._pictured
+            if not frame.problem and late is not None and late <= HOLD_S:
+                return self.mask
+            self.latest, self.mask, self.picture, self.others = self.blank, None, (None, None), 0
+            self.why_blank = frame.problem or (
+                NO_PICTURE if late is None else f"{NO_PICTURE} (none for {late:.1f} s)"
+            )
+            if self.fallback is not None:
+                self.fallback.see(None, 1.0)
+            if self.voice is not None:
+                self.voice.see(None)
+            return None
+        self._pictured = frame.t
         if frame.landmarks is not None:  # a source that gives landmarks, not pictures
             if self.pose is None:
                 raise ValueError(
