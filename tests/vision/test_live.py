@@ -102,6 +102,8 @@ def test_the_pages_camera_drives_the_avatar_as_the_video_does(
         with Chromium(f"http://127.0.0.1:{port}/", tmp_path / "squats.y4m") as browser:
             browser.wait_for("window.mimic.role === 'camera' && window.mimic.frames > 3", 60)
             browser.wait_for("window.mimic.stats && window.mimic.stats.n > 10", 60)
+            # headless Chromium draws WebGL on the processor: the page draws lightly
+            assert browser.evaluate("window.mimic.softwareGL") is True
             time.sleep(1.0)
             joints, shot = _held_shot(browser)
             status = browser.evaluate("document.getElementById('status').innerText")

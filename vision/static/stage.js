@@ -29,8 +29,24 @@ function note(text, level = "info") {
 
 // --- the 3D stage -----------------------------------------------------------------------
 const holder = $("stage3d");
-const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
-renderer.setPixelRatio(window.devicePixelRatio || 1);
+// A browser without a GPU draws WebGL on the processor (SwiftShader, llvmpipe), on the
+// cores that also encode the camera's frames and run the loop: there the avatar is drawn
+// without multisampling, at most 15 times a second, and the camera's frames go first.
+function softwareGL() {
+  const gl = document.createElement("canvas").getContext("webgl");
+  if (!gl) return false;
+  const info = gl.getExtension("WEBGL_debug_renderer_info");
+  const name = String(gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER));
+  const lose = gl.getExtension("WEBGL_lose_context");
+  if (lose) lose.loseContext(); // (a probe: browsers keep few contexts)
+  return /swiftshader|llvmpipe|softpipe|software/i.test(name);
+}
+page.softwareGL = softwareGL();
+const DRAW_MS = page.softwareGL ? 66 : 30; // (the poses come at 30 a second)
+const renderer = new THREE.WebGLRenderer({
+  antialias: !page.softwareGL, preserveDrawingBuffer: true,
+});
+renderer.setPixelRatio(page.softwareGL ? 1 : window.devicePixelRatio || 1);
 holder.prepend(renderer.domElement);
 const scene = new THREE.Scene();
 scene.background = new THREE.Color(0x20242c);
@@ -127,9 +143,9 @@ function shown(now) {
 let rendered = 0;
 function render(now) {
   requestAnimationFrame(render);
-  // at most about 30 frames a second (the poses come at 30); none while held (page.held:
-  // a test compares a screenshot with the joints' places)
-  if (now - rendered < 30 || page.held) return;
+  // at most about 30 frames a second (15 in software: DRAW_MS); none while held
+  // (page.held: a test compares a screenshot with the joints' places)
+  if (now - rendered < DRAW_MS || page.held) return;
   rendered = now;
   const w = holder.clientWidth, h = holder.clientHeight;
   if (renderer.domElement.width !== Math.round(w * renderer.getPixelRatio())) {
