@@ -80,6 +80,8 @@ class FrameReader:
             if not frame.problem and late is not None and late <= HOLD_S:
                 return self.mask
             self.latest, self.mask, self.picture, self.others = self.blank, None, (None, None), 0
+            if self.pose is not None:  # (no hidden limbs or upright body left from before)
+                self.pose.read(None, (1, 1))
             self.why_blank = frame.problem or (
                 NO_PICTURE if late is None else f"{NO_PICTURE} (none for {late:.1f} s)"
             )
