@@ -74,61 +74,13 @@ class FrameReader:
         """The performer's features of ``frame`` into ``latest`` (NaN, and ``why_blank``
         says why, when there are none); returns its cleaned mask. A frame without a
         picture (nor a problem said) keeps the last one's for up to ``HOLD_S``."""
-        mask: NDArray[np.bool_] | None
         if frame.image is None and frame.mask is None and frame.landmarks is None:
-            late = None if self._pictured is None else frame.t - self._pictured
-            if not frame.problem and late is not None and late <= HOLD_S:
-                return self.mask
-            self.latest, self.mask, self.picture, self.others = self.blank, None, (None, None), 0
-            if self.pose is not None:  # (no hidden limbs or upright body left from before)
-                self.pose.read(None, (1, 1))
-            self.why_blank = frame.problem or (
-                NO_PICTURE if late is None else f"{NO_PICTURE} (none for {late:.1f} s)"
-            )
-            if self.fallback is not None:
-                self.fallback.see(None, 1.0)
-            if self.voice is not None:
-                self.voice.see(None)
-            return None
+            return self._without_picture(frame)
         self._pictured = frame.t
         if frame.landmarks is not None:  # a source that gives landmarks, not pictures
-            if self.pose is None:
-                raise ValueError(
-                    f"{self.source.name}: this source gives body landmarks, and only the "
-                    "pose descriptor reads them (use --descriptor pose)"
-                )
-            self.latest = self.pose.read(frame.landmarks, (1, 1))
-            self.why_blank, self.mask = self.pose.why, None
-            if self.fallback is not None:  # the person's mask, where the source gives
-                # one too, cleaned as a silhouette source's is
-                m = None if frame.mask is None else clean_mask_others(frame.mask)[0]
-                self.fallback.see(m, self.pose.limbs_hidden)
+            self._read_landmarks(frame)
             return None
-        if frame.mask is not None:
-            if self.landmarks:
-                raise ValueError(
-                    f"{self.source.name}: the pose descriptor needs "
-                    "colour frames, and this source gives silhouettes (use a silhouette "
-                    "descriptor: --descriptor outline)"
-                )
-            mask, others = clean_mask_others(frame.mask)
-        elif frame.image is not None:
-            if self.segmenter is None:
-                method = resolve_segmentation(
-                    self.settings.segmentation,
-                    bool(getattr(self.source, "live", False)),  # a camera
-                    self.landmarks,
-                )
-                self.segmenter = make_segmenter(method, self.settings.learn_frames)
-            mask = self.segmenter.apply(frame.image)
-            others = int(getattr(self.segmenter, "others", 0))
-        else:
-            mask, others = None, 0
-        problem = frame.problem  # e.g. an unreadable mask file: no silhouette, said why
-        cover = float(mask.mean()) if mask is not None and mask.size else 0.0
-        if not self.landmarks and cover > MAX_COVER:
-            # a lighting change, a white frame, a bad mask: no performer looks so
-            mask, problem = None, f"the mask covers {cover:.0%} of the frame"
+        mask, others, problem = self._mask_of(frame)
         self.others = others if mask is not None else 0
         if self.pose is not None:
             lm = getattr(self.segmenter, "landmarks", None) if frame.image is not None else None
@@ -148,3 +100,65 @@ class FrameReader:
         self.mask = mask
         self.picture = (frame.image, getattr(self.segmenter, "landmarks", None))
         return mask
+
+    def _without_picture(self, frame: Frame) -> NDArray[np.bool_] | None:
+        """A frame with no picture: the performer as last seen, while the last picture
+        is at most ``HOLD_S`` old and no problem is said; else no features, said why."""
+        late = None if self._pictured is None else frame.t - self._pictured
+        if not frame.problem and late is not None and late <= HOLD_S:
+            return self.mask
+        self.latest, self.mask, self.picture, self.others = self.blank, None, (None, None), 0
+        if self.pose is not None:  # (no hidden limbs or upright body left from before)
+            self.pose.read(None, (1, 1))
+        self.why_blank = frame.problem or (
+            NO_PICTURE if late is None else f"{NO_PICTURE} (none for {late:.1f} s)"
+        )
+        if self.fallback is not None:
+            self.fallback.see(None, 1.0)
+        if self.voice is not None:
+            self.voice.see(None)
+        return None
+
+    def _read_landmarks(self, frame: Frame) -> None:
+        """The features of a source that gives landmarks (and perhaps a mask beside)."""
+        if self.pose is None:
+            raise ValueError(
+                f"{self.source.name}: this source gives body landmarks, and only the "
+                "pose descriptor reads them (use --descriptor pose)"
+            )
+        self.latest = self.pose.read(frame.landmarks, (1, 1))
+        self.why_blank, self.mask = self.pose.why, None
+        if self.fallback is not None:  # the person's mask, where the source gives one
+            # too, cleaned as a silhouette source's is
+            m = None if frame.mask is None else clean_mask_others(frame.mask)[0]
+            self.fallback.see(m, self.pose.limbs_hidden)
+
+    def _mask_of(self, frame: Frame) -> tuple[NDArray[np.bool_] | None, int, str]:
+        """The performer's cleaned mask in ``frame`` (a source's mask, or its picture
+        through the segmenter, made at the first), the other people beside them, and
+        the problem that left it without one."""
+        mask: NDArray[np.bool_] | None
+        if frame.mask is not None:
+            if self.landmarks:
+                raise ValueError(
+                    f"{self.source.name}: the pose descriptor needs "
+                    "colour frames, and this source gives silhouettes (use a silhouette "
+                    "descriptor: --descriptor outline)"
+                )
+            mask, others = clean_mask_others(frame.mask)
+        else:
+            if self.segmenter is None:
+                method = resolve_segmentation(
+                    self.settings.segmentation,
+                    bool(getattr(self.source, "live", False)),  # a camera
+                    self.landmarks,
+                )
+                self.segmenter = make_segmenter(method, self.settings.learn_frames)
+            mask = self.segmenter.apply(frame.image)
+            others = int(getattr(self.segmenter, "others", 0))
+        problem = frame.problem  # e.g. an unreadable mask file: no silhouette, said why
+        cover = float(mask.mean()) if mask is not None and mask.size else 0.0
+        if not self.landmarks and cover > MAX_COVER:
+            # a lighting change, a white frame, a bad mask: no performer looks so
+            mask, problem = None, f"the mask covers {cover:.0%} of the frame"
+        return mask, others, problem
