@@ -93,7 +93,9 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     users = [i.nodeid for i in items if "dask_cluster" in getattr(i, "fixturenames", ())]
     _DASK["last"] = users[-1] if users else None
     for item in items:
-        heavy = HEAVY & set(getattr(item, "fixturenames", ()))
+        # (a test's own parameter named as a fixture is not that fixture)
+        params = getattr(getattr(item, "callspec", None), "params", {})
+        heavy = HEAVY & (set(getattr(item, "fixturenames", ())) - set(params))
         if heavy or item.get_closest_marker("gl") is not None:
             item.add_marker(pytest.mark.slow)
 

@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.signal import find_peaks
 
 from control.graph import rotate_y, yaw_of
 from control.motion import load_library, read_bvh
@@ -34,6 +33,8 @@ def _model(chainer: Chainer, spec: str = STRIKE, **kw: object) -> ParametricActi
 
 def test_one_squat_finds_every_squat_of_both_takes(chainer: Chainer) -> None:
     # the squats, counted independently: the pelvis's deep dips inside Squat labels
+    from scipy.signal import find_peaks  # (imported here: the quick tier never runs this)
+
     names = [c.name for c in chainer.clips]
     dips = []
     for name in ("13_29", "13_30"):

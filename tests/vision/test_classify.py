@@ -38,12 +38,12 @@ def _tables(actions: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.nda
     return shape.astype(np.float32), centre, np.arange(n - 9, dtype=np.int64), act
 
 
-@pytest.mark.parametrize("actions", [2, 3])
-def test_the_classifiers_probabilities_are_scikit_learns(actions: int) -> None:
-    shape, centre, starts, act = _tables(actions)
+@pytest.mark.parametrize("n_actions", [2, 3])
+def test_the_classifiers_probabilities_are_scikit_learns(n_actions: int) -> None:
+    shape, centre, starts, act = _tables(n_actions)
     starts = starts[starts + 9 < shape.shape[0]]
     clf = ActionClassifier.learn(shape, centre, starts, 10, act)
-    assert clf is not None and list(clf.classes) == list(range(actions))
+    assert clf is not None and list(clf.classes) == list(range(n_actions))
     # the same windows, by hand, to scikit-learn
     rows = starts[:, None] + np.arange(10)
     x, y = [], []
@@ -63,11 +63,11 @@ def test_the_classifiers_probabilities_are_scikit_learns(actions: int) -> None:
         np.testing.assert_allclose(clf.log_proba([q]), want, atol=1e-8)
     # two readings: each action's more probable one; by action number, unknown ones at FLOOR
     q2 = -q
-    both = clf.log_proba([q, q2], actions + 2)
+    both = clf.log_proba([q, q2], n_actions + 2)
     np.testing.assert_allclose(
-        both[:actions], np.maximum(clf.log_proba([q]), clf.log_proba([q2])), atol=1e-12
+        both[:n_actions], np.maximum(clf.log_proba([q]), clf.log_proba([q2])), atol=1e-12
     )
-    assert list(both[actions:]) == [FLOOR, FLOOR]
+    assert list(both[n_actions:]) == [FLOOR, FLOOR]
 
 
 def test_one_action_teaches_nothing() -> None:
