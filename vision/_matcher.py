@@ -185,14 +185,16 @@ class Matcher:
         last features, cheapest first, one per start; ``view`` counts the bank's variants
         too. Empty (and ``why``) without enough silhouette or when the best is rejected.
         Features of fewer than ``n`` frames (a window not yet whole) are matched, by brute
-        force, against windows of their own length: the best one only."""
+        force, against windows of their own length: the best one only, among those that
+        play on in their action until the window is whole (``WindowSearch.settled``)."""
         queries = self.queries(performer)
         if queries is None:
             return []
         if self.windows.tables()[2].size == 0:
             self.why = "no window in the component"
             return []
-        got = self.windows.best(queries, top, min(performer.shape[0], self.n), exact)
+        span = min(performer.shape[0], self.n)
+        got = self.windows.best(queries, top, span, exact, self.vote.actions)
         if not got or self._rejected(got[0][2], queries[0]):
             return []
         self.why = ""

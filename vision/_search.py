@@ -176,16 +176,40 @@ class WindowSearch:
             now[ok], self.desc, self.mean, self.proj, st.centre_weight, st.mirror
         )
 
-    def best(self, queries: list[FloatArray], top: int, span: int, exact: bool) -> Windows:
+    def best(
+        self,
+        queries: list[FloatArray],
+        top: int,
+        span: int,
+        exact: bool,
+        actions: IntArray | None = None,
+    ) -> Windows:
         """The ``top`` windows ``(start, view, cost)`` nearest ``queries`` (of a
         performer's last ``span`` frames), cheapest first, by the index; with ``exact``,
         or for fewer than ``n`` frames (a window not yet whole, matched against windows
-        of its own length: the index holds whole windows), the best one by brute force."""
+        of its own length: the index holds whole windows), the best one by brute force,
+        and with ``actions`` (each graph frame's action) only among ``settled`` windows."""
         st = self.settings
         if exact or span < self.n:
             shape, centre, starts = self.tables()
+            if span < self.n and actions is not None:
+                starts = self.settled(starts, span, actions)
             return [best_window(queries, shape, centre, starts, span, st.band, st.recency)]
         return self.index().search(queries, st.band, top, recency=st.recency)
+
+    def settled(self, starts: IntArray, span: int, actions: IntArray) -> IntArray:
+        """Those of ``starts`` whose window of ``span`` frames ends where the library
+        plays on in the same action until a whole window's ``n`` frames are in (all of
+        them where none does). A window not yet whole places the avatar at its end, and
+        the avatar plays on from there until the first decision: placed at an action's
+        last frames, it played on into the next action, and the first decision took it
+        back, a brief action the performer never did."""
+        runway = self.n - span
+        end = starts + span - 1
+        last = self.graph.n_frames - 1
+        ok = (end + runway <= last) & (self.runs[np.minimum(end + runway, last)] == self.runs[end])
+        ok &= actions[np.minimum(end + runway, last)] == actions[end]
+        return starts[ok] if ok.any() else starts
 
     def ranked(
         self,

@@ -424,3 +424,34 @@ def test_a_held_frame_that_fits_well_is_kept_unless_another_fits_clearly_better(
     monkeypatch.setattr(m.lander, "fits_weakly", lambda cost, q: True)
     weak = m.lander.held(frame, queries, rival, 3.0, costs, holding=True)
     assert weak is not None and weak.jump is not None and weak.jump.target == other
+
+
+def test_half_a_window_places_the_avatar_where_it_plays_on_in_its_action(setup) -> None:
+    """Half a window in, the avatar starts at the end of the library window most like
+    the performer's half and plays on from there until the first whole window. Placed
+    at an action's last frames, it played on into the next action and the first
+    decision took it back: a brief action the performer never did. It is placed only
+    where the library plays on in the same action until then."""
+    lib, layer, bank = setup
+    m = Matcher(layer, bank)
+    m.ready(lib.clips, 0.1)
+    keys, runs = m.vote.actions, m.windows.runs
+    assert keys is not None
+    span = m.n // 2
+    runway = m.n - span
+    # the performer's half window: the library's own frames up to 2 frames before a
+    # change of action inside a clip
+    change = np.flatnonzero((keys[1:] != keys[:-1]) & (runs[1:] == runs[:-1])) + 1
+    b = int(change[change > 3 * m.n][0])
+    window = np.arange(b - 2 - span, b - 2)
+    performer = bank.features[m.windows.to_bank[window], 0].astype(np.float64)
+    queries = m.queries(performer)
+    assert queries is not None
+    start = m.windows.best(queries, 1, span, False)[0][0]
+    end = start + span - 1
+    assert start == window[0]  # unrestricted: the window itself,
+    assert keys[end + runway] != keys[end]  # which plays into the next action
+    placed = m.search(performer)
+    assert placed
+    end = placed[0][0] + span - 1
+    assert runs[end + runway] == runs[end] and keys[end + runway] == keys[end]
