@@ -203,12 +203,9 @@ class WindowSearch:
         them where none does). A window not yet whole places the avatar at its end, and
         the avatar plays on from there until the first decision: placed at an action's
         last frames, it played on into the next action, and the first decision took it
-        back, a brief action the performer never did."""
-        runway = self.n - span
-        end = starts + span - 1
-        last = self.graph.n_frames - 1
-        ok = (end + runway <= last) & (self.runs[np.minimum(end + runway, last)] == self.runs[end])
-        ok &= actions[np.minimum(end + runway, last)] == actions[end]
+        back, a brief action the performer never did. (Each of ``starts`` plays on for a
+        whole window in its run: ``tables``.)"""
+        ok = actions[starts + self.n - 1] == actions[starts + span - 1]
         return starts[ok] if ok.any() else starts
 
     def ranked(
