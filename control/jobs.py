@@ -43,6 +43,7 @@ from .artifacts import atomic_write, read_checked_npz, write_checked_npz
 __all__ = [
     "CLUSTER_ENV",
     "RETRIES",
+    "SCHEMES",
     "ClusterError",
     "JobStore",
     "cluster_address",
@@ -63,11 +64,37 @@ class ClusterError(RuntimeError):
     a local pool that lost a worker process (says the likely causes)."""
 
 
+#: the address schemes of Dask's comms (``distributed.comm.registry``)
+SCHEMES = ("tcp", "tls", "inproc", "ucx", "ws", "wss")
+
+
 def cluster_address(cluster: str | None = None) -> str | None:
     """The cluster to build on: ``cluster``, else ``$MIMIC_CLUSTER``, else ``None``
-    (this machine). ``""`` is none."""
-    address = cluster if cluster is not None else os.environ.get(CLUSTER_ENV, "")
-    return address.strip() or None
+    (this machine). ``""`` is none. An address of no form Dask or ``local:N`` has is a
+    ``ClusterError`` that names it and where it came from, here, before anything is
+    loaded or imported for the build (Dask itself would say so only on connecting)."""
+    given = cluster if cluster is not None else os.environ.get(CLUSTER_ENV, "")
+    address = given.strip()
+    if not address:
+        return None
+    source = "--cluster" if cluster is not None else f"${CLUSTER_ENV}"
+    forms = "a scheduler's address (tcp://host:8786, or host:8786) or local:N (N >= 1)"
+    if address.startswith("local:"):
+        count = address.split(":", 1)[1]
+        if not count.isdigit() or int(count) < 1:
+            raise ClusterError(
+                f"cluster {address!r} ({source}): local:N needs a number of workers N >= 1"
+            )
+        return address
+    scheme, sep, rest = address.partition("://")
+    if not sep:
+        scheme, rest = "tcp", address
+    if scheme not in SCHEMES or not rest or any(c.isspace() for c in rest):
+        raise ClusterError(
+            f"cluster {address!r} ({source}) is not {forms}; the schemes are "
+            + ", ".join(f"{s}://" for s in SCHEMES)
+        )
+    return address
 
 
 def run_jobs(
@@ -238,12 +265,7 @@ def _local_client(address: str) -> Iterator[Any]:
     started here and closed after."""
     from distributed import Client, LocalCluster
 
-    try:
-        n = int(address.split(":", 1)[1])
-    except ValueError:
-        n = 0
-    if n < 1:
-        raise ClusterError(f"cluster {address!r}: local:N needs a number of workers N >= 1")
+    n = int(address.split(":", 1)[1])  # (checked by ``cluster_address``)
     with (
         LocalCluster(  # (its dashboard on a free port: None would take 8787, which
             # another cluster on this machine may hold)

@@ -10,6 +10,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from control.jobs import cluster_address
 from control.motion import Library
 from control.progress import bar
 from silhouette_bank import (
@@ -154,6 +155,7 @@ def _library(args: argparse.Namespace) -> Library:
 
 
 def _build(args: argparse.Namespace) -> int:
+    cluster_address(args.cluster)  # a bad address is said before the library loads
     library = _library(args)
     settings = bank_settings(args)
     options = {

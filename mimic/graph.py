@@ -17,6 +17,7 @@ from control.graph import (
     sole_speed,
     synthesize,
 )
+from control.jobs import cluster_address
 from control.motion import write_bvh
 
 from .args import (
@@ -97,6 +98,7 @@ def format_report(report: dict[str, Any]) -> str:
 
 def _graph_build(args: argparse.Namespace) -> int:
     check_outputs(args, ["--out"])  # before minutes of building
+    cluster_address(args.cluster)  # and a bad cluster address
     _, graph, path, built = graph_for(args)
     if args.out:
         save_graph(graph, args.out)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from control.jobs import CLUSTER_ENV, ClusterError, cluster_address, run_jobs
+from control.jobs import CLUSTER_ENV, SCHEMES, ClusterError, cluster_address, run_jobs
 from control.motion import Library
 from mimic.cli import main
 from silhouette_bank import build_bank
@@ -71,11 +71,52 @@ def test_the_cluster_is_named_by_flag_or_environment(
     assert cluster_address("") is None  # an explicit "" is this machine
     with pytest.raises(ClusterError, match="local:0"):
         run_jobs(abs, [1, 2], lambda i, r: None, cluster="local:0")
+    monkeypatch.setenv(CLUSTER_ENV, "tcp://")
+    with pytest.raises(ClusterError, match=r"'tcp://' \(\$MIMIC_CLUSTER\)"):
+        run_jobs(abs, [1, 2], lambda i, r: None)
     monkeypatch.delenv(CLUSTER_ENV)
     argv = ["bank", "build", "--clips", "02_01", "--bank", str(tmp_path / "b")]
     assert main([*argv, "--cluster", "nonsense://x"]) == 2
     err = capsys.readouterr().err
-    assert "nonsense://x" in err and "cluster" in err
+    assert "'nonsense://x' (--cluster)" in err and "tcp://host:8786" in err
+    assert not (tmp_path / "b").exists()  # said before anything was built
+    out = tmp_path / "g.npz"
+    assert (
+        main(["graph", "build", "--clips", "02_01", "--out", str(out), "--cluster", "local:x"]) == 2
+    )
+    assert "local:N" in capsys.readouterr().err and not out.exists()
+
+
+#: addresses as users write them, good and bad
+ADDRESSES = [
+    "tcp://10.0.0.5:8786",
+    "10.0.0.5:8786",
+    "scheduler",
+    "tls://sched.example.org:8786",
+    "tcp://[::1]:8786",
+    "inproc://10.0.0.5/123/1",
+    "ws://h:8786",
+    "nonsense://x",
+    "tcp://",
+    "udp://h:8786",
+    "tcp://h :8786",
+]
+
+
+@pytest.mark.slow  # (importing distributed takes a second)
+@pytest.mark.parametrize("address", ADDRESSES)
+def test_an_address_is_taken_as_dasks_own_parser_takes_it(address: str) -> None:
+    from distributed.comm import registry
+    from distributed.comm.addressing import parse_address
+
+    assert set(SCHEMES) == set(registry.backends)
+    scheme, location = parse_address(address, strict=False)
+    dask_takes = scheme in registry.backends and bool(location) and " " not in location
+    try:
+        ours = cluster_address(address) == address
+    except ClusterError:
+        ours = False
+    assert ours == dask_takes
 
 
 class _PoolThatBreaks:
