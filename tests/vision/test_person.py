@@ -244,14 +244,15 @@ def test_native_log_lines_are_silenced_and_python_errors_are_not(capfd) -> None:
 
     from vision._person import quiet_native_stderr
 
-    # (a line of its own: a pose model of an earlier test may still log the real one from
-    # its native thread, outside this block, into this test's capture)
+    # (a line of its own, looked for anywhere: a pose model of an earlier test may still
+    # log the real one from its native thread, outside this block, into this test's
+    # capture, even between its "INFO: " and the rest)
     with quiet_native_stderr():
         os.write(2, b"native line written while quiet\n")
     os.write(2, b"after\n")
     err = capfd.readouterr().err
-    assert "while quiet" not in err and err.endswith("after\n")
+    assert "while quiet" not in err and "after\n" in err
     with pytest.raises(ZeroDivisionError), quiet_native_stderr():
         1 / 0  # noqa: B018
     os.write(2, b"restored\n")
-    assert capfd.readouterr().err.endswith("restored\n")
+    assert "restored\n" in capfd.readouterr().err
