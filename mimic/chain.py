@@ -10,6 +10,7 @@ import numpy as np
 from control.motion import load_library, write_bvh
 from control.progress import step
 from control.transition import Chainer
+from silhouette_bank import MP4_FOURCC
 
 from .args import add_library_dir, library_dir, number
 from .outputs import check_outputs
@@ -69,7 +70,7 @@ def add_chain_command(sub: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def _chain(args: argparse.Namespace) -> int:
-    outputs = check_outputs(args, ["--out", "--video"])
+    outputs = check_outputs(args, ["--out", "--video"], videos={"--video": MP4_FOURCC})
     library = load_library(library_dir(args), fps=args.fps, clips=args.clips)
     t0 = time.perf_counter()
     with step("action clusters and transitions (two-pass clustering)"):

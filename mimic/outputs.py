@@ -17,7 +17,7 @@ from __future__ import annotations
 import errno
 import os
 import tempfile
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
@@ -38,6 +38,9 @@ class Output:
 
     option: str
     path: Path
+    #: a video's codec (a FOURCC, ``"mp4v"``), whose container OpenCV's writer picks by
+    #: the file's suffix: checked before any work; ``None``: any name will do
+    fourcc: str | None = None
 
     def said(self) -> str:
         return f"{self.option} {self.path}"
@@ -70,7 +73,7 @@ class OutputSet:
         inputs: Sequence[tuple[str, str | Path | None]] = (),
     ) -> None:
         self.outputs = [
-            Output(o.option, Path(o.path).expanduser()) for o in outputs if o is not None
+            Output(o.option, Path(o.path).expanduser(), o.fourcc) for o in outputs if o is not None
         ]
         self._staged: dict[Output, Path] = {}
         self._written: list[Output] = []
@@ -116,6 +119,12 @@ class OutputSet:
             raise OutputError(
                 f"{out.said()}: cannot write in {path.parent} ({exc.strerror or exc})"
             ) from None
+        if out.fourcc is not None and not _video_writable(path, out.fourcc):
+            named = f"ending {path.suffix!r}" if path.suffix else "without a suffix"
+            raise OutputError(
+                f"{out.said()}: a video in {out.fourcc} cannot be written to a file {named} "
+                "(its suffix picks the container); name it .mp4, .mkv or .avi"
+            )
 
     def find(self, option: str) -> Output | None:
         return next((o for o in self.outputs if o.option == option), None)
@@ -178,23 +187,48 @@ class OutputSet:
         self.discard()  # (after a commit there is nothing left to remove)
 
 
+def _video_writable(path: Path, fourcc: str) -> bool:
+    """Whether OpenCV's video writer opens a file named like ``path`` (its suffix picks
+    the container) for the codec ``fourcc``: tried on a probe beside it, then removed."""
+    import cv2
+
+    fd, probe = tempfile.mkstemp(
+        prefix=f".{path.stem}.", suffix=f".probe{path.suffix}", dir=path.parent
+    )
+    os.close(fd)
+    logs = cv2.utils.logging
+    level = logs.getLogLevel()
+    logs.setLogLevel(logs.LOG_LEVEL_SILENT)  # (its reasons are OpenCV's, not the user's)
+    try:
+        writer = cv2.VideoWriter(probe, cv2.VideoWriter.fourcc(*fourcc), 10.0, (16, 16))
+        opened = bool(writer.isOpened())
+        writer.release()
+    finally:
+        logs.setLogLevel(level)
+        Path(probe).unlink(missing_ok=True)  # (a failed writer may remove it itself)
+    return opened
+
+
 def check_outputs(
     args: object,
     options: Sequence[str],
     inputs: Sequence[str] = (),
     also: Sequence[tuple[str, str]] = (),
+    videos: Mapping[str, str] | None = None,
 ) -> OutputSet:
     """The outputs named by ``args``' ``options`` (``"--out"``: ``args.out``; unset
     ones left out) and ``also`` (``(what, path)``: a file one of them brings, such as a
     recording's sidecar), checked against each other and the inputs named by ``inputs``,
     before a command does any work (``OutputError``). The commands that write one file,
     or files that need not agree, write each atomically themselves; the set is returned
-    for those that replace theirs together."""
+    for those that replace theirs together. ``videos`` maps the options that name a
+    video to its codec (``Output.fourcc``)."""
 
     def value(option: str) -> str | None:
         got = getattr(args, option.lstrip("-").replace("-", "_"), None)
         return str(got) if got is not None else None
 
-    outs = [Output(o, Path(v)) for o in options if (v := value(o)) is not None]
+    codecs = videos or {}
+    outs = [Output(o, Path(v), codecs.get(o)) for o in options if (v := value(o)) is not None]
     outs += [Output(what, Path(path)) for what, path in also]
     return OutputSet(outs, [(o, value(o)) for o in inputs])

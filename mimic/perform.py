@@ -19,6 +19,7 @@ import numpy as np
 from control.artifacts import atomic_write
 from control.motion import Clip, write_bvh
 from control.progress import bar
+from silhouette_bank import MP4_FOURCC
 from vision import (
     METHODS,
     MaskTape,
@@ -190,7 +191,7 @@ def _outputs(args: argparse.Namespace) -> OutputSet:
         [
             Output("--out", Path(out)) if out else None,
             Output("--out's timing file", Path(f"{out}.json")) if out else None,
-            Output("--video-out", Path(args.video_out)) if args.video_out else None,
+            Output("--video-out", Path(args.video_out), MP4_FOURCC) if args.video_out else None,
             Output("--log", Path(args.log)) if args.log else None,
         ],
         [

@@ -4,12 +4,14 @@ truth (another body, a camera off the ring, mask noise)."""
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from control.motion import load_library
 from silhouette_bank import (
     BodyShape,
 )
 from vision import (
+    RECORDING_FOURCC,
     RecordSettings,
     record_clip,
 )
@@ -93,7 +95,13 @@ def _add_filming_args(r: argparse.ArgumentParser) -> None:
 
 
 def _record(args: argparse.Namespace) -> int:
-    check_outputs(args, ["--out"], also=[("--out's sidecar", f"{args.out}.json")])
+    check_outputs(
+        args,
+        ["--out"],
+        also=[("--out's sidecar", f"{args.out}.json")],
+        # (a name without a suffix is written as Matroska: ``record_clip``)
+        videos={"--out": RECORDING_FOURCC} if Path(args.out).suffix else None,
+    )
     try:
         w, h = (int(v) for v in args.size.lower().split("x"))
     except ValueError as exc:

@@ -22,6 +22,7 @@ from control.sketch import (
     read_environment,
     read_sketch,
 )
+from silhouette_bank import MP4_FOURCC
 
 from .args import (
     MOST_MOTION_SECONDS,
@@ -122,7 +123,9 @@ def _inputs(args: argparse.Namespace) -> tuple[np.ndarray, Environment | None, f
 
 
 def _sketch(args: argparse.Namespace) -> int:
-    outputs = check_outputs(args, ["--out", "--png", "--video"], ["--path", "--env"])
+    outputs = check_outputs(
+        args, ["--out", "--png", "--video"], ["--path", "--env"], videos={"--video": MP4_FOURCC}
+    )
     sketch, env, seconds = _inputs(args)
     captured: CapturedTerrain | None = None
     if env is not None and env.terrain is not None:

@@ -48,6 +48,7 @@ from ._pose import joint_points, pose_visibility
 from ._raster import rasterize
 from ._rate import render_rate
 from ._render import (
+    MP4_FOURCC,
     draw_ground_shadow,
     gl_features,
     gl_silhouettes,
@@ -65,6 +66,7 @@ from ._settings import (
 __all__ = [
     "DEFAULT_DESCRIPTOR",
     "DESCRIPTORS",
+    "MP4_FOURCC",
     "POSE_JOINTS",
     "RACY_NS",
     "Bank",

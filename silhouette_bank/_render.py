@@ -239,6 +239,10 @@ def shaded_frames(
             yield np.ascontiguousarray(gl.render_shaded(pose)[..., ::-1])
 
 
+#: the codec ``write_mp4`` writes (its container is chosen by the file's suffix)
+MP4_FOURCC = "mp4v"
+
+
 def write_mp4(path: str | Path, frames: Iterable[NDArray[np.uint8]], fps: float) -> None:
     """Write BGR frames (all of one size) to an MP4, through a temporary file."""
     import cv2
@@ -258,7 +262,7 @@ def write_mp4(path: str | Path, frames: Iterable[NDArray[np.uint8]], fps: float)
         for img in frames:
             if writer is None:
                 h, w = img.shape[:2]
-                writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter.fourcc(*"mp4v"), fps, (w, h))
+                writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter.fourcc(*MP4_FOURCC), fps, (w, h))
                 if not writer.isOpened():
                     raise OSError(f"{path}: cannot write an MP4 here")
             writer.write(img)

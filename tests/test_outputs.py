@@ -279,6 +279,14 @@ def test_a_cache_that_is_a_file_is_said(
         ),
         (["choose", "--script", "{d}/p.json", "--out", "{d}/p.json"], "the same file as --script"),
         (["record", "13_29", "--out", "/proc/r.mkv"], "--out /proc/r.mkv: cannot write"),
+        # a video's suffix picks its container: one that holds no such video is said first
+        (["record", "13_29", "--out", "{d}/r.txt"], "--out {d}/r.txt: a video in FFV1 cannot"),
+        (["chain", "02_01", "--out", "{d}/c.bvh", "--video", "{d}/c"], "a file without a suffix"),
+        (
+            ["sketch", "--path", "{d}/p.json", "--out", "{d}/s.bvh", "--video", "{d}/s.webm"],
+            "ending '.webm'",
+        ),
+        (["perform", "--video", "{d}/p.json", "--video-out", "{d}/v.txt"], "name it .mp4"),
     ],
 )
 def test_every_command_checks_its_outputs_first(
@@ -290,3 +298,4 @@ def test_every_command_checks_its_outputs_first(
     err = capsys.readouterr().err
     assert said.format(d=tmp_path) in err and "motion library" not in err
     assert (tmp_path / "p.json").read_text() == "the input"
+    assert sorted(os.listdir(tmp_path)) == ["p.json"]  # (no probe left behind)

@@ -56,6 +56,7 @@ from ._person import (
 )
 from ._play import PlaySession
 from ._record import (
+    RECORDING_FOURCC,
     RecordSettings,
     camera_poses,
     performer_masks,
@@ -126,6 +127,7 @@ __all__ = [
     "MEDIAPIPE_INDEX",
     "METHODS",
     "PERSON_METHODS",
+    "RECORDING_FOURCC",
     "THREE_VERSION",
     "VISION_COORDS",
     "ActionClassifier",

@@ -45,6 +45,7 @@ from silhouette_bank import (
 )
 
 __all__ = [
+    "RECORDING_FOURCC",
     "RecordSettings",
     "add_mask_noise",
     "camera_poses",
@@ -54,6 +55,10 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
+
+#: the codec a recording is written in: lossless (FFV1), so that its silhouettes are
+#: read back as they were rendered (its container is chosen by the file's suffix)
+RECORDING_FOURCC = "FFV1"
 
 
 @dataclass(frozen=True)
@@ -212,7 +217,7 @@ def record_clip(
     tmp = out.with_name(f".{out.stem}.tmp{out.suffix or '.mkv'}")
     size = (ring.width, ring.height_px)
     writer = cv2.VideoWriter(
-        str(tmp), cv2.VideoWriter.fourcc(*"FFV1"), m.fps, size, settings.colour
+        str(tmp), cv2.VideoWriter.fourcc(*RECORDING_FOURCC), m.fps, size, settings.colour
     )
     if not writer.isOpened():
         raise OSError(f"{out}: cannot write an FFV1 video here")

@@ -102,6 +102,11 @@ class VideoSource:
     def __init__(self, path: str | Path, silhouette: bool = False, realtime: bool = False) -> None:
         self.path = Path(path)
         self.name = str(self.path)
+        if self.path.is_dir():
+            raise SourceError(
+                f"{self.path}: a folder, not a video file (a folder of mask images is read "
+                "with --masks)"
+            )
         if not self.path.is_file():
             raise SourceError(f"{self.path}: no such video file")
         self._cap = cv2.VideoCapture(str(self.path))

@@ -44,6 +44,8 @@ def test_video_sources_and_autodetection() -> None:
 def test_bad_sources_are_clear_errors(tmp_path: Path) -> None:
     with pytest.raises(SourceError, match="no such video file"):
         VideoSource(tmp_path / "missing.mp4")
+    with pytest.raises(SourceError, match=r"a folder, not a video file .* --masks"):
+        VideoSource(tmp_path)
     junk = tmp_path / "junk.mp4"
     junk.write_text("not a video")
     with pytest.raises(SourceError, match=r"junk\.mp4: cannot open"):
