@@ -111,15 +111,22 @@ class OutputSet:
             raise OutputError(
                 f"{out.said()}: cannot make its folder {path.parent} ({exc.strerror or exc})"
             ) from None
-        try:  # the one reliable test of a place: writing there (a read-only mount, /proc)
-            fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".probe", dir=path.parent)
+        # the one reliable test of a place: writing there (a read-only mount, /proc); and
+        # of a video's name: its writer opening a file named so
+        try:
+            fd, probe = tempfile.mkstemp(
+                prefix=f".{path.name}.", suffix=f".probe{path.suffix}", dir=path.parent
+            )
             os.close(fd)
-            os.unlink(probe)
         except OSError as exc:
             raise OutputError(
                 f"{out.said()}: cannot write in {path.parent} ({exc.strerror or exc})"
             ) from None
-        if out.fourcc is not None and not _video_writable(path, out.fourcc):
+        try:
+            video_ok = out.fourcc is None or _video_opens(probe, out.fourcc)
+        finally:
+            Path(probe).unlink(missing_ok=True)  # (a failed video writer may remove it)
+        if not video_ok:
             named = f"ending {path.suffix!r}" if path.suffix else "without a suffix"
             raise OutputError(
                 f"{out.said()}: a video in {out.fourcc} cannot be written to a file {named} "
@@ -187,15 +194,11 @@ class OutputSet:
         self.discard()  # (after a commit there is nothing left to remove)
 
 
-def _video_writable(path: Path, fourcc: str) -> bool:
-    """Whether OpenCV's video writer opens a file named like ``path`` (its suffix picks
-    the container) for the codec ``fourcc``: tried on a probe beside it, then removed."""
+def _video_opens(probe: str, fourcc: str) -> bool:
+    """Whether OpenCV's video writer opens the file ``probe`` (its suffix picks the
+    container) for the codec ``fourcc``."""
     import cv2
 
-    fd, probe = tempfile.mkstemp(
-        prefix=f".{path.stem}.", suffix=f".probe{path.suffix}", dir=path.parent
-    )
-    os.close(fd)
     logs = cv2.utils.logging
     level = logs.getLogLevel()
     logs.setLogLevel(logs.LOG_LEVEL_SILENT)  # (its reasons are OpenCV's, not the user's)
@@ -205,7 +208,6 @@ def _video_writable(path: Path, fourcc: str) -> bool:
         writer.release()
     finally:
         logs.setLogLevel(level)
-        Path(probe).unlink(missing_ok=True)  # (a failed writer may remove it itself)
     return opened
 
 
