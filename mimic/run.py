@@ -227,6 +227,8 @@ def _vote_phrase(a: ActionSettings, kind: str, voice: bool) -> str:
         how = f"one the best windows of the last {a.vote} decisions voted for"
     if math.isfinite(a.margin):
         other = "the one its latest ballot names" if switch > 0 and a.ballot_jumps else "another"
+        if switch > 0 and a.ballot_jumps and a.repeat > 0:
+            other += " (none while you go on with what you did: --repeat)"
         how += f", or {other} where its window fits better at {1 + a.margin:g} times its cost"
         if math.isfinite(a.weak_fit):
             weak = 1 + max(a.margin, a.weak_margin)

@@ -99,6 +99,7 @@ def action_settings(args: argparse.Namespace) -> ActionSettings:
         weak_fit=args.weak_fit,
         weak_margin=args.weak_margin,
         ballot_jumps=args.ballot_jumps,
+        repeat=args.repeat,
         confidence=args.vote_confidence,
         temperature=args.vote_temperature,
         fuse=args.fuse,
@@ -378,6 +379,15 @@ def _add_filter_args(p: argparse.ArgumentParser) -> None:
         help="with the filter and a finite --vote-margin, a decision whose ballot names "
         "another action than the voted one may jump into it through the margin before the "
         "filter believes it, and into no third action (default on)",
+    )
+    p.add_argument(
+        "--repeat",
+        type=number(float, 0, 0.99),
+        default=ActionSettings.repeat,
+        metavar="RATIO",
+        help="with --ballot-jumps: where your last 0.7 s come within RATIO times the median "
+        "distance of a stretch of your own last 3 s (you go on with what you did), a "
+        "ballot opens no new action (default %(default)s; 0: off)",
     )
     p.add_argument(
         "--vote-confidence",

@@ -43,6 +43,11 @@ class Lander:
     matcher's window search; ``vote``: its action vote; ``recent_frames``: the avatar's
     frames a decision reads."""
 
+    #: where the performer does again what they did a moment ago
+    #: (``ActionSettings.repeat``), the action voted then (-1: none known); this
+    #: decision's ballot then opens no new action. ``None``: they do something new
+    repeated: int | None = None
+
     def __init__(
         self,
         windows: WindowSearch,
@@ -273,9 +278,11 @@ class Lander:
         ``own_weight`` (the same, where it shows another action, unless a ballot named
         that one lately: ``kept``). Where the decision is
         ``strict``, windows of another action are not ``ok``; where the ballot names
-        another action (``named``), only its windows and the voted action's are; with the
-        margin infinite, ``own_weight`` is infinite where the avatar must leave its
-        action."""
+        another action (``named``), only its windows and the voted action's are, and
+        while the performer does again what they did (``repeated``), the voted action's,
+        the avatar's own action's and the one voted then instead (unless none of those
+        is ``ok`` where the avatar cannot play on); with the margin infinite,
+        ``own_weight`` is infinite where the avatar must leave its action."""
         got, target, ok, there = found
         if voted is None:
             return got, target, ok, np.ones(len(got)), 1.0
@@ -302,9 +309,16 @@ class Lander:
         )
         named = self.named()
         if named is not None:  # (the ballot's action, or the voted one: no third)
-            assert self.vote.actions is not None
-            keys = self.vote.actions[np.clip(target, 0, self.vote.actions.size - 1)]
-            ok = ok & (voted | (keys == named))
+            actions = self.vote.actions
+            assert actions is not None
+            keys = actions[np.clip(target, 0, actions.size - 1)]
+            opened = keys == named
+            if self.repeated is not None:  # no new action: the avatar's, or the one then
+                kept = (keys == actions[frame]) | (keys == self.repeated)
+                # (at its clip's end the avatar must jump: not into no window at all)
+                if self.plays[frame] or (ok & (voted | kept)).any():
+                    opened = kept
+            ok = ok & (voted | opened)
         return got, target, ok, np.where(voted, 1.0, 1.0 + other), own
 
     def fits_weakly(self, cost: float, queries: list[FloatArray]) -> bool:

@@ -38,6 +38,7 @@ from ._facing import Facing
 from ._index import best_of
 from ._landing import Lander, sparse_window
 from ._paths import CandidatePaths
+from ._repeat import repeat_frames, repeated
 from ._search import Windows, WindowSearch
 from ._settings import MatchSettings
 from ._vote import ActionChoice, ActionVote, Partner
@@ -101,9 +102,11 @@ class Matcher:
         self.hold_frames = max(1, round(self.settings.landing.min_play * self.graph.fps))
         self.recent_frames = max(self.n, self.hold_frames + 1)
         #: performer frames ``decide`` reads (its ``tempos`` need more than a window)
-        self.history_frames = max(
-            [self.n] + [math.ceil(self.n / t) for t in self.settings.action.tempos]
-        )
+        action = self.settings.action
+        repeat = repeat_frames(self.graph.fps) if action.repeat > 0 and jumps else 0
+        self.history_frames = max([self.n, repeat] + [math.ceil(self.n / t) for t in action.tempos])
+        #: seconds between decisions (``ready``)
+        self.period = 0.1
         #: the avatar's own recent cost at the last ``jump`` (``inf`` before a window)
         self.last_own = float("inf")
         d_max = layer.graph.report.get("max_distance") if layer.graph.report else None
@@ -125,6 +128,7 @@ class Matcher:
         """Ready for a loop deciding every ``period`` s: the vote's actions from ``clips``
         (the graph's) unless it has some, its classifier and each action's search made
         now (else the first decisions stall 7-10 ms), and the performer's facing."""
+        self.period = period
         if self.vote.actions is None:
             self.vote.actions = actions = action_keys(clips)
             self.vote.names = action_names(clips) if actions is not None else []
@@ -219,6 +223,12 @@ class Matcher:
             if queries is None:
                 return None
         self.last_own = float("inf")
+        # (only a ballot jump is shut by it; then, what the vote said when the performer
+        # last did this)
+        back = (
+            repeated(performer, self.graph.fps, st.action.repeat) if land.ballots_jump() else None
+        )
+        land.repeated = None if back is None else self.vote.voted_back(round(back / self.period))
         found = self.voted_windows(frame, performer, costs, queries)
         if found is None:
             return None  # (why says so when the best was rejected)
@@ -345,6 +355,7 @@ class Matcher:
         better still, else playing on; the paper's cluster paths (``cluster_path``) where
         it cannot play on."""
         t0 = time.perf_counter()
+        self.lander.repeated = None  # (``jump`` says)
         queries = self.queries(performer)
         if queries is None:
             return None
@@ -353,7 +364,7 @@ class Matcher:
             if j is None and self.why:  # the best window was rejected: nothing real matches
                 return None
             holding = recent.size >= 2 and recent[-1] == recent[-2] == frame
-            land = not sparse_window(performer)
+            land = not sparse_window(performer[-self.n :])
             held = self.lander.held(frame, queries, j, self.last_own, jump_costs, holding, land)
             j = held or j  # standing still
             if j is None:

@@ -403,6 +403,8 @@ class Performance:
         entry.update(d.logged(self.view))
         if 0 <= matcher.vote.voted < len(matcher.vote.names):  # the action voted for
             entry["voted"] = matcher.vote.names[matcher.vote.voted]
+        if matcher.lander.repeated is not None and entry.get("by") != "silhouette":
+            entry["repeats"] = True  # (the performer goes on: no ballot opened a new action)
         if self.matcher.windows.facing is not None:  # which way the performer is taken to face
             entry["facing"] = "camera" if self.matcher.windows.facing.toward else "away"
         return entry

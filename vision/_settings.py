@@ -249,6 +249,18 @@ class ActionSettings:
         has just jumped into, and the next ballot for that action takes it back in: the
         action is shown for a tenth of a second, twice (``benchmarks/HISTORY.md``,
         "Ballot jumps").
+    repeat : float
+        With ``ballot_jumps``: where the performer's last 0.7 s come within ``repeat``
+        times the median distance of a stretch of their own last 3 s
+        (``vision._repeat.repeated``), the performer does again what they did a moment
+        ago, and a ballot's new action stays shut: the decision may jump into the voted
+        action, the one the avatar shows, or the one voted when the performer did this
+        before (a second squat after a pause the vote took for standing), as a ballot
+        for none had asked (0: off). The avatar's wrong switches on our takes were
+        ballot jumps into an action the performer was not doing, each undone a moment
+        later, and most came while the performer repeated themselves; the right ones
+        come while the performer does something new (``benchmarks/HISTORY.md``,
+        "Repeats").
     fuse : bool
         With landmarks and the silhouette beside them (``vision._fallback``): where the
         pose model's limbs are of low confidence, each decision's ballot weighs both
@@ -280,6 +292,7 @@ class ActionSettings:
     weak_margin: float = 1.0
     ballot_jumps: bool = True
     ballot_keep: int = 5
+    repeat: float = 0.6
     fuse: bool = True
     tempos: tuple[float, ...] = ()
 
@@ -309,6 +322,8 @@ class ActionSettings:
             raise ValueError(f"vote must be a number of decisions >= 0 (0: off), got {self.vote}")
         if self.ballot_keep < 0:
             raise ValueError(f"ballot_keep must be >= 0 (0: off), got {self.ballot_keep}")
+        if not (0.0 <= self.repeat < 1.0):
+            raise ValueError(f"repeat must lie in [0, 1) (0: off), got {self.repeat}")
         if not self.margin >= 0:
             raise ValueError(f"margin must be >= 0 (inf: strict), got {self.margin}")
         if not (self.switch_chance is None or 0.0 <= self.switch_chance < 1.0):

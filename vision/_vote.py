@@ -61,6 +61,9 @@ FIT_POWER = 8.0
 #: less, and with a longer reach the landmarks, blind to what the silhouette hides, cost
 #: the library's own performer more (``benchmarks/HISTORY.md``, "Views and people")
 UNSURE_LEAD = 0.15
+#: decision points ``ActionVote.voted_back`` reaches (over ``vision._repeat``'s 3 s at
+#: 10 decisions a second)
+VOTED_KEPT = 40
 
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
@@ -110,6 +113,9 @@ class ActionVote:
         #: that the vote spans ``size`` decision points of time whatever the frame rate
         self.missed = 0
         self._starts: tuple[tuple[int, int, int], NDArray[np.bool_]] | None = None
+        #: the action voted at each of the last decision points, a skipped one's too
+        #: (``voted_back``)
+        self._past: deque[int] = deque(maxlen=VOTED_KEPT)
 
     @classmethod
     def of(
@@ -191,6 +197,16 @@ class ActionVote:
         ``quick`` votes are all for another."""
         if self.actions is None or self.size <= 0:
             return None
+        points = 1 + self.missed  # (a decision stands for those skipped before it)
+        shown = self._cast(target, choice, scores)
+        self._past.extend([self.voted] * points)
+        return shown
+
+    def _cast(
+        self, target: IntArray, choice: int | None, scores: NDArray[np.float64] | None
+    ) -> NDArray[np.bool_]:
+        """``cast`` for a library with actions, before the voted action is kept."""
+        assert self.actions is not None
         self.named = -1 if choice is None else choice
         self._lately.extend([self.named] * min(1 + self.missed, self.keep))
         if self.switch > 0 and scores is not None:
@@ -210,6 +226,11 @@ class ActionVote:
         if len(self._votes) >= q and len(set(itertools.islice(reversed(self._votes), q))) == 1:
             self.voted = self._votes[-1]  # the last ``quick`` votes agree: at once
         return self.gate(target)
+
+    def voted_back(self, points: int) -> int:
+        """The action voted ``points`` decision points ago (1: at the last decision; -1:
+        none, or further back than is kept)."""
+        return self._past[-points] if 1 <= points <= len(self._past) else -1
 
     def named_lately(self, action: int) -> bool:
         """Whether a ballot of the last ``keep`` decision points named ``action``."""

@@ -25,16 +25,23 @@ def pose_bank(setup: Any, tmp_path_factory: pytest.TempPathFactory) -> Any:
     return build_bank(lib.clips, BankSettings(descriptor="pose"), folder, workers=1)
 
 
-def _follow(setup: Any, bank: Any, mocap: Path, first: int, last: int) -> list[tuple[float, str]]:
-    """The avatar's action at each decision while the performer does 13_29's frames
-    ``first`` to ``last`` (at 120 frames/s, as its label file counts them)."""
+def _decisions(setup: Any, bank: Any, mocap: Path, first: int, last: int) -> list[dict[str, Any]]:
+    """The decisions made while the performer does 13_29's frames ``first`` to ``last``
+    (at 120 frames/s, as its label file counts them)."""
     lib, layer, _ = setup
     clip = load_library(mocap, fps=30, clips=["13_29"]).clip("13_29")
     frames = np.arange(first // 4, last // 4)
     px = landmark_points(clip.motion, RecordSettings(), np.random.default_rng(5), frames=frames)
     r = perform(LandmarkSource(px, 30.0), layer, bank, lib.clips, PerformSettings(), seed=1)
-    made = [d for d in r.decisions if d["decision"] is not None]
-    return list(zip((float(d["t"]) for d in made), avatar_labels(made, lib.clips), strict=True))
+    return [d for d in r.decisions if d["decision"] is not None]
+
+
+def _follow(setup: Any, bank: Any, mocap: Path, first: int, last: int) -> list[tuple[float, str]]:
+    """The avatar's action at each decision while the performer does 13_29's frames
+    ``first`` to ``last``."""
+    made = _decisions(setup, bank, mocap, first, last)
+    labels = avatar_labels(made, setup[0].clips)
+    return list(zip((float(d["t"]) for d in made), labels, strict=True))
 
 
 def _runs(actions: list[tuple[float, str]]) -> list[tuple[str, float]]:
@@ -85,3 +92,21 @@ def test_the_lag_from_the_motion_reads_each_recorded_frame_at_its_source_frame(
     want = [clean.label_at(k - 1), clean.label_at(k), clean.label_at(k), None]
     assert labels_at_source_frames(clean, at, ["X", "X", "X", None]) == want
     assert want[0] != want[1]
+
+
+@pytest.mark.slow
+def test_a_performer_going_on_is_seen_to_repeat_and_one_who_changes_is_not(
+    setup: Any, pose_bank: Any, mocap: Path
+) -> None:
+    # ``ActionSettings.repeat``: 13_29's jumping jacks, then its twists from 3.9 s. The
+    # decisions from 3 s into the jacks on see the performer do again what they did
+    # (all of them, here); in the second after the twists begin, most do not
+    made = _decisions(setup, pose_bank, mocap, 0, 1100)
+    switch = 468 / 120
+
+    def share(lo: float, hi: float) -> float:
+        got = [bool(d.get("repeats")) for d in made if lo <= float(d["t"]) < hi]
+        return sum(got) / len(got)
+
+    assert share(3.0, switch) >= 0.8
+    assert share(switch + 0.3, switch + 1.3) <= 0.5
