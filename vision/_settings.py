@@ -301,11 +301,12 @@ class ActionSettings:
         """The filter alone (``mimic perform --steady``): the voted action filtered by a
         hidden Markov model (a change 0.02 a decision, at the defaults' ``temperature``
         and ``confidence``), and jumps only into it, whatever the descriptor.
-        Calmer than the defaults (on our simulated takes with landmarks 17 action
-        switches a minute against 23, 1 brief against 6), but it takes a change up
-        about 0.2 s later, follows the pose less closely and lost one of the real squat
-        clip's 39 labelled decisions, so it is an option (``benchmarks/HISTORY.md``,
-        "Steadiness" and "Ballot jumps")."""
+        Calmer than the defaults (on our simulated takes with landmarks 15.6 action
+        switches a minute against 16.9, 0.8 brief against 1.5; on MediaPipe's renders
+        of another person 20.5 against 25.5), but it takes a change up about 0.2 s
+        later, follows the pose less closely and makes two of the real squat clip's 39
+        labelled decisions wrong that the defaults make right, so it is an option
+        (``benchmarks/HISTORY.md``, "Steadiness" and "Ballot jumps")."""
         return cls(switch_chance=FILTER_SWITCH, margin=math.inf)
 
     def switch_for(self, descriptor: str, voice: bool = False) -> float:

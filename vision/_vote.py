@@ -228,8 +228,9 @@ class ActionVote:
         return self.gate(target)
 
     def voted_back(self, points: int) -> int:
-        """The action voted ``points`` decision points ago (1: at the last decision; -1:
-        none, or further back than is kept)."""
+        """The action voted ``points`` decision points ago (1: at the last decision; a
+        skipped point counts, a point without a vote does not; -1: none, or further back
+        than is kept)."""
         return self._past[-points] if 1 <= points <= len(self._past) else -1
 
     def named_lately(self, action: int) -> bool:

@@ -39,7 +39,7 @@ def test_a_performer_going_on_with_a_cycle_repeats_and_a_new_motion_does_not() -
     new = np.concatenate((cycles(3.0, 0.9), 0.6 + 1.5 * cycles(0.7, 0.4, phase=2.0)))
     new = new + noise * rng.standard_normal(new.shape)
     assert not repeats(new, FPS, 0.5)
-    # a jump in place: a new motion, however alike its own cycles are
+    # a new motion far from the old one (every feature moved), however alike its cycles
     jump = np.concatenate((cycles(3.3, 0.9), 2.0 + cycles(0.4, 0.5)))
     assert not repeats(jump, FPS, 0.5)
     # held still: the same pose again and again
