@@ -29,7 +29,9 @@ each lag (the avatar is compared with what the performer did ``lag`` seconds ear
   that a random walk on the same graph scores 0 and the nearest library pose of every
   performer frame scores 1; beside it, ``score_either_side``: each avatar frame or its
   mirror image, whichever is nearer (a silhouette cannot tell a pose seen from the front
-  from its mirror image seen from behind);
+  from its mirror image seen from behind), and ``score_known_actions``: the score where
+  the performer does an action the library has (another person's own actions leave the
+  avatar no near pose);
 - with ``pauses``, ``holds``: what the avatar does while the performer stands still
   (from 0.5 s into each pause): its jumps a minute, how far its joints turn a frame
   (the largest turn, beside it the same elsewhere) and its pose score there;
@@ -275,6 +277,10 @@ def _run_figures(
             either = _score(np.minimum(each, other).mean(), random_err, nearest)
         lab = [perf_labels[i] for i in k[ok]]
         got = [str(lib_labels[f]) for f in frames[ok]]
+        # the pose where the performer does an action the library has: what is left of
+        # the score once no library pose can be near (another person's own actions)
+        has = np.array([t in known for t in lab], dtype=bool)
+        in_known = _score(each[has].mean(), random_err, nearest) if has.any() else None
         pairs = [(g, t) for g, t in zip(got, lab, strict=True) if t is not None]
         # a random walk's chance of showing the performer's action: the share of its
         # frames with that label
@@ -297,6 +303,7 @@ def _run_figures(
                 "pose_error": float(err),
                 "score": float(score),
                 "score_either_side": None if either is None else float(either),
+                "score_known_actions": in_known,
                 "label_agreement": float(np.mean([g == t for g, t in pairs])) if pairs else None,
                 "label_agreement_known_actions": float(np.mean(kn)) if kn else None,
                 "label_agreement_known_actions_from_motion": moved,

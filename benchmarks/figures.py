@@ -43,6 +43,7 @@ def _runs(name: str) -> dict[str, float]:
     took up the performers' changes of action, over every run's: from where the label
     files put them, and from where the motion changes (the takes' cleaned labels)."""
     agree, pose, avatar, brief, performer, after, moved = [], [], [], [], [], [], []
+    known: list[float] = []  # (results written before the figure existed lack it)
     try:
         for fold in _load(name)["folds"]:
             for run in fold["runs"]:
@@ -51,6 +52,8 @@ def _runs(name: str) -> dict[str, float]:
                 curve = [c for c in run["curve"] if c["lag"] <= 1.0]
                 agree.append(max(c["label_agreement_known_actions"] or 0.0 for c in curve))
                 pose.append(max(c["score"] for c in curve))
+                if all(c.get("score_known_actions") is not None for c in curve):
+                    known.append(max(c["score_known_actions"] for c in curve))
                 sw = run["switches_per_minute"]
                 avatar.append(sw["avatar"])
                 brief.append(sw["avatar_brief_actions_under_0.5s"])
@@ -63,6 +66,8 @@ def _runs(name: str) -> dict[str, float]:
         "runs": len(agree),
         "agreement": float(np.mean(agree)),
         "pose": float(np.mean(pose)),
+        # the pose score where the performer does an action the library has
+        "pose_known": float(np.mean(known)) if len(known) == len(pose) else float("nan"),
         "switches": float(np.mean(avatar)),
         "brief": float(np.mean(brief)),
         "performer": float(np.mean(performer)),
@@ -76,6 +81,13 @@ def _from_motion(runs: dict[str, float]) -> str:
     """`` (X s after the motion changes)`` where the result has that figure, else ``""``."""
     x = runs["followed_motion"]
     return "" if np.isnan(x) else f" ({x:.1f} s after the motion changes)"
+
+
+def _known(runs: dict[str, float]) -> str:
+    """`` (X where the library has the performer's action)`` where the result has that
+    figure, else ``""``: another person's own actions leave the avatar no near pose."""
+    x = runs["pose_known"]
+    return "" if np.isnan(x) else f" ({x:.3f} where the library has the performer's action)"
 
 
 def _views(name: str = "views.json") -> tuple[str, float, float, float, str]:
@@ -138,13 +150,15 @@ def table() -> str:
         (
             f"another person, simulated landmarks ({person['runs']} runs)",
             f"{person['agreement']:.3f}",
+            f"pose score {person['pose']:.3f}{_known(person)}; "
             f"{person['switches']:.0f} switches a minute against {person['performer']:.0f}; "
             f"new actions taken up after {person['followed']:.1f} s{_from_motion(person)}",
         ),
         (
             f"another person, silhouettes ({sil_person['runs']} runs)",
             f"{sil_person['agreement']:.3f}",
-            f"pose score {sil_person['pose']:.3f}, {sil_person['switches']:.0f} "
+            f"pose score {sil_person['pose']:.3f}{_known(sil_person)}, "
+            f"{sil_person['switches']:.0f} "
             f"switches a minute ({sil_person['brief']:.0f} brief) against "
             f"{sil_person['performer']:.0f}",
         ),
