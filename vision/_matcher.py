@@ -38,7 +38,7 @@ from ._facing import Facing
 from ._index import best_of
 from ._landing import Lander, sparse_window
 from ._paths import CandidatePaths
-from ._repeat import repeat_frames, repeated
+from ._repeat import REPEAT_REACH, repeat_frames, repeated
 from ._search import Windows, WindowSearch
 from ._settings import MatchSettings
 from ._vote import ActionChoice, ActionVote, Partner
@@ -129,6 +129,8 @@ class Matcher:
         (the graph's) unless it has some, its classifier and each action's search made
         now (else the first decisions stall 7-10 ms), and the performer's facing."""
         self.period = period
+        # (``jump`` asks the vote what it voted as far back as the performer repeats)
+        self.vote.keep_voted(math.ceil(REPEAT_REACH / period) + 1)
         if self.vote.actions is None:
             self.vote.actions = actions = action_keys(clips)
             self.vote.names = action_names(clips) if actions is not None else []

@@ -61,8 +61,8 @@ FIT_POWER = 8.0
 #: less, and with a longer reach the landmarks, blind to what the silhouette hides, cost
 #: the library's own performer more (``benchmarks/HISTORY.md``, "Views and people")
 UNSURE_LEAD = 0.15
-#: decision points ``ActionVote.voted_back`` reaches (over ``vision._repeat``'s 3 s at
-#: 10 decisions a second)
+#: decision points ``ActionVote.voted_back`` reaches until a loop's rate is known
+#: (``keep_voted``; over ``vision._repeat``'s 3 s at 10 decisions a second)
 VOTED_KEPT = 40
 
 IntArray = NDArray[np.int64]
@@ -226,6 +226,12 @@ class ActionVote:
         if len(self._votes) >= q and len(set(itertools.islice(reversed(self._votes), q))) == 1:
             self.voted = self._votes[-1]  # the last ``quick`` votes agree: at once
         return self.gate(target)
+
+    def keep_voted(self, points: int) -> None:
+        """Keep the action voted at the last ``points`` decision points (``voted_back``
+        reaches that far): a loop deciding more often than 10 times a second needs more
+        of them for the same seconds."""
+        self._past = deque(self._past, maxlen=max(1, points))
 
     def voted_back(self, points: int) -> int:
         """The action voted ``points`` decision points ago (1: at the last decision; a

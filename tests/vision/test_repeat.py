@@ -114,3 +114,8 @@ def test_the_vote_remembers_what_it_voted_a_few_decision_points_ago() -> None:
     vote.skipped(3)  # (the next decision stands for 4 points)
     vote.cast(np.array([12]), 1, np.array([5.0, 0.0]))
     assert vote.voted_back(4) == 1 and vote.voted_back(24) == 0 and vote.voted_back(0) == -1
+    # a loop deciding 20 times a second keeps twice the points for the same 3 s
+    vote.keep_voted(61)
+    for _ in range(40):
+        vote.cast(np.array([12]), 1, np.array([5.0, 0.0]))
+    assert vote.voted_back(61) == 0 and vote.voted_back(62) == -1
